@@ -1,0 +1,50 @@
+"""Mecanum kinematics of the O-layout chassis (SPEC.md section 3).
+
+Body frame: +Y forward, +X right, yaw rate w counter-clockwise. Wheels 1 front-right,
+2 front-left, 3 rear-left, 4 rear-right; a wheel speed is positive when it rolls the car forward.
+"""
+import math
+
+
+def check_geometry(alpha: float, L: float, W: float, R: float) -> None:
+    """Raise ValueError naming the first parameter outside its valid range."""
+    for name, value in (("alpha", alpha), ("L", L), ("W", W), ("R", R)):
+        if not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ValueError(f"parameter {name} = {value!r} is not a finite number")
+    if not 0.0 < alpha < math.pi / 2:
+        raise ValueError(
+            f"parameter alpha = {alpha!r} rad is outside 0 < alpha < pi/2 "
+            "(cot and tan of the roller angle blow up at the ends)")
+    for name, value in (("L", L), ("W", W), ("R", R)):
+        if not value > 0.0:
+            raise ValueError(f"parameter {name} = {value!r} m must be > 0")
+
+
+def lever_arm(alpha: float, L: float, W: float) -> float:
+    """k = L + W*cot(alpha): the yaw lever arm in the wheel rows of the matrix."""
+    return L + W / math.tan(alpha)
+
+
+def center_to_wheel(vx: float, vy: float, w: float,
+                    alpha: float, L: float, W: float, R: float) -> tuple[float, float, float, float]:
+    """Inverse kinematics: chassis twist (body frame) -> wheel angular speeds w1..w4 [rad/s]."""
+    c = 1.0 / math.tan(alpha)
+    k = L + W * c
+    a = c * vx
+    return ((-a + vy + k * w) / R,
+            (a + vy - k * w) / R,
+            (-a + vy - k * w) / R,
+            (a + vy + k * w) / R)
+
+
+def wheel_to_center(w1: float, w2: float, w3: float, w4: float,
+                    alpha: float, L: float, W: float, R: float) -> tuple[float, float, float]:
+    """Forward kinematics: wheel speeds -> chassis twist (vx, vy, w).
+
+    The columns of the wheel matrix are orthogonal, so this is exactly its least-squares
+    inverse: inconsistent wheel speeds (slip, noise) give the best-fitting twist.
+    """
+    k = L + W / math.tan(alpha)
+    return (R * math.tan(alpha) / 4.0 * (-w1 + w2 - w3 + w4),
+            R / 4.0 * (w1 + w2 + w3 + w4),
+            R / (4.0 * k) * (w1 - w2 - w3 + w4))

@@ -1,0 +1,165 @@
+"""Command line: `python -m mecanum_fmu run|validate|fmus|info`. The one place that turns the
+package's exceptions into messages and exit codes (0 ok, 1 simulation failed, 2 bad input,
+130 interrupted)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
+
+
+def _positive_float(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mecanum-fmu",
+        description="Co-simulate a four-wheel mecanum car from FMI 2.0 FMUs wired in a YAML scenario.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    run = sub.add_parser("run", help="simulate a scenario and write results, summary and plots",
+                         description="Simulate a scenario; write results.csv, summary.json and "
+                                     "plots to results/<name>/ (or --out).")
+    run.add_argument("scenario", help="scenario file (.yaml)")
+    run.add_argument("--out", type=Path, help="output folder (default: results/<scenario name>)")
+    run.add_argument("--step-size", type=_positive_float, help="communication step (s)")
+    run.add_argument("--stop-time", type=_positive_float, help="end of the run (s)")
+    run.add_argument("--master", help="gauss-seidel or jacobi")
+    run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    run.add_argument("--quiet", "-q", action="store_true", help="print only errors")
+    run.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
+    run.set_defaults(func=cmd_run)
+
+    val = sub.add_parser("validate", help="check a scenario and its FMUs without running",
+                         description="Check a scenario and its FMUs; report every problem.")
+    val.add_argument("scenario")
+    val.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
+    val.set_defaults(func=cmd_validate)
+
+    fmus = sub.add_parser("fmus", help="build the four bundled FMUs",
+                          description="Build VelocitySource, Center2Wheel, Wheel2Center and "
+                                      "PoseIntegrator into fmus/ (only what changed).")
+    fmus.add_argument("--dest", type=Path, help="output folder (default: fmus/)")
+    fmus.add_argument("--force", action="store_true", help="rebuild even if up to date")
+    fmus.set_defaults(func=cmd_fmus)
+
+    info = sub.add_parser("info", help="describe an FMU: variables, structure, capabilities",
+                          description="Print an FMU's interface: variables, units, "
+                                      "dependencies, capabilities.")
+    info.add_argument("fmu", help="an .fmu file or a bundled model name")
+    info.set_defaults(func=cmd_info)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args) or 0
+    except ScenarioError as err:
+        print(f"error: {len(err.problems)} problem(s) in the input:" if len(err.problems) > 1
+              else "error:", file=sys.stderr)
+        for problem in err.problems:
+            print(f"  {problem}", file=sys.stderr)
+        return err.exit_code
+    except (SimulationError, Interrupted) as err:
+        print(f"error: simulation failed: {err}" if isinstance(err, SimulationError)
+              else f"{err}", file=sys.stderr)
+        for path in getattr(err, "files", []):
+            print(f"  kept: {path}", file=sys.stderr)
+        return err.exit_code
+    except MecanumError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return err.exit_code
+
+
+def _progress(enabled: bool):
+    if not enabled or not sys.stderr.isatty():
+        return None
+
+    def show(fraction: float) -> None:
+        print(f"\r  {100 * fraction:5.1f} %", end="", file=sys.stderr, flush=True)
+    return show
+
+
+def cmd_run(args) -> int:
+    from .runner import prepare, run
+    graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
+                    master_name=args.master, fmu_dir=args.fmu_dir)
+    if not args.quiet:
+        for warning in graph.warnings:
+            print(f"warning: {warning}", file=sys.stderr)
+    progress = _progress(not args.quiet)
+    log = (lambda line: None) if args.quiet else print
+    try:
+        outcome = run(graph, args.out, plots=not args.no_plots, progress=progress, log=log)
+    finally:
+        if progress is not None:
+            print("\r" + " " * 12 + "\r", end="", file=sys.stderr)
+    if not args.quiet:
+        print(f"wrote {len(outcome.files)} files to {outcome.out_dir}/")
+    return 0
+
+
+def cmd_validate(args) -> int:
+    from .runner import prepare
+    graph = prepare(args.scenario, fmu_dir=args.fmu_dir)
+    for warning in graph.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    exp = graph.scenario.experiment
+    print(f"{graph.scenario.label}: ok - {len(graph.instances)} components, "
+          f"{len(graph.links)} connections, {exp.master}, "
+          f"step {exp.step_size:g} s over [{exp.start_time:g}, {exp.stop_time:g}] s")
+    print("step order: " + " -> ".join(i.name for i in graph.instances))
+    return 0
+
+
+def cmd_fmus(args) -> int:
+    from . import fmu_build
+    from .fmu_library import default_fmu_dir
+    dest = args.dest or default_fmu_dir()
+    for name in fmu_build.BUNDLED:
+        path = fmu_build.bundled_fmu_path(name, dest)
+        if args.force or not fmu_build.is_current(name, path):
+            fmu_build.build_fmu(name, dest)
+            state = "built"
+        else:
+            state = "up to date"
+        print(f"{path}  ({path.stat().st_size // 1024} KiB, {state})")
+    return 0
+
+
+def cmd_info(args) -> int:
+    from . import fmu_build
+    from .fmu_library import default_fmu_dir, read_description, resolve_fmu
+    try:
+        path = resolve_fmu(args.fmu, Path.cwd(), default_fmu_dir())
+        md = read_description(path)
+    except ValueError as err:
+        raise ScenarioError([Problem(args.fmu, "", str(err))]) from None
+    print(f"{md.modelName} (FMI {md.fmiVersion} co-simulation) - {path}")
+    if md.description:
+        print(f"  {md.description}")
+    cs = md.coSimulation
+    print(f"  can get/set state: {bool(cs.canGetAndSetFMUstate)}, variable step: "
+          f"{bool(cs.canHandleVariableCommunicationStepSize)}, needs execution tool: "
+          f"{bool(cs.needsExecutionTool)}")
+    deps = {o.variable.name: o.dependencies for o in md.outputs}
+    for var in md.modelVariables:
+        unit = f" [{var.unit}]" if getattr(var, "unit", None) else ""
+        start = f" = {var.start}" if var.start is not None else ""
+        extra = ""
+        if var.name in deps:
+            d = deps[var.name]
+            extra = "  depends on: " + ("(not declared: all inputs)" if d is None
+                                         else ", ".join(x.name for x in d) or "nothing (no feedthrough)")
+        print(f"  {var.causality:>9} {var.type:<7} {var.name}{unit}{start}{extra}")
+    return 0

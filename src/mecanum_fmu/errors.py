@@ -1,0 +1,54 @@
+"""The project's exceptions. Only the CLI turns them into messages and exit codes."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class MecanumError(Exception):
+    """Base of every error this package raises on purpose."""
+    exit_code = 1
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with the input, located as `file: place: message`."""
+    file: str
+    place: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.file}: {self.place}: {self.message}" if self.place else f"{self.file}: {self.message}"
+
+
+class ScenarioError(MecanumError):
+    """Bad input: every problem found, reported together (exit code 2)."""
+    exit_code = 2
+
+    def __init__(self, problems: list[Problem]):
+        self.problems = list(problems)
+        super().__init__("\n".join(str(p) for p in self.problems))
+
+
+class SimulationError(MecanumError):
+    """A component failed during the run (exit code 1). `results` holds what was recorded."""
+    exit_code = 1
+
+    def __init__(self, message: str, *, component: str | None = None, time: float | None = None,
+                 status: str | None = None, results=None):
+        self.component, self.time, self.status, self.results = component, time, status, results
+        where = []
+        if component is not None:
+            where.append(f"component '{component}'")
+        if time is not None:
+            where.append(f"t = {time:.6g} s")
+        prefix = ", ".join(where)
+        super().__init__(f"{prefix}: {message}" if prefix else message)
+
+
+class Interrupted(MecanumError):
+    """The user interrupted the run (Ctrl-C); `results` holds what was recorded."""
+    exit_code = 130
+
+    def __init__(self, time: float, results=None):
+        self.time, self.results = time, results
+        super().__init__(f"interrupted at t = {time:.6g} s")

@@ -1,0 +1,376 @@
+"""The co-simulation master: instantiate, initialize, step, record, always clean up.
+
+Values move through two flat NumPy buffers (one float64 for Real, one int32 for Integer and
+Boolean) that the FMUs' get calls write into directly, so a step costs the FMI calls plus a
+few NumPy copies: one batched get/set per FMU and type per step, nothing allocated per step.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import tempfile
+import time as _time
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from fmpy import extract
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
+
+from .errors import Interrupted, SimulationError
+from .graph import Graph, Instance, Port
+from .results import Results
+from .scenario import Experiment
+
+STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+_fmi2Terminated = 3    # fmi2StatusKind
+
+# ---------------------------------------------------------------------------------------------
+# Process-wide FMU handling: one extraction per FMU content, libraries never unloaded.
+# pythonfmu's shared library crashes when unloaded and loaded again in one process.
+_EXTRACTED: dict[str, str] = {}
+_LOG: dict[str, list[str]] = {}
+
+
+def _on_log(env, instance_name, status, category, message):
+    name = instance_name.decode("utf-8", "replace") if instance_name else "?"
+    text = message.decode("utf-8", "replace") if message else ""
+    messages = _LOG.setdefault(name, [])
+    messages.append(f"[{STATUS.get(status, status)}] {text}")
+    del messages[:-20]
+
+
+_CALLBACKS = fmi2CallbackFunctions()
+_CALLBACKS.logger = fmi2CallbackLoggerTYPE(_on_log)
+_CALLBACKS.allocateMemory = defaultCallbacks.allocateMemory
+_CALLBACKS.freeMemory = defaultCallbacks.freeMemory
+
+
+def extracted(path: Path) -> str:
+    digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    if digest not in _EXTRACTED:
+        _EXTRACTED[digest] = extract(str(path), tempfile.mkdtemp(prefix=f"mecanum_{Path(path).stem}_"))
+    return _EXTRACTED[digest]
+
+
+class FmuCallError(Exception):
+    def __init__(self, function: str, status: int):
+        self.function, self.status = function, status
+        super().__init__(f"{function} returned {STATUS.get(status, status)}")
+
+
+# ---------------------------------------------------------------------------------------------
+class _Slave:
+    """One running instance: the fmpy object, raw C functions and preallocated transfer plans."""
+
+    def __init__(self, inst: Instance):
+        self.inst = inst
+        self.name = inst.name
+        md = inst.model
+        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=extracted(inst.fmu_path),
+                             modelIdentifier=md.coSimulation.modelIdentifier,
+                             instanceName=inst.name)
+        f = self.fmu._functions
+        self.c_get_real, self.c_set_real = f["fmi2GetReal"], f["fmi2SetReal"]
+        self.c_get_int, self.c_set_int = f["fmi2GetInteger"], f["fmi2SetInteger"]
+        self.c_get_bool, self.c_set_bool = f["fmi2GetBoolean"], f["fmi2SetBoolean"]
+        self.c_do_step = f["fmi2DoStep"]
+        self.component = None
+        # filled by _plan()
+        self.reads: list = []     # (c_get, component-independent args...) per type
+        self.writes: list = []
+
+    def check(self, function: str, status: int) -> None:
+        if status > 1:
+            raise FmuCallError(function, status)
+
+    def instantiate(self) -> None:
+        _LOG.pop(self.name, None)
+        self.fmu.instantiate(callbacks=_CALLBACKS, loggingOn=False)
+        self.component = self.fmu.component
+
+    def free(self) -> None:
+        # fmi2FreeInstance only: never unload the library (see _EXTRACTED).
+        if self.component is not None:
+            self.fmu._functions["fmi2FreeInstance"](self.component)
+            self.component = None
+
+    def last_log(self) -> str:
+        messages = _LOG.get(self.name, [])
+        return "; ".join(messages[-3:])
+
+
+@dataclass
+class _Transfer:
+    """Copy a set of values from the buffers into one FMU's inputs (or out of its outputs)."""
+    c_function: object
+    vrs: ctypes.Array
+    n: int
+    values: ctypes.Array | None        # for set: a staging array
+    pointer: object                    # where get writes / set reads
+    gather: tuple | None               # (buffer, source indices, staging numpy view)
+
+
+def _vr_array(vrs: list[int]) -> ctypes.Array:
+    return (ctypes.c_uint * len(vrs))(*vrs)
+
+
+def _setup_start_values(slave: _Slave) -> None:
+    inst, fmu = slave.inst, slave.fmu
+    by_name = {v.name: v for v in inst.model.modelVariables}
+    for name, value in inst.start_values.items():
+        var = by_name[name]
+        kind = "Integer" if var.type == "Enumeration" else var.type
+        setter = {"Real": fmu.setReal, "Integer": fmu.setInteger,
+                  "Boolean": fmu.setBoolean, "String": fmu.setString}[kind]
+        setter([var.valueReference], [value])
+
+
+def simulate(graph: Graph, experiment: Experiment,
+             progress: Callable[[float], None] | None = None) -> Results:
+    """Run the graph. Raises SimulationError (with the partial Results) when an FMU fails,
+    Interrupted on Ctrl-C; every instance is terminated and freed in all cases."""
+    start, stop, h = experiment.start_time, experiment.stop_time, experiment.step_size
+    n_steps = int(round((stop - start) / h))
+    if start + n_steps * h < stop - 1e-9 * h:
+        n_steps += 1          # a last step reaches (or passes) stop_time
+    jacobi = experiment.master == "jacobi"
+
+    # Buffers: every value that moves or is recorded has one slot.
+    real_slots: dict[Port, int] = {}
+    int_slots: dict[Port, int] = {}
+
+    def slot(port: Port) -> int:
+        table = real_slots if port.type == "Real" else int_slots
+        return table.setdefault(port, len(table))
+
+    outputs_of: dict[str, list[Port]] = {i.name: [] for i in graph.instances}
+    for link in graph.links:
+        outputs_of[link.source.ref.instance].append(link.source)
+    for port in graph.recorded:
+        outputs_of[port.ref.instance].append(port)
+    for name, ports in outputs_of.items():      # contiguous per instance and type
+        unique = list(dict.fromkeys(ports))
+        outputs_of[name] = unique
+        for kind in ("Real", "Integer", "Boolean"):
+            for p in unique:
+                if p.type == kind:
+                    slot(p)
+    real_buf = np.zeros(max(len(real_slots), 1), dtype=np.float64)
+    int_buf = np.zeros(max(len(int_slots), 1), dtype=np.int32)
+
+    names = tuple(str(p.ref) for p in graph.recorded)
+    record_real = np.array([real_slots[p] for p in graph.recorded if p.type == "Real"], dtype=np.intp)
+    record_int = np.array([int_slots[p] for p in graph.recorded if p.type != "Real"], dtype=np.intp)
+    rec_real = np.empty((n_steps + 1, len(record_real)), dtype=np.float64)
+    rec_int = np.empty((n_steps + 1, len(record_int)), dtype=np.int32)
+    rec_time = np.empty(n_steps + 1, dtype=np.float64)
+
+    slaves: list[_Slave] = []
+    rows = 0              # rows recorded so far
+    t = start
+    wall = 0.0
+    with ExitStack() as stack:
+        for inst in graph.instances:
+            slave = _Slave(inst)
+            slave.instantiate()
+            stack.callback(slave.free)
+            slaves.append(slave)
+        by_name = {s.name: s for s in slaves}
+        _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf)
+        terminated: list[_Slave] = []
+
+        def terminate_all():
+            for s in slaves:
+                if s not in terminated and s.component is not None:
+                    s.fmu._functions["fmi2Terminate"](s.component)
+        stack.callback(terminate_all)
+
+        def fail(slave: _Slave, function: str, status: int, when: float):
+            raise SimulationError(
+                f"{function} returned {STATUS.get(status, status)}"
+                + (f" (FMU says: {slave.last_log()})" if slave.last_log() else ""),
+                component=slave.name, time=when, status=STATUS.get(status, str(status)),
+                results=_results(graph, names, rec_time, rec_real, rec_int, rows, experiment,
+                                 wall, complete=False))
+
+        # ---- initialization: start values, then walk the links in dependency order
+        current = None
+        try:
+            for s in slaves:
+                current = s
+                _setup_start_values(s)
+                s.fmu.setupExperiment(startTime=start, stopTime=stop)
+            for s in slaves:
+                current = s
+                s.fmu.enterInitializationMode()
+            for link in graph.links:
+                current = by_name[link.source.ref.instance]
+                value = _get_one(current, link.source)
+                current = by_name[link.target.ref.instance]
+                _set_one(current, link.target, value)
+            for s in slaves:
+                current = s
+                s.fmu.exitInitializationMode()
+            for s in slaves:
+                current = s
+                for tr in s.reads:
+                    s.check("get", tr.c_function(s.component, tr.vrs, tr.n, tr.pointer))
+        except (FMICallException, FmuCallError) as err:
+            fail(current, err.function, err.status, start)
+
+        def record(i: int, when: float):
+            rec_time[i] = when
+            if len(record_real):
+                np.take(real_buf, record_real, out=rec_real[i])
+            if len(record_int):
+                np.take(int_buf, record_int, out=rec_int[i])
+        record(0, start)
+        rows = 1
+
+        # ---- stepping
+        order = slaves
+        tick = _time.perf_counter()
+        next_report = tick + 1.0
+        try:
+            for k in range(n_steps):
+                t = start + k * h
+                h_k = min(h, stop - t) if k == n_steps - 1 else h
+                if jacobi:
+                    for s in order:
+                        for tr in s.writes:
+                            np.take(*tr.gather[:2], out=tr.gather[2])
+                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                            if st > 1:
+                                fail(s, "set", st, t)
+                    for s in order:
+                        st = s.c_do_step(s.component, t, h_k, 1)
+                        if st > 1:
+                            fail(s, _step_failure(s), st, t)
+                    for s in order:
+                        for tr in s.reads:
+                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                            if st > 1:
+                                fail(s, "get", st, t + h_k)
+                else:
+                    for s in order:
+                        for tr in s.writes:
+                            np.take(*tr.gather[:2], out=tr.gather[2])
+                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                            if st > 1:
+                                fail(s, "set", st, t)
+                        st = s.c_do_step(s.component, t, h_k, 1)
+                        if st > 1:
+                            fail(s, _step_failure(s), st, t)
+                        for tr in s.reads:
+                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                            if st > 1:
+                                fail(s, "get", st, t + h_k)
+                record(k + 1, t + h_k)
+                rows = k + 2
+                if progress is not None and k % 256 == 0:
+                    now = _time.perf_counter()
+                    if now >= next_report:
+                        progress((t - start) / (stop - start))
+                        next_report = now + 0.5
+        except KeyboardInterrupt:
+            wall = _time.perf_counter() - tick
+            raise Interrupted(t, results=_results(graph, names, rec_time, rec_real, rec_int, rows,
+                                                  experiment, wall, complete=False)) from None
+        wall = _time.perf_counter() - tick
+        for s in slaves:
+            st = s.fmu._functions["fmi2Terminate"](s.component)
+            terminated.append(s)
+    return _results(graph, names, rec_time, rec_real, rec_int, rows, experiment, wall)
+
+
+def _step_failure(slave: _Slave) -> str:
+    status = ctypes.c_int(0)
+    try:
+        slave.fmu._functions["fmi2GetBooleanStatus"](slave.component, _fmi2Terminated,
+                                                      ctypes.byref(status))
+    except Exception:
+        return "fmi2DoStep"
+    return "fmi2DoStep (the FMU terminated early)" if status.value else "fmi2DoStep"
+
+
+def _get_one(slave: _Slave, port: Port):
+    kind = port.type
+    getter = {"Real": slave.fmu.getReal, "Integer": slave.fmu.getInteger,
+              "Boolean": slave.fmu.getBoolean}[kind]
+    return getter([port.vr])[0]
+
+
+def _set_one(slave: _Slave, port: Port, value) -> None:
+    setter = {"Real": slave.fmu.setReal, "Integer": slave.fmu.setInteger,
+              "Boolean": slave.fmu.setBoolean}[port.type]
+    setter([port.vr], [value])
+
+
+def _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf) -> None:
+    """Preallocate, per instance and type, the arrays of one batched get and one batched set."""
+    real_ptr = real_buf.ctypes.data
+    int_ptr = int_buf.ctypes.data
+    for s in slaves:
+        ports = outputs_of[s.name]
+        for kind, c_get in (("Real", s.c_get_real), ("Integer", s.c_get_int),
+                            ("Boolean", s.c_get_bool)):
+            mine = [p for p in ports if p.type == kind]
+            if not mine:
+                continue
+            if kind == "Real":
+                first = real_slots[mine[0]]
+                pointer = ctypes.cast(real_ptr + 8 * first, ctypes.POINTER(ctypes.c_double))
+                assert [real_slots[p] for p in mine] == list(range(first, first + len(mine)))
+            else:
+                # Integer and Boolean share the int buffer; each type's ports are contiguous
+                # only if grouped, so read each type into its own staging view.
+                first = int_slots[mine[0]]
+                contiguous = [int_slots[p] for p in mine] == list(range(first, first + len(mine)))
+                assert contiguous
+                pointer = ctypes.cast(int_ptr + 4 * first, ctypes.POINTER(ctypes.c_int))
+            s.reads.append(_Transfer(c_get, _vr_array([p.vr for p in mine]), len(mine),
+                                     None, pointer, None))
+        links = [l for l in graph.links if l.target.ref.instance == s.name]
+        for kind, c_set in (("Real", s.c_set_real), ("Integer", s.c_set_int),
+                            ("Boolean", s.c_set_bool)):
+            mine = [l for l in links if l.target.type == kind]
+            if not mine:
+                continue
+            if kind == "Real":
+                staging = np.zeros(len(mine), dtype=np.float64)
+                src = np.array([real_slots[l.source] for l in mine], dtype=np.intp)
+                buf, ctype = real_buf, ctypes.c_double
+            else:
+                staging = np.zeros(len(mine), dtype=np.int32)
+                src = np.array([int_slots[l.source] for l in mine], dtype=np.intp)
+                buf, ctype = int_buf, ctypes.c_int
+            pointer = staging.ctypes.data_as(ctypes.POINTER(ctype))
+            s.writes.append(_Transfer(c_set, _vr_array([l.target.vr for l in mine]), len(mine),
+                                      staging, pointer, (buf, src, staging)))
+
+
+def _results(graph, names, rec_time, rec_real, rec_int, rows, experiment, wall,
+             complete=True) -> Results:
+    """Assemble the structured array from the rows recorded so far (t0 row included)."""
+    dtype = [("time", "f8")]
+    real_i = int_i = 0
+    columns = []
+    for port in graph.recorded:
+        if port.type == "Real":
+            dtype.append((str(port.ref), "f8"))
+            columns.append(rec_real[:rows, real_i])
+            real_i += 1
+        else:
+            dtype.append((str(port.ref), "i4" if port.type == "Integer" else "?"))
+            columns.append(rec_int[:rows, int_i])
+            int_i += 1
+    data = np.empty(rows, dtype=dtype)
+    data["time"] = rec_time[:rows]
+    for name, col in zip(names, columns):
+        data[name] = col
+    return Results(names, data, experiment.master, experiment.start_time,
+                   experiment.stop_time, experiment.step_size, max(rows - 1, 0), wall, complete)

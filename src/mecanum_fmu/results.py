@@ -1,0 +1,56 @@
+"""Simulation results: a structured array whose first field is `time`, plus metadata."""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class Results:
+    names: tuple[str, ...]          # recorded `instance.variable`, in column order
+    data: np.ndarray                # structured: ('time', f8) then one field per name
+    master: str
+    start_time: float
+    stop_time: float
+    step_size: float
+    steps: int                      # communication steps completed
+    wall_time: float                # seconds spent in the stepping loop
+    complete: bool = True
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.data["time"]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.data[name]
+
+    def final(self, name: str) -> float:
+        return float(self.data[name][-1])
+
+
+def write_csv(results: Results, path: Path) -> None:
+    """One `time` column and one column per recorded variable, full precision (repr)."""
+    with open(path, "w", newline="") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(("time",) + results.names)
+        columns = [results.data[n] for n in ("time",) + results.names]
+        for row in zip(*(c.tolist() for c in columns)):
+            writer.writerow([_fmt(v) for v in row])
+
+
+def _fmt(value) -> str:
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    return str(value)
+
+
+def write_json(data: dict, path: Path) -> None:
+    path.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")

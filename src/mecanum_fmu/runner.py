@@ -1,0 +1,141 @@
+"""`run` as a library call: load, check, simulate, compare with the ground truth, write.
+
+Results are written in the order that keeps the most on a failure: CSV and summary first,
+plots last; a run that fails mid-way still writes every row recorded up to the failure.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from . import master
+from .errors import Interrupted, Problem, ScenarioError, SimulationError
+from .graph import Graph, compile_graph
+from .ground_truth import Truth, find_roles, ground_truth
+from .results import Results, write_csv, write_json
+from .scenario import MASTERS, Scenario, check_experiment, load_scenario
+
+
+@dataclass
+class RunOutcome:
+    scenario: Scenario
+    graph: Graph
+    results: Results
+    truth: Truth | None
+    summary: dict
+    out_dir: Path
+    files: list[Path]
+
+
+def prepare(path: str | Path, *, step_size: float | None = None, stop_time: float | None = None,
+            master_name: str | None = None, fmu_dir: Path | None = None) -> Graph:
+    """Load and check a scenario (with command-line overrides) and compile its graph."""
+    scenario = load_scenario(path)
+    changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
+                                 ("master", master_name)) if v is not None}
+    if changes:
+        if "master" in changes and changes["master"] not in MASTERS:
+            raise ScenarioError([Problem(scenario.label, "--master", f"unknown master "
+                                 f"{changes['master']!r} (choose one of {', '.join(MASTERS)})")])
+        experiment = dataclasses.replace(scenario.experiment, **changes)
+        problems = [Problem(scenario.label, f"{place} (with the command-line options)", msg)
+                    for place, msg in check_experiment(experiment)]
+        if problems:
+            raise ScenarioError(problems)
+        scenario = dataclasses.replace(scenario, experiment=experiment)
+    return compile_graph(scenario, fmu_dir)
+
+
+def default_out_dir(scenario: Scenario) -> Path:
+    return Path("results") / scenario.name
+
+
+def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
+        progress: Callable[[float], None] | None = None,
+        log: Callable[[str], None] = print) -> RunOutcome:
+    """Simulate, write results.csv, summary.json and the plots into out_dir."""
+    scenario = graph.scenario
+    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files: list[Path] = []
+    try:
+        results = master.simulate(graph, scenario.experiment, progress=progress)
+    except (SimulationError, Interrupted) as err:
+        if err.results is not None:
+            files += _write_tables(graph, err.results, None, out_dir, error=str(err))
+        err.files = files
+        raise
+    truth = ground_truth(graph, results.time) if results.steps else None
+    files += _write_tables(graph, results, truth, out_dir)
+    summary = summarize(graph, results, truth)
+    for line in report_lines(summary):
+        log(line)
+    if plots:
+        from .plots import write_plots
+        files += write_plots(results, find_roles(graph), truth, out_dir, title=scenario.name)
+    return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
+
+
+def _write_tables(graph, results, truth, out_dir: Path, error: str | None = None) -> list[Path]:
+    csv_path = out_dir / "results.csv"
+    write_csv(results, csv_path)
+    summary = summarize(graph, results, truth)
+    if error:
+        summary["error_message"] = error
+    json_path = out_dir / "summary.json"
+    write_json(summary, json_path)
+    return [csv_path, json_path]
+
+
+def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
+    scenario = graph.scenario
+    roles = find_roles(graph)
+    summary = {
+        "scenario": scenario.name,
+        "file": str(scenario.path),
+        "description": scenario.description,
+        "master": results.master,
+        "start_time": results.start_time,
+        "stop_time": results.stop_time,
+        "step_size": results.step_size,
+        "steps": results.steps,
+        "wall_time_s": round(results.wall_time, 6),
+        "complete": results.complete,
+        "end_time": float(results.time[-1]) if len(results.time) else None,
+        "recorded": list(results.names),
+        "fmus": {i.name: {"model": i.model_name, "path": str(i.fmu_path), "guid": i.model.guid}
+                 for i in graph.instances},
+    }
+    pose = roles.pose
+    if pose and all(f"{pose}.{k}" in results.names for k in ("x", "y", "theta")) and len(results.time):
+        end = {k: results.final(f"{pose}.{k}") for k in ("x", "y", "theta")}
+        summary["end_pose"] = end
+        if truth is not None:
+            ref = dict(zip(("x", "y", "theta"), truth.end))
+            summary["reference_end_pose"] = ref
+            err = {f"d{k}": end[k] - ref[k] for k in ("x", "y", "theta")}
+            err["position"] = math.hypot(err["dx"], err["dy"])
+            summary["error"] = err
+            summary["match"] = (round(end["x"], 3) == round(ref["x"], 3)
+                                and round(end["y"], 3) == round(ref["y"], 3))
+    return summary
+
+
+def report_lines(summary: dict) -> list[str]:
+    lines = [f"{summary['scenario']}: {summary['master']}, step {summary['step_size']:g} s, "
+             f"{summary['steps']} steps, stepping loop {summary['wall_time_s']:.3f} s"]
+    if "end_pose" in summary:
+        end = summary["end_pose"]
+        lines.append(f"end point (co-simulation): x = {end['x']:.3f}, y = {end['y']:.3f}")
+        if "reference_end_pose" in summary:
+            ref, err = summary["reference_end_pose"], summary["error"]
+            lines.append(f"end point (ground truth):  x = {ref['x']:.3f}, y = {ref['y']:.3f}")
+            lines.append(f"error: dx = {err['dx']:.3e}, dy = {err['dy']:.3e}, "
+                         f"|e| = {err['position']:.3e} m")
+            lines.append("match!" if summary["match"] else
+                         "no match (the end points differ at 3 decimals; try a smaller step)")
+    return lines

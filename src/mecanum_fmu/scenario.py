@@ -1,0 +1,320 @@
+"""Load a scenario file (YAML) into frozen dataclasses, checking everything that needs no FMU.
+
+Scenario files are data: they are read with ``yaml.safe_load`` only and nothing in them runs.
+Every problem is collected and raised together as one ScenarioError.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Union
+
+import yaml
+
+from .errors import Problem, ScenarioError
+
+MASTERS = ("gauss-seidel", "jacobi")
+MAX_FILE_BYTES = 1_000_000
+DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.001,
+                      "master": "gauss-seidel"}
+
+Scalar = Union[bool, int, float, str]
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_TOP_KEYS = ("name", "description", "experiment", "components", "connections", "outputs",
+             "parameters")
+_COMPONENT_KEYS = ("fmu", "parameters", "description")
+
+
+@dataclass(frozen=True)
+class VarRef:
+    """A reference `instance.variable` (the variable part may itself contain dots)."""
+    instance: str
+    variable: str
+
+    def __str__(self) -> str:
+        return f"{self.instance}.{self.variable}"
+
+
+@dataclass(frozen=True)
+class Experiment:
+    start_time: float
+    stop_time: float
+    step_size: float
+    master: str
+
+
+@dataclass(frozen=True)
+class Component:
+    name: str
+    fmu: str                      # as written: a bundled model name or a path
+    parameters: dict[str, Scalar]
+    place: str                    # where it is declared, for messages
+
+
+@dataclass(frozen=True)
+class Connection:
+    source: VarRef
+    target: VarRef
+    place: str
+
+
+@dataclass(frozen=True)
+class Scenario:
+    path: Path
+    name: str
+    description: str
+    experiment: Experiment
+    components: tuple[Component, ...]
+    connections: tuple[Connection, ...]
+    outputs: tuple[tuple[VarRef, str], ...] | None   # (reference, place); None: every output
+    parameters: dict[str, Scalar] = field(default_factory=dict)   # shared by all components
+
+    @property
+    def label(self) -> str:
+        """The file as the user named it, for messages."""
+        return str(self.path)
+
+
+def did_you_mean(name: str, choices) -> str:
+    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and check a scenario file. Raises ScenarioError listing every problem found."""
+    path = Path(path)
+    label = str(path)
+    problems: list[Problem] = []
+
+    def bad(place: str, message: str) -> None:
+        problems.append(Problem(label, place, message))
+
+    doc = _read_yaml(path, label)
+    if not isinstance(doc, dict):
+        raise ScenarioError([Problem(label, "top level", (
+            f"expected a mapping with keys {', '.join(_TOP_KEYS)}, got {_type_name(doc)}"))])
+
+    _unknown_keys(doc, _TOP_KEYS, "top level", bad)
+    name = doc.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip() or not re.fullmatch(r"[\w.-]+", name):
+        bad("name", f"{name!r} is not a usable name (letters, digits, _ . - only; it names "
+                    "the results folder)")
+        name = path.stem
+    description = doc.get("description", "")
+    if not isinstance(description, str):
+        bad("description", f"expected text, got {_type_name(description)}")
+        description = ""
+
+    experiment = _experiment(doc.get("experiment", {}), bad)
+    shared = _parameters(doc.get("parameters", {}), "parameters", bad)
+    components = _components(doc.get("components"), bad)
+    connections = _connections(doc.get("connections", []), bad)
+    outputs = _outputs(doc.get("outputs"), bad)
+
+    if problems:
+        raise ScenarioError(problems)
+    return Scenario(path, name, description, experiment, components, connections, outputs,
+                    shared)
+
+
+def _read_yaml(path: Path, label: str) -> Any:
+    def fail(place: str, message: str):
+        return ScenarioError([Problem(label, place, message)])
+
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise fail("file", f"{size} bytes is too large for a scenario (limit "
+                               f"{MAX_FILE_BYTES}); is this the right file?")
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise fail("file", "not found; check the path") from None
+    except IsADirectoryError:
+        raise fail("file", "is a folder; give a scenario .yaml file") from None
+    except UnicodeDecodeError as err:
+        raise fail("file", f"is not UTF-8 text ({err.reason} at byte {err.start})") from None
+    except OSError as err:
+        raise fail("file", f"cannot be read: {err.strerror}") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.MarkedYAMLError as err:
+        mark = err.problem_mark
+        place = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "YAML"
+        raise fail(place, f"YAML syntax error: {err.problem or err}") from None
+    except (yaml.YAMLError, RecursionError) as err:
+        raise fail("YAML", f"cannot be parsed: {type(err).__name__}") from None
+
+
+def _type_name(value: Any) -> str:
+    names = {dict: "a mapping", list: "a list", str: "text", bool: "true/false",
+             int: "a number", float: "a number", type(None): "nothing"}
+    return names.get(type(value), type(value).__name__)
+
+
+def _unknown_keys(mapping: dict, allowed, place: str, bad) -> None:
+    for key in mapping:
+        if key not in allowed:
+            bad(place, f"unknown key {key!r}{did_you_mean(str(key), allowed)} "
+                       f"(allowed: {', '.join(allowed)})")
+
+
+def _experiment(raw: Any, bad) -> Experiment:
+    values = dict(DEFAULT_EXPERIMENT)
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
+        bad("experiment", f"expected a mapping (start_time, stop_time, step_size, master), "
+                          f"got {_type_name(raw)}")
+        raw = {}
+    _unknown_keys(raw, tuple(DEFAULT_EXPERIMENT), "experiment", bad)
+    ok = True
+    for key in ("start_time", "stop_time", "step_size"):
+        if key not in raw:
+            continue
+        value = raw[key]
+        if not is_number(value):
+            bad(f"experiment.{key}", f"expected a number of seconds, got {value!r}")
+            ok = False
+        elif not math.isfinite(value):
+            bad(f"experiment.{key}", f"{value} is not a finite number")
+            ok = False
+        else:
+            values[key] = float(value)
+    if "master" in raw:
+        if raw["master"] in MASTERS:
+            values["master"] = raw["master"]
+        else:
+            bad("experiment.master", f"unknown master {raw['master']!r}"
+                f"{did_you_mean(str(raw['master']), MASTERS)} (choose one of {', '.join(MASTERS)})")
+    experiment = Experiment(**values)
+    if ok:
+        for problem in check_experiment(experiment):
+            bad(*problem)
+    return experiment
+
+
+def check_experiment(exp: Experiment) -> list[tuple[str, str]]:
+    """(place, message) for each inconsistency; also used for command-line overrides."""
+    out = []
+    for key in ("start_time", "stop_time", "step_size"):
+        if not math.isfinite(getattr(exp, key)):
+            out.append((f"experiment.{key}", f"{getattr(exp, key)} is not a finite number"))
+    if out:
+        return out
+    if exp.step_size <= 0:
+        out.append(("experiment.step_size", f"{exp.step_size} must be > 0"))
+    if exp.stop_time <= exp.start_time:
+        out.append(("experiment.stop_time",
+                    f"{exp.stop_time} must be after start_time {exp.start_time}"))
+    elif exp.step_size > exp.stop_time - exp.start_time:
+        out.append(("experiment.step_size", f"{exp.step_size} is longer than the run "
+                    f"({exp.stop_time - exp.start_time} s); use a smaller step"))
+    elif exp.step_size > 0 and (exp.stop_time - exp.start_time) / exp.step_size > 1e8:
+        out.append(("experiment.step_size", f"{exp.step_size} gives more than 1e8 steps; "
+                    "use a larger step"))
+    return out
+
+
+def _parameters(raw: Any, place: str, bad) -> dict[str, Scalar]:
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        bad(place, f"expected a mapping of name: value, got {_type_name(raw)}")
+        return {}
+    out = {}
+    for key, value in raw.items():
+        if not isinstance(key, str):
+            bad(place, f"parameter name {key!r} must be text")
+        elif not isinstance(value, (bool, int, float, str)):
+            bad(f"{place}.{key}", f"expected a number, true/false or text, got {_type_name(value)}")
+        elif isinstance(value, float) and not math.isfinite(value):
+            bad(f"{place}.{key}", f"{value} is not a finite number")
+        else:
+            out[key] = value
+    return out
+
+
+def _components(raw: Any, bad) -> tuple[Component, ...]:
+    if raw is None:
+        bad("components", "missing: declare at least one component "
+                          "(instance name: {fmu: NAME_OR_PATH})")
+        return ()
+    if not isinstance(raw, dict) or not raw:
+        bad("components", f"expected a mapping of instance name -> {{fmu: ...}}, "
+                          f"got {_type_name(raw) if raw != {} else 'an empty mapping'}")
+        return ()
+    out = []
+    for name, spec in raw.items():
+        place = f"components.{name}"
+        if not isinstance(name, str) or not _NAME.match(name):
+            bad("components", f"instance name {name!r} must be an identifier (letters, digits, _)")
+            continue
+        if isinstance(spec, str):
+            spec = {"fmu": spec}          # shorthand: `name: VelocitySource`
+        if not isinstance(spec, dict):
+            bad(place, f"expected a mapping with key fmu, got {_type_name(spec)}")
+            continue
+        _unknown_keys(spec, _COMPONENT_KEYS, place, bad)
+        fmu = spec.get("fmu")
+        if not isinstance(fmu, str) or not fmu.strip():
+            bad(f"{place}.fmu", "missing or empty: a bundled model name (e.g. Center2Wheel) "
+                                "or a path to a .fmu file")
+            continue
+        params = _parameters(spec.get("parameters", {}), f"{place}.parameters", bad)
+        out.append(Component(name, fmu, params, place))
+    return tuple(out)
+
+
+def parse_ref(text: Any) -> VarRef | None:
+    if not isinstance(text, str) or "." not in text:
+        return None
+    instance, variable = text.split(".", 1)
+    if not instance or not variable:
+        return None
+    return VarRef(instance, variable)
+
+
+def _connections(raw: Any, bad) -> tuple[Connection, ...]:
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        bad("connections", f"expected a list of [from output, to input] pairs, got {_type_name(raw)}")
+        return ()
+    out = []
+    for i, item in enumerate(raw):
+        place = f"connections[{i}]"
+        if isinstance(item, dict) and set(item) == {"from", "to"}:
+            item = [item["from"], item["to"]]
+        if not isinstance(item, list) or len(item) != 2:
+            bad(place, f"expected a pair [instance.output, instance.input], got {item!r:.80}")
+            continue
+        refs = [parse_ref(x) for x in item]
+        for x, ref in zip(item, refs):
+            if ref is None:
+                bad(place, f"{x!r:.80} is not of the form instance.variable")
+        if all(refs):
+            out.append(Connection(refs[0], refs[1], place))
+    return tuple(out)
+
+
+def _outputs(raw: Any, bad):
+    if raw is None:
+        return None
+    if not isinstance(raw, list):
+        bad("outputs", f"expected a list of instance.variable, got {_type_name(raw)}")
+        return None
+    out = []
+    for i, item in enumerate(raw):
+        ref = parse_ref(item)
+        if ref is None:
+            bad(f"outputs[{i}]", f"{item!r:.80} is not of the form instance.variable")
+        else:
+            out.append((ref, f"outputs[{i}]"))
+    return tuple(out)
