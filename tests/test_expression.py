@@ -3,7 +3,6 @@ import ast
 import math
 import runpy
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -283,10 +282,8 @@ def test_parser_recursion_is_contained(text):
 @pytest.mark.parametrize("text", ["10**10**10", "9**9**9**9", "t**t**t", "2**t"])
 def test_huge_powers_fail_fast(text):
     f = compile_expression(text)  # no integer arithmetic at compile time
-    start = time.perf_counter()
     with pytest.raises(ExpressionError, match="range"):
-        f(2000.0)
-    assert time.perf_counter() - start < 0.5
+        f(2000.0)  # float arithmetic overflows at once; int ** int would run for ever
 
 
 # ---------------------------------------------------------------- evaluation errors
@@ -327,14 +324,13 @@ def test_module_is_self_contained_and_never_evals():
     assert names["compile_expression"]("sin(t)")(1.0) == math.sin(1.0)
 
 
-def test_speed_is_reasonable():
-    # loose guard against regressions such as re-parsing per call (real cost is ~0.1 us)
-    for text in ("0", "sin(t)", NESTED):
-        f = compile_expression(text)
-        start = time.perf_counter()
-        for i in range(10_000):
-            f(i * 1e-3)
-        assert (time.perf_counter() - start) / 10_000 < 5e-6, text
+def test_evaluation_does_not_parse_again(monkeypatch):
+    # Speed lives in bench/; here only the structural guarantee: compiled once, never re-parsed.
+    funcs = [compile_expression(text) for text in ("0", "sin(t)", NESTED)]
+    def no_parse(*args, **kwargs):
+        raise AssertionError("ast.parse called during evaluation")
+    monkeypatch.setattr(ast, "parse", no_parse)
+    assert [f(1.0) for f in funcs] == [0.0, math.sin(1.0), 0.5]
 
 
 # ---------------------------------------------------------------- properties

@@ -1,0 +1,196 @@
+"""The original study's figures (SPEC sections 1 and 5) as PNGs, drawn without pyplot.
+
+One drawing function per panel, each taking an Axes; `build_figures` gives every panel its own
+figure, `build_dashboard` puts them all in one, `write_plots` saves both. A panel with nothing to
+draw (its role is None or its columns were not recorded) is left out.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .ground_truth import Roles, Truth
+from .results import Results
+
+MAX_POINTS = 5000                 # more rows than this are decimated before drawing
+PANEL_SIZE = (6.0, 4.5)           # inches
+DASHBOARD_SIZE = (12.0, 10.0)
+DPI = 100
+TWIST = ("vx", "vy", "w")
+WHEELS = (("w1", "front-right"), ("w2", "front-left"), ("w3", "rear-left"), ("w4", "rear-right"))
+
+
+def decimate_index(n: int, max_points: int = MAX_POINTS) -> np.ndarray:
+    """Row indices to draw: every k-th row so that about max_points remain, always the last."""
+    if n <= max_points:
+        return np.arange(n)
+    idx = np.arange(0, n, math.ceil(n / max_points))
+    return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
+
+
+def _col(results: Results, instance: str | None, var: str) -> str | None:
+    """`instance.var` when that column was recorded, else None."""
+    name = f"{instance}.{var}"
+    return name if instance is not None and name in results.names else None
+
+
+def _t(results: Results) -> tuple[np.ndarray, np.ndarray]:
+    idx = decimate_index(len(results.time))
+    return idx, results.time[idx]
+
+
+def _draw_velocities(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Commanded twist vx, vy, w against time (the source's outputs)."""
+    idx, t = _t(results)
+    for var in TWIST:
+        if name := _col(results, roles.source, var):
+            ax.plot(t, results[name][idx], label=var)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("vx, vy [m/s]; w [rad/s]")
+    ax.grid(True)
+    ax.legend()
+
+
+def _draw_path(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Simulated path over the ground-truth path, start and end marked, equal axes."""
+    if truth is not None and len(truth.x):
+        ti = decimate_index(len(truth.x))
+        ax.plot(truth.x[ti], truth.y[ti], color="0.6", lw=3, label="ground truth")
+    idx = decimate_index(len(results.time))
+    x, y = results[f"{roles.pose}.x"], results[f"{roles.pose}.y"]
+    ax.plot(x[idx], y[idx], color="C0", lw=1.2, label="simulated")
+    ax.plot([x[0]], [y[0]], "o", color="C2", label="start")
+    ax.plot([x[-1]], [y[-1]], "s", color="C3", label="end")
+    if truth is not None and len(truth.x):
+        ax.plot([truth.x[-1]], [truth.y[-1]], "x", color="k", label="ground-truth end")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m] (right)")
+    ax.set_ylabel("y [m] (forward)")
+    ax.grid(True)
+    ax.legend()
+
+
+def _draw_vy(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """The commanded forward speed vy against time."""
+    idx, t = _t(results)
+    ax.plot(t, results[f"{roles.source}.vy"][idx], label="vy")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("vy [m/s]")
+    ax.grid(True)
+    ax.legend()
+
+
+def _draw_wheels(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """The four wheel speeds from inverse kinematics."""
+    idx, t = _t(results)
+    for var, where in WHEELS:
+        if name := _col(results, roles.inverse, var):
+            ax.plot(t, results[name][idx], label=f"{var} {where}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("wheel speed [rad/s]")
+    ax.grid(True)
+    ax.legend()
+
+
+def _draw_twist(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Commanded (solid) against reconstructed (dashed) twist."""
+    idx, t = _t(results)
+    for i, var in enumerate(TWIST):
+        cmd, rec = _col(results, roles.source, var), _col(results, roles.forward, var)
+        if cmd:
+            ax.plot(t, results[cmd][idx], "-", color=f"C{i}", label=f"{var} commanded")
+        if rec:
+            ax.plot(t, results[rec][idx], "--", color=f"C{i}", label=f"{var} reconstructed")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("vx, vy [m/s]; w [rad/s]")
+    ax.grid(True)
+    ax.legend()
+
+
+Drawer = Callable[[Axes, Results, Roles, Truth | None], None]
+
+
+@dataclass(frozen=True)
+class Panel:
+    title: str
+    needs: Callable[[Results, Roles], bool]      # True when the panel has something to draw
+    draw: Drawer
+
+
+PANELS: dict[str, Panel] = {
+    "velocities": Panel("Input velocities",
+                        lambda r, ro: any(_col(r, ro.source, v) for v in TWIST), _draw_velocities),
+    "path": Panel("Path: simulated vs ground truth",
+                  lambda r, ro: bool(_col(r, ro.pose, "x") and _col(r, ro.pose, "y")), _draw_path),
+    "vy": Panel("Vy(t)", lambda r, ro: bool(_col(r, ro.source, "vy")), _draw_vy),
+    "wheels": Panel("Wheel speeds",
+                    lambda r, ro: any(_col(r, ro.inverse, w) for w, _ in WHEELS), _draw_wheels),
+    "twist": Panel("Commanded vs reconstructed twist",
+                   lambda r, ro: any(_col(r, ro.source, v) and _col(r, ro.forward, v)
+                                     for v in TWIST), _draw_twist),
+}
+
+
+def available_panels(results: Results, roles: Roles) -> list[str]:
+    """Keys of the panels that have data, in PANELS order (none for an empty run)."""
+    if len(results.time) == 0:
+        return []
+    return [key for key, panel in PANELS.items() if panel.needs(results, roles)]
+
+
+def _figure(size: tuple[float, float]) -> Figure:
+    fig = Figure(figsize=size, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def build_figures(results: Results, roles: Roles, truth: Truth | None,
+                  title: str = "") -> dict[str, Figure]:
+    """One figure per available panel, keyed by panel name."""
+    figures: dict[str, Figure] = {}
+    for key in available_panels(results, roles):
+        fig = _figure(PANEL_SIZE)
+        ax = fig.add_subplot()
+        PANELS[key].draw(ax, results, roles, truth)
+        ax.set_title(f"{title}: {PANELS[key].title}" if title else PANELS[key].title)
+        figures[key] = fig
+    return figures
+
+
+def build_dashboard(results: Results, roles: Roles, truth: Truth | None,
+                    title: str = "") -> Figure:
+    """All available panels in one figure, two columns."""
+    fig = _figure(DASHBOARD_SIZE)
+    keys = available_panels(results, roles)
+    rows = max(1, math.ceil(len(keys) / 2))
+    for i, key in enumerate(keys):
+        ax = fig.add_subplot(rows, 2, i + 1)
+        PANELS[key].draw(ax, results, roles, truth)
+        ax.set_title(PANELS[key].title)
+    head = f"{title} - " if title else ""
+    fig.suptitle(f"{head}{results.master}, step {results.step_size:g} s"
+                 + ("" if keys else " (nothing to plot)"))
+    return fig
+
+
+def write_plots(results: Results, roles: Roles, truth: Truth | None, out_dir: Path | str,
+                title: str = "") -> list[Path]:
+    """Write dashboard.png and <panel>.png for each available panel; return the paths."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    figures = {"dashboard": build_dashboard(results, roles, truth, title)}
+    figures.update(build_figures(results, roles, truth, title))
+    paths = []
+    for key, fig in figures.items():
+        path = out_dir / f"{key}.png"
+        fig.savefig(path)
+        fig.clear()            # not registered with pyplot: clearing frees it for the GC
+        paths.append(path)
+    return paths
