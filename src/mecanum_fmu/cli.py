@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, help="output folder (default: results/<scenario name>)")
     run.add_argument("--step-size", type=_positive_float, help="communication step (s)")
     run.add_argument("--stop-time", type=_positive_float, help="end of the run (s)")
-    run.add_argument("--master", help="gauss-seidel or jacobi")
+    run.add_argument("--master", help="trapezoidal (default, second order), gauss-seidel or jacobi")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument("--quiet", "-q", action="store_true", help="print only errors")
     run.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)

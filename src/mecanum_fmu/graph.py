@@ -147,7 +147,8 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
                 if message:
                     bad(place, message)
         start_values[comp.name] = merged
-        _check_bundled_values(comp, models[comp.name][1], own, merged, bad)
+        _check_bundled_values(comp, models[comp.name][1], own, merged, bad,
+                              scenario.experiment.start_time)
 
     # Connections.
     links: list[Link] = []
@@ -231,7 +232,8 @@ def _type_problem(var: ScalarVariable, value: Scalar) -> str | None:
     return f"'{var.name}' is {kind}: expected {wanted}, got {value!r}"
 
 
-def _check_bundled_values(comp, md: ModelDescription, own, values, bad) -> None:
+def _check_bundled_values(comp, md: ModelDescription, own, values, bad,
+                          scenario_start: float = 0.0) -> None:
     """Our own FMUs' value rules, checked up front so a bad value is an input error (exit 2)."""
     def value(name):
         return values.get(name, _start(own[name]))
@@ -251,7 +253,8 @@ def _check_bundled_values(comp, md: ModelDescription, own, values, bad) -> None:
             text = value(key) if key in own else None
             if isinstance(text, str):
                 try:
-                    compile_expression(text)
+                    # evaluate once at the start: a constant part like 1/0 only fails then
+                    compile_expression(text)(scenario_start)
                 except ExpressionError as err:
                     bad(f"{comp.place}.parameters.{key}", str(err))
 

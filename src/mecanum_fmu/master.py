@@ -105,13 +105,28 @@ class _Slave:
 
 @dataclass
 class _Transfer:
-    """Copy a set of values from the buffers into one FMU's inputs (or out of its outputs)."""
+    """One batched get (outputs -> buffer) or set (buffer -> staging -> inputs) of one type."""
     c_function: object
     vrs: ctypes.Array
     n: int
-    values: ctypes.Array | None        # for set: a staging array
     pointer: object                    # where get writes / set reads
-    gather: tuple | None               # (buffer, source indices, staging numpy view)
+    fill: Callable[[], None] | None    # for set: fills the staging array the pointer points to
+
+
+def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[[], None]:
+    """Inputs take the newest values (zero-order hold)."""
+    return lambda: np.take(buffer, src, out=staging)
+
+
+def _blend(history: np.ndarray, index: np.ndarray, weights: np.ndarray,
+           staging: np.ndarray) -> Callable[[], None]:
+    """Inputs take a weighted sum of the values at t_k+1, t_k, t_k-1 (one take, one dot)."""
+    flat = history.reshape(-1)
+    picked = np.empty(len(index))
+    def fill():
+        np.take(flat, index, out=picked)
+        np.dot(weights, picked, out=staging)
+    return fill
 
 
 def _vr_array(vrs: list[int]) -> ctypes.Array:
@@ -138,6 +153,7 @@ def simulate(graph: Graph, experiment: Experiment,
     if start + n_steps * h < stop - 1e-9 * h:
         n_steps += 1          # a last step reaches (or passes) stop_time
     jacobi = experiment.master == "jacobi"
+    trapezoidal = experiment.master == "trapezoidal"
 
     # Buffers: every value that moves or is recorded has one slot.
     real_slots: dict[Port, int] = {}
@@ -159,7 +175,9 @@ def simulate(graph: Graph, experiment: Experiment,
             for p in unique:
                 if p.type == kind:
                     slot(p)
-    real_buf = np.zeros(max(len(real_slots), 1), dtype=np.float64)
+    # Real values at t_k+1 (row 0, written by the FMUs' getReal), t_k and t_k-1 (rows 1, 2).
+    history = np.zeros((3, max(len(real_slots), 1)), dtype=np.float64)
+    real_buf = history[0]
     int_buf = np.zeros(max(len(int_slots), 1), dtype=np.int32)
 
     names = tuple(str(p.ref) for p in graph.recorded)
@@ -180,7 +198,7 @@ def simulate(graph: Graph, experiment: Experiment,
             stack.callback(slave.free)
             slaves.append(slave)
         by_name = {s.name: s for s in slaves}
-        _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf)
+        _plan(slaves, graph, outputs_of, real_slots, int_slots, history, int_buf, trapezoidal)
         terminated: list[_Slave] = []
 
         def terminate_all():
@@ -230,6 +248,7 @@ def simulate(graph: Graph, experiment: Experiment,
                 np.take(int_buf, record_int, out=rec_int[i])
         record(0, start)
         rows = 1
+        history[1] = history[2] = history[0]
 
         # ---- stepping
         order = slaves
@@ -239,10 +258,12 @@ def simulate(graph: Graph, experiment: Experiment,
             for k in range(n_steps):
                 t = start + k * h
                 h_k = min(h, stop - t) if k == n_steps - 1 else h
+                if trapezoidal:
+                    history[1:] = history[:2]      # shift: row 1 is now t_k, row 2 t_k-1
                 if jacobi:
                     for s in order:
                         for tr in s.writes:
-                            np.take(*tr.gather[:2], out=tr.gather[2])
+                            tr.fill()
                             st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
                             if st > 1:
                                 fail(s, "set", st, t)
@@ -258,7 +279,7 @@ def simulate(graph: Graph, experiment: Experiment,
                 else:
                     for s in order:
                         for tr in s.writes:
-                            np.take(*tr.gather[:2], out=tr.gather[2])
+                            tr.fill()
                             st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
                             if st > 1:
                                 fail(s, "set", st, t)
@@ -310,10 +331,19 @@ def _set_one(slave: _Slave, port: Port, value) -> None:
     setter([port.vr], [value])
 
 
-def _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf) -> None:
-    """Preallocate, per instance and type, the arrays of one batched get and one batched set."""
+def _plan(slaves, graph, outputs_of, real_slots, int_slots, history, int_buf,
+          trapezoidal: bool) -> None:
+    """Preallocate, per instance and type, the arrays of one batched get and one batched set.
+
+    With `trapezoidal`, a Real input that no output of its FMU depends on (it only drives the
+    FMU's state over the step) takes the mean of its values at t_k and t_k+1 instead of the
+    value at t_k+1: a trapezoidal hold, second order. t_k+1 is known when the source steps
+    earlier in the Gauss-Seidel order; otherwise it is extrapolated from t_k and t_k-1.
+    """
+    real_buf = history[0]
     real_ptr = real_buf.ctypes.data
     int_ptr = int_buf.ctypes.data
+    position = {s.name: i for i, s in enumerate(slaves)}
     for s in slaves:
         ports = outputs_of[s.name]
         for kind, c_get in (("Real", s.c_get_real), ("Integer", s.c_get_int),
@@ -321,36 +351,59 @@ def _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf) -
             mine = [p for p in ports if p.type == kind]
             if not mine:
                 continue
+            slots = real_slots if kind == "Real" else int_slots
+            first = slots[mine[0]]
+            # slots were handed out per instance and type, so a get writes one contiguous run
+            assert [slots[p] for p in mine] == list(range(first, first + len(mine)))
             if kind == "Real":
-                first = real_slots[mine[0]]
                 pointer = ctypes.cast(real_ptr + 8 * first, ctypes.POINTER(ctypes.c_double))
-                assert [real_slots[p] for p in mine] == list(range(first, first + len(mine)))
             else:
-                # Integer and Boolean share the int buffer; each type's ports are contiguous
-                # only if grouped, so read each type into its own staging view.
-                first = int_slots[mine[0]]
-                contiguous = [int_slots[p] for p in mine] == list(range(first, first + len(mine)))
-                assert contiguous
                 pointer = ctypes.cast(int_ptr + 4 * first, ctypes.POINTER(ctypes.c_int))
             s.reads.append(_Transfer(c_get, _vr_array([p.vr for p in mine]), len(mine),
-                                     None, pointer, None))
+                                     pointer, None))
         links = [l for l in graph.links if l.target.ref.instance == s.name]
-        for kind, c_set in (("Real", s.c_set_real), ("Integer", s.c_set_int),
-                            ("Boolean", s.c_set_bool)):
-            mine = [l for l in links if l.target.type == kind]
+        state_only = _state_only_inputs(s.inst) if trapezoidal else set()
+        groups = (("Real", s.c_set_real, [l for l in links if l.target.type == "Real"
+                                          and l.target.ref.variable not in state_only]),
+                  ("Blend", s.c_set_real, [l for l in links if l.target.type == "Real"
+                                           and l.target.ref.variable in state_only]),
+                  ("Integer", s.c_set_int, [l for l in links if l.target.type == "Integer"]),
+                  ("Boolean", s.c_set_bool, [l for l in links if l.target.type == "Boolean"]))
+        for kind, c_set, mine in groups:
             if not mine:
                 continue
             if kind == "Real":
-                staging = np.zeros(len(mine), dtype=np.float64)
+                staging = np.zeros(len(mine))
                 src = np.array([real_slots[l.source] for l in mine], dtype=np.intp)
-                buf, ctype = real_buf, ctypes.c_double
+                fill = _take(real_buf, src, staging)
+            elif kind == "Blend":
+                staging = np.zeros(len(mine))
+                n = history.shape[1]
+                index, weights = [], np.zeros((len(mine), 3 * len(mine)))
+                for i, l in enumerate(mine):
+                    slot = real_slots[l.source]
+                    index += [slot, n + slot, 2 * n + slot]      # t_k+1, t_k, t_k-1
+                    upstream_first = position[l.source.ref.instance] < position[s.name]
+                    weights[i, 3 * i:3 * i + 3] = (0.5, 0.5, 0.0) if upstream_first else (0.0, 1.5, -0.5)
+                fill = _blend(history, np.array(index, dtype=np.intp), weights, staging)
             else:
                 staging = np.zeros(len(mine), dtype=np.int32)
                 src = np.array([int_slots[l.source] for l in mine], dtype=np.intp)
-                buf, ctype = int_buf, ctypes.c_int
-            pointer = staging.ctypes.data_as(ctypes.POINTER(ctype))
+                fill = _take(int_buf, src, staging)
+            ctype = ctypes.c_int if staging.dtype == np.int32 else ctypes.c_double
             s.writes.append(_Transfer(c_set, _vr_array([l.target.vr for l in mine]), len(mine),
-                                      staging, pointer, (buf, src, staging)))
+                                      staging.ctypes.data_as(ctypes.POINTER(ctype)), fill))
+
+
+def _state_only_inputs(inst: Instance) -> set[str]:
+    """Inputs that no output depends on directly (per the FMU's ModelStructure). Undeclared
+    dependencies mean 'depends on every input', so such an FMU has no state-only inputs."""
+    inputs = {v.name for v in inst.model.modelVariables if v.causality == "input"}
+    for unknown in inst.model.outputs:
+        if unknown.dependencies is None:
+            return set()
+        inputs -= {d.name for d in unknown.dependencies}
+    return inputs
 
 
 def _results(graph, names, rec_time, rec_real, rec_int, rows, experiment, wall,

@@ -16,10 +16,10 @@ import yaml
 
 from .errors import Problem, ScenarioError
 
-MASTERS = ("gauss-seidel", "jacobi")
+MASTERS = ("trapezoidal", "gauss-seidel", "jacobi")
 MAX_FILE_BYTES = 1_000_000
-DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.001,
-                      "master": "gauss-seidel"}
+DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
+                      "master": "trapezoidal"}
 
 Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
