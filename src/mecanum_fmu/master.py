@@ -79,8 +79,8 @@ class _Slave:
         self.c_get_bool, self.c_set_bool = f["fmi2GetBoolean"], f["fmi2SetBoolean"]
         self.c_do_step = f["fmi2DoStep"]
         self.component = None
-        # filled by _plan()
-        self.reads: list = []     # (c_get, component-independent args...) per type
+        # filled by _plan(): (c_get, vrs, n, pointer) and (fill, c_set, vrs, n, pointer)
+        self.reads: list = []
         self.writes: list = []
 
     def check(self, function: str, status: int) -> None:
@@ -103,30 +103,27 @@ class _Slave:
         return "; ".join(messages[-3:])
 
 
-@dataclass
-class _Transfer:
-    """One batched get (outputs -> buffer) or set (buffer -> staging -> inputs) of one type."""
-    c_function: object
-    vrs: ctypes.Array
-    n: int
-    pointer: object                    # where get writes / set reads
-    fill: Callable[[], None] | None    # for set: fills the staging array the pointer points to
-
-
 def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[[], None]:
-    """Inputs take the newest values (zero-order hold)."""
+    """Inputs take the newest values (zero-order hold), gathered from scattered slots."""
     return lambda: np.take(buffer, src, out=staging)
 
 
-def _blend(history: np.ndarray, index: np.ndarray, weights: np.ndarray,
-           staging: np.ndarray) -> Callable[[], None]:
-    """Inputs take a weighted sum of the values at t_k+1, t_k, t_k-1 (one take, one dot)."""
-    flat = history.reshape(-1)
-    picked = np.empty(len(index))
+def _blend(buffer: np.ndarray, src: np.ndarray, weights: np.ndarray,
+           staging: np.ndarray) -> tuple[Callable[[], None], Callable[[], None]]:
+    """Inputs take w_new * (value now) + w_old * (value at the previous fill): one take, one
+    dot, one copy per step. Returns (fill, prime); prime() records the values at t0."""
+    m = len(src)
+    picked = np.empty(2 * m)          # [values now | values at the previous fill]
+    now, old = picked[:m], picked[m:]
+
     def fill():
-        np.take(flat, index, out=picked)
+        np.take(buffer, src, out=now)
         np.dot(weights, picked, out=staging)
-    return fill
+        old[:] = now
+
+    def prime():
+        np.take(buffer, src, out=old)
+    return fill, prime
 
 
 def _vr_array(vrs: list[int]) -> ctypes.Array:
@@ -175,17 +172,14 @@ def simulate(graph: Graph, experiment: Experiment,
             for p in unique:
                 if p.type == kind:
                     slot(p)
-    # Real values at t_k+1 (row 0, written by the FMUs' getReal), t_k and t_k-1 (rows 1, 2).
-    history = np.zeros((3, max(len(real_slots), 1)), dtype=np.float64)
-    real_buf = history[0]
+    real_buf = np.zeros(max(len(real_slots), 1), dtype=np.float64)
     int_buf = np.zeros(max(len(int_slots), 1), dtype=np.int32)
-
-    names = tuple(str(p.ref) for p in graph.recorded)
-    record_real = np.array([real_slots[p] for p in graph.recorded if p.type == "Real"], dtype=np.intp)
-    record_int = np.array([int_slots[p] for p in graph.recorded if p.type != "Real"], dtype=np.intp)
-    rec_real = np.empty((n_steps + 1, len(record_real)), dtype=np.float64)
-    rec_int = np.empty((n_steps + 1, len(record_int)), dtype=np.int32)
-    rec_time = np.empty(n_steps + 1, dtype=np.float64)
+    # Recording copies the whole buffers (one contiguous copy each); columns are picked at the end.
+    rec_real = np.empty((n_steps + 1, len(real_buf)), dtype=np.float64)
+    rec_int = np.empty((n_steps + 1, len(int_buf)), dtype=np.int32)
+    layout = _Layout(graph, tuple(str(p.ref) for p in graph.recorded),
+                     [real_slots[p] if p.type == "Real" else int_slots[p] for p in graph.recorded],
+                     start, stop, h, n_steps)
 
     slaves: list[_Slave] = []
     rows = 0              # rows recorded so far
@@ -198,7 +192,8 @@ def simulate(graph: Graph, experiment: Experiment,
             stack.callback(slave.free)
             slaves.append(slave)
         by_name = {s.name: s for s in slaves}
-        _plan(slaves, graph, outputs_of, real_slots, int_slots, history, int_buf, trapezoidal)
+        primes = _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf,
+                       trapezoidal)
         terminated: list[_Slave] = []
 
         def terminate_all():
@@ -212,8 +207,7 @@ def simulate(graph: Graph, experiment: Experiment,
                 f"{function} returned {STATUS.get(status, status)}"
                 + (f" (FMU says: {slave.last_log()})" if slave.last_log() else ""),
                 component=slave.name, time=when, status=STATUS.get(status, str(status)),
-                results=_results(graph, names, rec_time, rec_real, rec_int, rows, experiment,
-                                 wall, complete=False))
+                results=layout.results(rec_real, rec_int, rows, experiment, wall, False))
 
         # ---- initialization: start values, then walk the links in dependency order
         current = None
@@ -235,77 +229,103 @@ def simulate(graph: Graph, experiment: Experiment,
                 s.fmu.exitInitializationMode()
             for s in slaves:
                 current = s
-                for tr in s.reads:
-                    s.check("get", tr.c_function(s.component, tr.vrs, tr.n, tr.pointer))
+                for c_get, vrs, n, pointer in s.reads:
+                    s.check("get", c_get(s.component, vrs, n, pointer))
         except (FMICallException, FmuCallError) as err:
             fail(current, err.function, err.status, start)
-
-        def record(i: int, when: float):
-            rec_time[i] = when
-            if len(record_real):
-                np.take(real_buf, record_real, out=rec_real[i])
-            if len(record_int):
-                np.take(int_buf, record_int, out=rec_int[i])
-        record(0, start)
+        rec_real[0] = real_buf
+        rec_int[0] = int_buf
         rows = 1
-        history[1] = history[2] = history[0]
+        for prime in primes:
+            prime()
 
-        # ---- stepping
-        order = slaves
+        # ---- stepping: the hot loop; everything it touches was prepared above
+        program = [(s, s.component, s.c_do_step, s.writes, s.reads) for s in slaves]
         tick = _time.perf_counter()
         next_report = tick + 1.0
         try:
             for k in range(n_steps):
                 t = start + k * h
-                h_k = min(h, stop - t) if k == n_steps - 1 else h
-                if trapezoidal:
-                    history[1:] = history[:2]      # shift: row 1 is now t_k, row 2 t_k-1
+                h_k = h if k < n_steps - 1 else stop - t
                 if jacobi:
-                    for s in order:
-                        for tr in s.writes:
-                            tr.fill()
-                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                    for s, comp, do_step, writes, reads in program:
+                        for fill, c_set, vrs, n, pointer in writes:
+                            if fill is not None:
+                                fill()
+                            st = c_set(comp, vrs, n, pointer)
                             if st > 1:
                                 fail(s, "set", st, t)
-                    for s in order:
-                        st = s.c_do_step(s.component, t, h_k, 1)
+                    for s, comp, do_step, writes, reads in program:
+                        st = do_step(comp, t, h_k, 1)
                         if st > 1:
                             fail(s, _step_failure(s), st, t)
-                    for s in order:
-                        for tr in s.reads:
-                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                    for s, comp, do_step, writes, reads in program:
+                        for c_get, vrs, n, pointer in reads:
+                            st = c_get(comp, vrs, n, pointer)
                             if st > 1:
                                 fail(s, "get", st, t + h_k)
                 else:
-                    for s in order:
-                        for tr in s.writes:
-                            tr.fill()
-                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                    for s, comp, do_step, writes, reads in program:
+                        for fill, c_set, vrs, n, pointer in writes:
+                            if fill is not None:
+                                fill()
+                            st = c_set(comp, vrs, n, pointer)
                             if st > 1:
                                 fail(s, "set", st, t)
-                        st = s.c_do_step(s.component, t, h_k, 1)
+                        st = do_step(comp, t, h_k, 1)
                         if st > 1:
                             fail(s, _step_failure(s), st, t)
-                        for tr in s.reads:
-                            st = tr.c_function(s.component, tr.vrs, tr.n, tr.pointer)
+                        for c_get, vrs, n, pointer in reads:
+                            st = c_get(comp, vrs, n, pointer)
                             if st > 1:
                                 fail(s, "get", st, t + h_k)
-                record(k + 1, t + h_k)
+                rec_real[k + 1] = real_buf
+                rec_int[k + 1] = int_buf
                 rows = k + 2
-                if progress is not None and k % 256 == 0:
+                if progress is not None and not k & 255:
                     now = _time.perf_counter()
                     if now >= next_report:
                         progress((t - start) / (stop - start))
                         next_report = now + 0.5
         except KeyboardInterrupt:
             wall = _time.perf_counter() - tick
-            raise Interrupted(t, results=_results(graph, names, rec_time, rec_real, rec_int, rows,
-                                                  experiment, wall, complete=False)) from None
+            raise Interrupted(t, results=layout.results(rec_real, rec_int, rows, experiment,
+                                                        wall, False)) from None
         wall = _time.perf_counter() - tick
         for s in slaves:
             st = s.fmu._functions["fmi2Terminate"](s.component)
             terminated.append(s)
-    return _results(graph, names, rec_time, rec_real, rec_int, rows, experiment, wall)
+    return layout.results(rec_real, rec_int, rows, experiment, wall, True)
+
+
+@dataclass
+class _Layout:
+    """Where each recorded column lives in the recorded buffers, and the time grid."""
+    graph: Graph
+    names: tuple[str, ...]
+    slots: list[int]
+    start: float
+    stop: float
+    h: float
+    n_steps: int
+
+    def results(self, rec_real, rec_int, rows, experiment, wall, complete) -> Results:
+        """The structured array of the rows recorded so far (t0 row included)."""
+        dtype = [("time", "f8")]
+        for port in self.graph.recorded:
+            dtype.append((str(port.ref), {"Real": "f8", "Integer": "i4"}.get(port.type, "?")))
+        data = np.empty(rows, dtype=dtype)
+        # t_k = start + k*h, computed, not accumulated; the last point is stop_time itself.
+        times = self.start + np.arange(rows) * self.h
+        if rows == self.n_steps + 1:
+            times[-1] = self.stop
+        data["time"] = times
+        for name, port, slot in zip(self.names, self.graph.recorded, self.slots):
+            source = rec_real if port.type == "Real" else rec_int
+            data[name] = source[:rows, slot]
+        return Results(self.names, data, experiment.master, experiment.start_time,
+                       experiment.stop_time, experiment.step_size, max(rows - 1, 0), wall,
+                       complete)
 
 
 def _step_failure(slave: _Slave) -> str:
@@ -331,36 +351,36 @@ def _set_one(slave: _Slave, port: Port, value) -> None:
     setter([port.vr], [value])
 
 
-def _plan(slaves, graph, outputs_of, real_slots, int_slots, history, int_buf,
-          trapezoidal: bool) -> None:
-    """Preallocate, per instance and type, the arrays of one batched get and one batched set.
+def _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf,
+          trapezoidal: bool) -> list[Callable[[], None]]:
+    """Preallocate, per instance and type, one batched get and one batched set.
 
-    With `trapezoidal`, a Real input that no output of its FMU depends on (it only drives the
-    FMU's state over the step) takes the mean of its values at t_k and t_k+1 instead of the
-    value at t_k+1: a trapezoidal hold, second order. t_k+1 is known when the source steps
-    earlier in the Gauss-Seidel order; otherwise it is extrapolated from t_k and t_k-1.
+    A get writes straight into the buffer. A set reads straight from the buffer when its
+    sources sit in one contiguous run in the right order (the usual chain), else from a
+    staging array filled by one np.take. With `trapezoidal`, a Real input that no output of
+    its FMU depends on (it only drives the FMU's state over the step) takes the mean of its
+    values at t_k and t_k+1: a trapezoidal hold, second order. t_k+1 is known when the source
+    steps earlier in the Gauss-Seidel order; otherwise the mean is extrapolated from t_k and
+    t_k-1 (1.5 u_k - 0.5 u_k-1). Returns the functions that seed the blends' history at t0.
     """
-    real_buf = history[0]
-    real_ptr = real_buf.ctypes.data
-    int_ptr = int_buf.ctypes.data
     position = {s.name: i for i, s in enumerate(slaves)}
+    primes = []
+    buffers = {"Real": (real_buf, real_slots, ctypes.c_double, np.float64),
+               "Integer": (int_buf, int_slots, ctypes.c_int, np.int32),
+               "Boolean": (int_buf, int_slots, ctypes.c_int, np.int32)}
     for s in slaves:
+        s.reads, s.writes = [], []
         ports = outputs_of[s.name]
         for kind, c_get in (("Real", s.c_get_real), ("Integer", s.c_get_int),
                             ("Boolean", s.c_get_bool)):
             mine = [p for p in ports if p.type == kind]
-            if not mine:
-                continue
-            slots = real_slots if kind == "Real" else int_slots
-            first = slots[mine[0]]
-            # slots were handed out per instance and type, so a get writes one contiguous run
-            assert [slots[p] for p in mine] == list(range(first, first + len(mine)))
-            if kind == "Real":
-                pointer = ctypes.cast(real_ptr + 8 * first, ctypes.POINTER(ctypes.c_double))
-            else:
-                pointer = ctypes.cast(int_ptr + 4 * first, ctypes.POINTER(ctypes.c_int))
-            s.reads.append(_Transfer(c_get, _vr_array([p.vr for p in mine]), len(mine),
-                                     pointer, None))
+            if mine:
+                buf, slots, ctype, _ = buffers[kind]
+                first = slots[mine[0]]
+                # slots were handed out per instance and type: one contiguous run
+                assert [slots[p] for p in mine] == list(range(first, first + len(mine)))
+                s.reads.append((c_get, _vr_array([p.vr for p in mine]), len(mine),
+                                _pointer(buf, first, ctype)))
         links = [l for l in graph.links if l.target.ref.instance == s.name]
         state_only = _state_only_inputs(s.inst) if trapezoidal else set()
         groups = (("Real", s.c_set_real, [l for l in links if l.target.type == "Real"
@@ -372,27 +392,32 @@ def _plan(slaves, graph, outputs_of, real_slots, int_slots, history, int_buf,
         for kind, c_set, mine in groups:
             if not mine:
                 continue
-            if kind == "Real":
+            buf, slots, ctype, dtype = buffers["Real" if kind == "Blend" else kind]
+            src = np.array([slots[l.source] for l in mine], dtype=np.intp)
+            vrs = _vr_array([l.target.vr for l in mine])
+            if kind == "Blend":
                 staging = np.zeros(len(mine))
-                src = np.array([real_slots[l.source] for l in mine], dtype=np.intp)
-                fill = _take(real_buf, src, staging)
-            elif kind == "Blend":
-                staging = np.zeros(len(mine))
-                n = history.shape[1]
-                index, weights = [], np.zeros((len(mine), 3 * len(mine)))
+                weights = np.zeros((len(mine), 2 * len(mine)))
                 for i, l in enumerate(mine):
-                    slot = real_slots[l.source]
-                    index += [slot, n + slot, 2 * n + slot]      # t_k+1, t_k, t_k-1
                     upstream_first = position[l.source.ref.instance] < position[s.name]
-                    weights[i, 3 * i:3 * i + 3] = (0.5, 0.5, 0.0) if upstream_first else (0.0, 1.5, -0.5)
-                fill = _blend(history, np.array(index, dtype=np.intp), weights, staging)
+                    weights[i, i], weights[i, len(mine) + i] = (0.5, 0.5) if upstream_first else (1.5, -0.5)
+                fill, prime = _blend(buf, src, weights, staging)
+                primes.append(prime)
+                s.writes.append((fill, c_set, vrs, len(mine), _pointer(staging, 0, ctype)))
+            elif list(src) == list(range(src[0], src[0] + len(src))):
+                s.writes.append((None, c_set, vrs, len(mine), _pointer(buf, int(src[0]), ctype)))
             else:
-                staging = np.zeros(len(mine), dtype=np.int32)
-                src = np.array([int_slots[l.source] for l in mine], dtype=np.intp)
-                fill = _take(int_buf, src, staging)
-            ctype = ctypes.c_int if staging.dtype == np.int32 else ctypes.c_double
-            s.writes.append(_Transfer(c_set, _vr_array([l.target.vr for l in mine]), len(mine),
-                                      staging.ctypes.data_as(ctypes.POINTER(ctype)), fill))
+                staging = np.zeros(len(mine), dtype=dtype)
+                s.writes.append((_take(buf, src, staging), c_set, vrs, len(mine),
+                                 _pointer(staging, 0, ctype)))
+    return primes
+
+
+def _pointer(array: np.ndarray, offset: int, ctype):
+    """A C pointer to array[offset:], keeping the array alive as long as the pointer."""
+    pointer = ctypes.cast(array.ctypes.data + offset * array.itemsize, ctypes.POINTER(ctype))
+    pointer._keep = array
+    return pointer
 
 
 def _state_only_inputs(inst: Instance) -> set[str]:
@@ -404,26 +429,3 @@ def _state_only_inputs(inst: Instance) -> set[str]:
             return set()
         inputs -= {d.name for d in unknown.dependencies}
     return inputs
-
-
-def _results(graph, names, rec_time, rec_real, rec_int, rows, experiment, wall,
-             complete=True) -> Results:
-    """Assemble the structured array from the rows recorded so far (t0 row included)."""
-    dtype = [("time", "f8")]
-    real_i = int_i = 0
-    columns = []
-    for port in graph.recorded:
-        if port.type == "Real":
-            dtype.append((str(port.ref), "f8"))
-            columns.append(rec_real[:rows, real_i])
-            real_i += 1
-        else:
-            dtype.append((str(port.ref), "i4" if port.type == "Integer" else "?"))
-            columns.append(rec_int[:rows, int_i])
-            int_i += 1
-    data = np.empty(rows, dtype=dtype)
-    data["time"] = rec_time[:rows]
-    for name, col in zip(names, columns):
-        data[name] = col
-    return Results(names, data, experiment.master, experiment.start_time,
-                   experiment.stop_time, experiment.step_size, max(rows - 1, 0), wall, complete)
