@@ -35,6 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--stop-time", type=_positive_float, help="end of the run (s)")
     run.add_argument("--master", help="trapezoidal (default, second order), gauss-seidel or jacobi")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    run.add_argument("--animate", action="store_true", help="also write animation.gif")
     run.add_argument("--quiet", "-q", action="store_true", help="print only errors")
     run.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     run.set_defaults(func=cmd_run)
@@ -100,7 +101,8 @@ def cmd_run(args) -> int:
     progress = _progress(not args.quiet)
     log = (lambda line: None) if args.quiet else print
     try:
-        outcome = run(graph, args.out, plots=not args.no_plots, progress=progress, log=log)
+        outcome = run(graph, args.out, plots=not args.no_plots, progress=progress, log=log,
+                      animate=args.animate)
     finally:
         if progress is not None:
             print("\r" + " " * 12 + "\r", end="", file=sys.stderr)

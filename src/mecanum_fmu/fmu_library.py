@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import zipfile
+from xml.etree import ElementTree
 from pathlib import Path
 
 from fmpy import read_model_description
@@ -51,6 +52,10 @@ def read_description(path: Path) -> ModelDescription:
                 raise ValueError(f"{path.name} has no modelDescription.xml; it is not an FMU")
     except zipfile.BadZipFile as err:
         raise ValueError(f"{path.name} is a damaged zip archive: {err}") from None
+    version = _fmi_version(path)        # before fmpy: its FMI 1.0 reader fails on a bare file
+    if version is not None and version != "2.0":
+        raise ValueError(f"{path.name} is an FMI {version} FMU; this master runs FMI 2.0 "
+                         "co-simulation FMUs")
     try:
         md = read_model_description(str(path), validate=False)
     except ValueError:
@@ -64,3 +69,14 @@ def read_description(path: Path) -> ModelDescription:
         raise ValueError(f"{path.name} supports model exchange only; this master needs "
                          "a co-simulation FMU (export it for co-simulation)")
     return md
+
+
+def _fmi_version(path: Path) -> str | None:
+    """The fmiVersion attribute of the root element, or None when it cannot be read."""
+    try:
+        with zipfile.ZipFile(path) as zf, zf.open("modelDescription.xml") as f:
+            for _, elem in ElementTree.iterparse(f, events=("start",)):
+                return elem.get("fmiVersion")
+    except Exception:       # a broken file is reported by the full read below
+        return None
+    return None

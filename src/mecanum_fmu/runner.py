@@ -56,7 +56,7 @@ def default_out_dir(scenario: Scenario) -> Path:
 
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
-        log: Callable[[str], None] = print) -> RunOutcome:
+        log: Callable[[str], None] = print, animate: bool = False) -> RunOutcome:
     """Simulate, write results.csv, summary.json and the plots into out_dir."""
     scenario = graph.scenario
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
@@ -77,6 +77,10 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     if plots:
         from .plots import write_plots
         files += write_plots(results, find_roles(graph), truth, out_dir, title=scenario.name)
+    if animate:
+        from .animation import graph_geometry, write_animation
+        files.append(write_animation(results, find_roles(graph), truth, graph_geometry(graph),
+                                     out_dir / "animation.gif"))
     return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
 
 
@@ -122,6 +126,9 @@ def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
             summary["error"] = err
             summary["match"] = (round(end["x"], 3) == round(ref["x"], 3)
                                 and round(end["y"], 3) == round(ref["y"], 3))
+    from .modes import constant_twist_signs
+    if (signs := constant_twist_signs(graph, results)) is not None:
+        summary["wheel_signs"] = signs    # only for a constant commanded twist
     return summary
 
 
@@ -138,4 +145,6 @@ def report_lines(summary: dict) -> list[str]:
                          f"|e| = {err['position']:.3e} m")
             lines.append("match!" if summary["match"] else
                          "no match (the end points differ at 3 decimals; try a smaller step)")
+    if "wheel_signs" in summary:
+        lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
     return lines

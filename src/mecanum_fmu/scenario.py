@@ -8,6 +8,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
+import reprlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Union
@@ -78,7 +79,20 @@ class Scenario:
         return str(self.path)
 
 
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother = 3, 60, 60
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+
+
+def show(value: Any, limit: int = 80) -> str:
+    """A short repr for messages: bounded even for huge or deeply shared (alias bomb) values."""
+    text = _REPR.repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def did_you_mean(name: str, choices) -> str:
+    if not isinstance(name, str) or len(name) > 100:
+        return ""
     close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
     return f"; did you mean '{close[0]}'?" if close else ""
 
@@ -97,6 +111,9 @@ def load_scenario(path: str | Path) -> Scenario:
         problems.append(Problem(label, place, message))
 
     doc = _read_yaml(path, label)
+    if doc is None:
+        raise ScenarioError([Problem(label, "file", "is empty: a scenario needs at least "
+                                     "components (instance name: {fmu: NAME_OR_PATH})")])
     if not isinstance(doc, dict):
         raise ScenarioError([Problem(label, "top level", (
             f"expected a mapping with keys {', '.join(_TOP_KEYS)}, got {_type_name(doc)}"))])
@@ -104,7 +121,7 @@ def load_scenario(path: str | Path) -> Scenario:
     _unknown_keys(doc, _TOP_KEYS, "top level", bad)
     name = doc.get("name", path.stem)
     if not isinstance(name, str) or not name.strip() or not re.fullmatch(r"[\w.-]+", name):
-        bad("name", f"{name!r} is not a usable name (letters, digits, _ . - only; it names "
+        bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only; it names "
                     "the results folder)")
         name = path.stem
     description = doc.get("description", "")
@@ -161,7 +178,7 @@ def _type_name(value: Any) -> str:
 def _unknown_keys(mapping: dict, allowed, place: str, bad) -> None:
     for key in mapping:
         if key not in allowed:
-            bad(place, f"unknown key {key!r}{did_you_mean(str(key), allowed)} "
+            bad(place, f"unknown key {show(key)}{did_you_mean(str(key), allowed)} "
                        f"(allowed: {', '.join(allowed)})")
 
 
@@ -180,7 +197,7 @@ def _experiment(raw: Any, bad) -> Experiment:
             continue
         value = raw[key]
         if not is_number(value):
-            bad(f"experiment.{key}", f"expected a number of seconds, got {value!r}")
+            bad(f"experiment.{key}", f"expected a number of seconds, got {show(value)}")
             ok = False
         elif not math.isfinite(value):
             bad(f"experiment.{key}", f"{value} is not a finite number")
@@ -188,11 +205,11 @@ def _experiment(raw: Any, bad) -> Experiment:
         else:
             values[key] = float(value)
     if "master" in raw:
-        if raw["master"] in MASTERS:
+        if isinstance(raw["master"], str) and raw["master"] in MASTERS:
             values["master"] = raw["master"]
         else:
-            bad("experiment.master", f"unknown master {raw['master']!r}"
-                f"{did_you_mean(str(raw['master']), MASTERS)} (choose one of {', '.join(MASTERS)})")
+            bad("experiment.master", f"unknown master {show(raw['master'])}"
+                f"{did_you_mean(raw['master'], MASTERS)} (choose one of {', '.join(MASTERS)})")
     experiment = Experiment(**values)
     if ok:
         for problem in check_experiment(experiment):
@@ -231,7 +248,7 @@ def _parameters(raw: Any, place: str, bad) -> dict[str, Scalar]:
     out = {}
     for key, value in raw.items():
         if not isinstance(key, str):
-            bad(place, f"parameter name {key!r} must be text")
+            bad(place, f"parameter name {show(key)} must be text")
         elif not isinstance(value, (bool, int, float, str)):
             bad(f"{place}.{key}", f"expected a number, true/false or text, got {_type_name(value)}")
         elif isinstance(value, float) and not math.isfinite(value):
@@ -254,7 +271,7 @@ def _components(raw: Any, bad) -> tuple[Component, ...]:
     for name, spec in raw.items():
         place = f"components.{name}"
         if not isinstance(name, str) or not _NAME.match(name):
-            bad("components", f"instance name {name!r} must be an identifier (letters, digits, _)")
+            bad("components", f"instance name {show(name)} must be an identifier (letters, digits, _)")
             continue
         if isinstance(spec, str):
             spec = {"fmu": spec}          # shorthand: `name: VelocitySource`
@@ -293,12 +310,12 @@ def _connections(raw: Any, bad) -> tuple[Connection, ...]:
         if isinstance(item, dict) and set(item) == {"from", "to"}:
             item = [item["from"], item["to"]]
         if not isinstance(item, list) or len(item) != 2:
-            bad(place, f"expected a pair [instance.output, instance.input], got {item!r:.80}")
+            bad(place, f"expected a pair [instance.output, instance.input], got {show(item)}")
             continue
         refs = [parse_ref(x) for x in item]
         for x, ref in zip(item, refs):
             if ref is None:
-                bad(place, f"{x!r:.80} is not of the form instance.variable")
+                bad(place, f"{show(x)} is not of the form instance.variable")
         if all(refs):
             out.append(Connection(refs[0], refs[1], place))
     return tuple(out)
@@ -314,7 +331,7 @@ def _outputs(raw: Any, bad):
     for i, item in enumerate(raw):
         ref = parse_ref(item)
         if ref is None:
-            bad(f"outputs[{i}]", f"{item!r:.80} is not of the form instance.variable")
+            bad(f"outputs[{i}]", f"{show(item)} is not of the form instance.variable")
         else:
             out.append((ref, f"outputs[{i}]"))
     return tuple(out)

@@ -48,3 +48,15 @@ def wheel_to_center(w1: float, w2: float, w3: float, w4: float,
     return (R * math.tan(alpha) / 4.0 * (-w1 + w2 - w3 + w4),
             R / 4.0 * (w1 + w2 + w3 + w4),
             R / (4.0 * k) * (w1 - w2 - w3 + w4))
+
+
+def instantaneous_center(vx: float, vy: float, w: float,
+                         tol: float = 1e-9) -> tuple[float, float, bool]:
+    """Instantaneous centre of rotation in the body frame (SPEC.md section 4, seeds/003 eq. 20).
+
+    Returns (icr_x, icr_y, has_icr): (-vy/w, vx/w, True) for |w| >= tol; a pure translation
+    (|w| < tol) has none: (0.0, 0.0, False).
+    """
+    if not abs(w) >= tol:
+        return 0.0, 0.0, False
+    return -vy / w, vx / w, True

@@ -1,15 +1,16 @@
 """Wheel2Center FMU: forward kinematics, four wheel speeds -> chassis twist."""
 import math
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
-from mecanum_fmu.blocks.kinematics import check_geometry, wheel_to_center  # inline
+from mecanum_fmu.blocks.kinematics import check_geometry, instantaneous_center, wheel_to_center  # inline
 
 _WHEELS = ("w1", "w2", "w3", "w4")
 _TWIST = ("vx", "vy", "w")
 _GEOMETRY = ("alpha", "L", "W", "R")
+_ICR = ("icr_x", "icr_y", "has_icr")
 
 
 class Wheel2Center(Fmi2Slave):
@@ -18,9 +19,10 @@ class Wheel2Center(Fmi2Slave):
                    "w1..w4 -> least-squares body twist (vx right, vy forward, w counter-clockwise). "
                    "Direct feedthrough.")
     UNITS = {"vx": "m/s", "vy": "m/s", "w": "rad/s", "w1": "rad/s", "w2": "rad/s",
-             "w3": "rad/s", "w4": "rad/s", "alpha": "rad", "L": "m", "W": "m", "R": "m"}
-    DEPENDENCIES = {name: _WHEELS for name in _TWIST}
-    INITIAL_DEPENDENCIES = {name: _WHEELS + _GEOMETRY for name in _TWIST}
+             "w3": "rad/s", "w4": "rad/s", "alpha": "rad", "L": "m", "W": "m", "R": "m",
+             "icr_x": "m", "icr_y": "m"}
+    DEPENDENCIES = {name: _WHEELS for name in _TWIST + _ICR}
+    INITIAL_DEPENDENCIES = {name: _WHEELS + _GEOMETRY for name in _TWIST + _ICR}
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
 
     def __init__(self, **kwargs):
@@ -28,6 +30,8 @@ class Wheel2Center(Fmi2Slave):
         self.w1 = self.w2 = self.w3 = self.w4 = 0.0
         self.alpha, self.L, self.W, self.R = math.pi / 4, 0.16, 0.12, 0.06
         self.vx = self.vy = self.w = 0.0
+        self.icr_x = self.icr_y = 0.0
+        self.has_icr = False
         wheel_docs = ("front-right", "front-left", "rear-left", "rear-right")
         for name, where in zip(_WHEELS, wheel_docs):
             self.register_variable(Real(name, causality=Fmi2Causality.input,
@@ -48,12 +52,24 @@ class Wheel2Center(Fmi2Slave):
             self.register_variable(Real(name, causality=Fmi2Causality.output,
                                         variability=Fmi2Variability.continuous,
                                         description=docs[name]))
+        # Registered after the twist so the earlier value references stay unchanged.
+        icr_docs = {"icr_x": "instantaneous centre of rotation, body X (-vy/w); 0 without one",
+                    "icr_y": "instantaneous centre of rotation, body Y (vx/w); 0 without one"}
+        for name in ("icr_x", "icr_y"):
+            self.register_variable(Real(name, causality=Fmi2Causality.output,
+                                        variability=Fmi2Variability.continuous,
+                                        description=icr_docs[name]))
+        self.register_variable(Boolean("has_icr", causality=Fmi2Causality.output,
+                                       variability=Fmi2Variability.discrete,
+                                       description="true when |w| >= 1e-9 rad/s (not a pure "
+                                                   "translation), so the ICR exists"))
 
     def _update(self):
         # Direct feedthrough: outputs follow the inputs at once, no step needed.
         try:
             self.vx, self.vy, self.w = wheel_to_center(
                 self.w1, self.w2, self.w3, self.w4, self.alpha, self.L, self.W, self.R)
+            self.icr_x, self.icr_y, self.has_icr = instantaneous_center(self.vx, self.vy, self.w)
         except (ArithmeticError, TypeError):
             pass  # invalid geometry: reported by enter_initialization_mode
 
