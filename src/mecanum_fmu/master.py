@@ -79,6 +79,7 @@ class _Slave:
         self.c_get_bool, self.c_set_bool = f["fmi2GetBoolean"], f["fmi2SetBoolean"]
         self.c_do_step = f["fmi2DoStep"]
         self.component = None
+        self.broken = 0       # worst status returned: Error (3) or Fatal (4) limit what may follow
         # filled by _plan(): (c_get, vrs, n, pointer) and (fill, c_set, vrs, n, pointer)
         self.reads: list = []
         self.writes: list = []
@@ -92,11 +93,17 @@ class _Slave:
         self.fmu.instantiate(callbacks=_CALLBACKS, loggingOn=False)
         self.component = self.fmu.component
 
+    def terminate(self) -> None:
+        # FMI 2.0: after Error an instance may only be freed; after Fatal, not even that.
+        if self.component is not None and not self.broken:
+            self.fmu._functions["fmi2Terminate"](self.component)
+
     def free(self) -> None:
-        # fmi2FreeInstance only: never unload the library (see _EXTRACTED).
-        if self.component is not None:
+        # fmi2FreeInstance only: never unload the library (see _EXTRACTED). An instance that
+        # returned Fatal is left alone (pythonfmu crashes the process if it is touched again).
+        if self.component is not None and self.broken < 4:
             self.fmu._functions["fmi2FreeInstance"](self.component)
-            self.component = None
+        self.component = None
 
     def last_log(self) -> str:
         messages = _LOG.get(self.name, [])
@@ -198,11 +205,12 @@ def simulate(graph: Graph, experiment: Experiment,
 
         def terminate_all():
             for s in slaves:
-                if s not in terminated and s.component is not None:
-                    s.fmu._functions["fmi2Terminate"](s.component)
+                if s not in terminated:
+                    s.terminate()
         stack.callback(terminate_all)
 
         def fail(slave: _Slave, function: str, status: int, when: float):
+            slave.broken = status if status >= 3 else 0
             raise SimulationError(
                 f"{function} returned {STATUS.get(status, status)}"
                 + (f" (FMU says: {slave.last_log()})" if slave.last_log() else ""),
@@ -293,7 +301,7 @@ def simulate(graph: Graph, experiment: Experiment,
                                                         wall, False)) from None
         wall = _time.perf_counter() - tick
         for s in slaves:
-            st = s.fmu._functions["fmi2Terminate"](s.component)
+            s.terminate()
             terminated.append(s)
     return layout.results(rec_real, rec_int, rows, experiment, wall, True)
 
@@ -329,13 +337,16 @@ class _Layout:
 
 
 def _step_failure(slave: _Slave) -> str:
-    status = ctypes.c_int(0)
+    """Name the failed call; say 'terminated early' only when the FMU itself says so."""
+    terminated = ctypes.c_int(0)
     try:
-        slave.fmu._functions["fmi2GetBooleanStatus"](slave.component, _fmi2Terminated,
-                                                      ctypes.byref(status))
-    except Exception:
+        status = slave.fmu._functions["fmi2GetBooleanStatus"](
+            slave.component, _fmi2Terminated, ctypes.byref(terminated))
+    except Exception:   # an FMU may not export it at all
         return "fmi2DoStep"
-    return "fmi2DoStep (the FMU terminated early)" if status.value else "fmi2DoStep"
+    if status == 0 and terminated.value == 1:
+        return "fmi2DoStep (the FMU terminated early)"
+    return "fmi2DoStep"
 
 
 def _get_one(slave: _Slave, port: Port):

@@ -1,0 +1,87 @@
+"""Helpers for the master and CLI tests: test FMUs built once per process, scenario files,
+reading results.csv."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+FMU_SOURCES = Path(__file__).resolve().parent / "fmu_sources"
+# SPEC.md section 5: the seed circle's end point.
+SPEC_END = (1.8390715290764525, -0.5440211108893698)
+
+_BUILT: dict[str, Path] = {}
+
+
+def test_fmus(tmp_path_factory) -> dict[str, Path]:
+    """script stem -> built FMU, built once per process (each script has a unique module
+    name, and one FMU must never be built or extracted twice in one process)."""
+    if not _BUILT:
+        from pythonfmu import FmuBuilder
+        dest = tmp_path_factory.mktemp("test_fmus")
+        for script in sorted(FMU_SOURCES.glob("mtest_*.py")):
+            _BUILT[script.stem] = Path(FmuBuilder.build_FMU(script, dest=dest))
+    return _BUILT
+
+
+test_fmus.__test__ = False   # not a test, despite the name
+
+
+def write_scenario(folder: Path, name: str, text: str) -> Path:
+    path = Path(folder) / f"{name}.yaml"
+    path.write_text(text)
+    return path
+
+
+CHAIN_COMPONENTS = {
+    "source": "source: {fmu: VelocitySource, parameters: "
+              "{vx_expr: 'sin(t)', vy_expr: 'cos(t)', w_expr: '0'}}",
+    "c2w": "c2w: {fmu: Center2Wheel}",
+    "w2c": "w2c: {fmu: Wheel2Center}",
+    "pose": "pose: {fmu: PoseIntegrator}",
+}
+CHAIN_CONNECTIONS = """\
+connections:
+  - [source.vx, c2w.vx]
+  - [source.vy, c2w.vy]
+  - [source.w,  c2w.w]
+  - [c2w.w1, w2c.w1]
+  - [c2w.w2, w2c.w2]
+  - [c2w.w3, w2c.w3]
+  - [c2w.w4, w2c.w4]
+  - [w2c.vx, pose.vx]
+  - [w2c.vy, pose.vy]
+  - [w2c.w,  pose.w]
+"""
+
+
+def chain_scenario(folder: Path, name: str, *, master: str = "gauss-seidel",
+                   step_size: float = 0.05, stop_time: float = 2.0,
+                   order=("source", "c2w", "w2c", "pose"), outputs=None,
+                   profile=("sin(t)", "cos(t)", "0")) -> Path:
+    """The seed's four-block chain (SPEC 1) with the components declared in `order`."""
+    comps = dict(CHAIN_COMPONENTS)
+    comps["source"] = ("source: {fmu: VelocitySource, parameters: "
+                       "{vx_expr: '%s', vy_expr: '%s', w_expr: '%s'}}" % profile)
+    lines = [f"name: {name}",
+             f"experiment: {{start_time: 0.0, stop_time: {stop_time!r}, "
+             f"step_size: {step_size!r}, master: {master}}}",
+             "parameters: {alpha: 0.7853981633974483, L: 0.16, W: 0.12, R: 0.06}",
+             "components:"]
+    lines += [f"  {comps[c]}" for c in order]
+    text = "\n".join(lines) + "\n" + CHAIN_CONNECTIONS
+    if outputs is not None:
+        text += "outputs:\n" + "".join(f"  - {o}\n" for o in outputs)
+    return write_scenario(folder, name, text)
+
+
+def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    """Header and the rows as a float array."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, body = rows[0], rows[1:]
+    data = np.array([[float(v) for v in row] for row in body], dtype=float).reshape(
+        len(body), len(header))
+    return header, data
