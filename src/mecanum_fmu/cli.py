@@ -58,6 +58,20 @@ def build_parser() -> argparse.ArgumentParser:
                                       "dependencies, capabilities.")
     info.add_argument("fmu", help="an .fmu file or a bundled model name")
     info.set_defaults(func=cmd_info)
+
+    exp = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
+                         description="Check a scenario and write it, with its FMUs, as an "
+                                     "SSP 1.0 archive (.ssp) for other co-simulation tools.")
+    exp.add_argument("scenario", help="scenario file (.yaml, .ssp or .ssd)")
+    exp.add_argument("-o", "--output", type=Path, required=True, help="the .ssp file to write")
+    exp.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
+    exp.set_defaults(func=cmd_export_ssp)
+
+    doctor = sub.add_parser("doctor", help="how to load the FMUs in other tools (LD_PRELOAD)",
+                            description="Print where the FMUs are and the LD_PRELOAD line "
+                                        "non-Python hosts need for pythonfmu FMUs.")
+    doctor.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
+    doctor.set_defaults(func=cmd_doctor)
     return parser
 
 
@@ -164,4 +178,20 @@ def cmd_info(args) -> int:
             extra = "  depends on: " + ("(not declared: all inputs)" if d is None
                                          else ", ".join(x.name for x in d) or "nothing (no feedthrough)")
         print(f"  {var.causality:>9} {var.type:<7} {var.name}{unit}{start}{extra}")
+    return 0
+
+
+def cmd_export_ssp(args) -> int:
+    from .runner import prepare
+    from .ssp import export_ssp
+    graph = prepare(args.scenario, fmu_dir=args.fmu_dir)
+    path = export_ssp(graph, args.output)
+    print(f"wrote {path} ({len(graph.instances)} components, {len(graph.links)} connections)")
+    return 0
+
+
+def cmd_doctor(args) -> int:
+    from .doctor import doctor_lines
+    for line in doctor_lines(args.fmu_dir):
+        print(line)
     return 0

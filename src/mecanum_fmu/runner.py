@@ -34,7 +34,11 @@ class RunOutcome:
 def prepare(path: str | Path, *, step_size: float | None = None, stop_time: float | None = None,
             master_name: str | None = None, fmu_dir: Path | None = None) -> Graph:
     """Load and check a scenario (with command-line overrides) and compile its graph."""
-    scenario = load_scenario(path)
+    if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
+        from .ssp import load_ssp
+        scenario = load_ssp(path)
+    else:
+        scenario = load_scenario(path)
     changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
                                  ("master", master_name)) if v is not None}
     if changes:

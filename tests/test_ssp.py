@@ -1,0 +1,383 @@
+"""SSP 1.0 export/import: structure, XSD validity, bit-identical round trip, a third-party
+SSP, a broken SSP, and the `doctor` command."""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import pytest
+
+from mecanum_fmu.fmu_library import read_description
+from mecanum_fmu.graph import compile_graph, port_type
+from mecanum_fmu.scenario import load_scenario
+from mecanum_fmu import ssp
+
+REPO = Path(__file__).resolve().parents[1]
+CIRCLE = REPO / "scenarios" / "circle.yaml"
+SCHEMA_DIR = None
+try:
+    import fmpy
+    SCHEMA_DIR = Path(fmpy.__file__).parent / "ssp" / "schema"
+except ImportError:  # pragma: no cover
+    pass
+N = ssp.NS
+
+
+def q(prefix, tag):
+    return f"{{{N[prefix]}}}{tag}"
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(built_fmus):
+    return next(iter(built_fmus.values())).parent
+
+
+@pytest.fixture(autouse=True)
+def cache_home(tmp_path_factory, monkeypatch):
+    """Keep the extraction cache out of the user's home."""
+    home = tmp_path_factory.getbasetemp() / "xdg_cache"
+    monkeypatch.setenv("XDG_CACHE_HOME", str(home))
+    return home
+
+
+@pytest.fixture(scope="module")
+def circle_graph(fmu_dir):
+    return compile_graph(load_scenario(CIRCLE), fmu_dir)
+
+
+@pytest.fixture
+def exported(circle_graph, tmp_path):
+    return ssp.export_ssp(circle_graph, tmp_path / "circle.ssp")
+
+
+def cli(*args, cwd=None, env_extra=None):
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(REPO / "src") + os.pathsep + env.get("PYTHONPATH", "")
+    env.setdefault("MPLBACKEND", "Agg")
+    env.update(env_extra or {})
+    return subprocess.run([sys.executable, "-m", "mecanum_fmu", *map(str, args)],
+                          cwd=cwd or REPO, env=env, capture_output=True, text=True, timeout=300)
+
+
+def ssd_root(path):
+    with zipfile.ZipFile(path) as zf:
+        return ET.fromstring(zf.read("SystemStructure.ssd"))
+
+
+# ------------------------------------------------------------------------------------ export
+
+def test_export_structure_and_content(exported, circle_graph, built_fmus):
+    graph = circle_graph
+    with zipfile.ZipFile(exported) as zf:
+        names = zf.namelist()
+        assert names[0] == "SystemStructure.ssd"
+        assert sorted(names[1:]) == sorted(f"resources/{m}.fmu" for m in built_fmus)
+        for model, path in built_fmus.items():       # each FMU inside, byte for byte
+            assert zf.read(f"resources/{model}.fmu") == path.read_bytes()
+        assert {i.date_time for i in zf.infolist()} == {(1980, 1, 1, 0, 0, 0)}
+    root = ssd_root(exported)
+    assert root.tag == q("ssd", "SystemStructureDescription")
+    assert root.get("version") == "1.0" and root.get("name") == "circle"
+    system = root.find(q("ssd", "System"))
+    comps = system.findall(f"{q('ssd', 'Elements')}/{q('ssd', 'Component')}")
+    assert [c.get("name") for c in comps] == [c.name for c in graph.scenario.components]
+    for comp in comps:
+        inst = graph.instance(comp.get("name"))
+        assert comp.get("source") == f"resources/{inst.model_name}.fmu"
+        assert comp.get("type") == "application/x-fmu-sharedlibrary"
+        # connectors: names, kinds and types as in the FMU's own model description
+        md = read_description(inst.fmu_path)
+        expected = {v.name: (v.causality, port_type(v)) for v in md.modelVariables
+                    if v.causality in ("input", "output", "parameter")}
+        got = {}
+        for c in comp.find(q("ssd", "Connectors")):
+            (typ,) = list(c)
+            assert typ.tag.startswith("{%s}" % N["ssc"])
+            got[c.get("name")] = (c.get("kind"), typ.tag.split("}")[1])
+        assert got == expected
+        # every start value is bound, with its type and exact value
+        params = {}
+        for p in comp.iter(q("ssv", "Parameter")):
+            (val,) = list(p)
+            params[p.get("name")] = (val.tag.split("}")[1], val.get("value"))
+        want = {k: ssp._format(v) for k, v in inst.start_values.items()}
+        assert params == want
+    assert len(graph.instance("c2w").start_values) == 4        # the shared geometry
+    assert params_of(comps, "source")["vy_expr"] == ("String", "cos(t)")
+    conns = [(c.get("startElement"), c.get("startConnector"), c.get("endElement"),
+              c.get("endConnector")) for c in system.iter(q("ssd", "Connection"))]
+    assert conns == [(c.source.instance, c.source.variable, c.target.instance,
+                      c.target.variable) for c in graph.scenario.connections]
+    assert len(conns) == 10
+    default = root.find(q("ssd", "DefaultExperiment"))
+    assert (float(default.get("startTime")), float(default.get("stopTime"))) == (0.0, 10.0)
+    ours = default.find(f".//{q('mf', 'Experiment')}")
+    assert ours.get("stepSize") == "0.05" and ours.get("master") == "trapezoidal"
+
+
+def params_of(comps, name):
+    comp = next(c for c in comps if c.get("name") == name)
+    return {p.get("name"): (p[0].tag.split("}")[1], p[0].get("value"))
+            for p in comp.iter(q("ssv", "Parameter"))}
+
+
+def test_export_is_deterministic(circle_graph, tmp_path):
+    a = ssp.export_ssp(circle_graph, tmp_path / "a.ssp").read_bytes()
+    b = ssp.export_ssp(circle_graph, tmp_path / "b.ssp").read_bytes()
+    assert a == b
+
+
+@pytest.mark.skipif(SCHEMA_DIR is None or not (SCHEMA_DIR / "SystemStructureDescription.xsd")
+                    .is_file(), reason="fmpy's SSP schema not installed")
+def test_export_validates_against_ssp_1_0_xsd(exported):
+    etree = pytest.importorskip("lxml.etree")
+    schema = etree.XMLSchema(file=str(SCHEMA_DIR / "SystemStructureDescription.xsd"))
+    with zipfile.ZipFile(exported) as zf:
+        doc = etree.fromstring(zf.read("SystemStructure.ssd"))
+    assert schema.validate(doc), schema.error_log
+
+
+def test_fmpy_reads_the_export(exported):
+    read_ssd = pytest.importorskip("fmpy.ssp.ssd").read_ssd
+    desc = read_ssd(str(exported))
+    assert [e.name for e in desc.system.elements] == ["source", "c2w", "w2c", "pose"]
+    assert len(desc.system.connections) == 10
+
+
+def test_cli_export(tmp_path, fmu_dir):
+    out = tmp_path / "sub" / "circle.ssp"
+    proc = cli("export-ssp", CIRCLE, "-o", out, "--fmu-dir", fmu_dir)
+    assert proc.returncode == 0, proc.stderr
+    assert out.is_file() and "4 components, 10 connections" in proc.stdout
+
+
+# ------------------------------------------------------------------------------------ import
+
+def test_load_ssp_gives_the_same_scenario(exported, circle_graph, fmu_dir, cache_home):
+    scenario = ssp.load_ssp(exported)
+    orig = circle_graph.scenario
+    assert scenario.name == orig.name and scenario.experiment == orig.experiment
+    assert [(c.source, c.target) for c in scenario.connections] == \
+        [(c.source, c.target) for c in orig.connections]
+    graph = compile_graph(scenario, fmu_dir)
+    for inst in graph.instances:
+        want = circle_graph.instance(inst.name)
+        assert inst.start_values == want.start_values
+        assert [type(v) for v in inst.start_values.values()] == \
+            [type(want.start_values[k]) for k in inst.start_values]
+        assert inst.model.guid == want.model.guid
+    assert [i.name for i in graph.instances] == [i.name for i in circle_graph.instances]
+    assert [l.place for l in graph.links] and \
+        [(str(l.source.ref), str(l.target.ref)) for l in graph.links] == \
+        [(str(l.source.ref), str(l.target.ref)) for l in circle_graph.links]
+    # the FMUs are extracted once, into a cache folder keyed by the archive's sha256
+    import hashlib
+    digest = hashlib.sha256(exported.read_bytes()).hexdigest()
+    paths = {c.fmu for c in scenario.components}
+    assert all(Path(p).parent == cache_home / "mecanum_fmu" / "ssp" / digest / "resources"
+               for p in paths)
+    mtimes = {p: Path(p).stat().st_mtime_ns for p in paths}
+    again = ssp.load_ssp(exported)
+    assert {c.fmu for c in again.components} == paths
+    assert {p: Path(p).stat().st_mtime_ns for p in paths} == mtimes
+
+
+def test_round_trip_is_bit_identical(exported, tmp_path, fmu_dir, cache_home):
+    env = {"XDG_CACHE_HOME": str(cache_home)}
+    for master in ("trapezoidal", "jacobi"):
+        a, b = tmp_path / f"yaml-{master}", tmp_path / f"ssp-{master}"
+        p1 = cli("run", CIRCLE, "--out", a, "--no-plots", "-q", "--master", master,
+                 "--fmu-dir", fmu_dir, env_extra=env)
+        p2 = cli("run", exported, "--out", b, "--no-plots", "-q", "--master", master,
+                 env_extra=env)
+        assert p1.returncode == 0, p1.stderr
+        assert p2.returncode == 0, p2.stderr
+        assert (a / "results.csv").read_bytes() == (b / "results.csv").read_bytes()
+        sa, sb = (json.loads((d / "summary.json").read_text()) for d in (a, b))
+        assert sa["end_pose"] == sb["end_pose"] and sa["steps"] == sb["steps"]
+    proc = cli("validate", exported, env_extra=env)
+    assert proc.returncode == 0 and "ok - 4 components, 10 connections" in proc.stdout
+
+
+THIRD_PARTY = """<?xml version="1.0" encoding="UTF-8"?>
+<!-- as another tool would write it: its own prefixes, its own order, no mecanum annotation -->
+<SystemStructureDescription xmlns="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:c="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:v="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    version="1.0" name="third party car">
+  <System name="Root">
+    <Elements>
+      <Component name="integrator" source="resources/pose.fmu">
+        <Connectors>
+          <Connector name="y" kind="output"><c:Real/></Connector>
+          <Connector name="x" kind="output"><c:Real/></Connector>
+          <Connector name="w" kind="input"><c:Real/></Connector>
+          <Connector name="vy" kind="input"><c:Real/></Connector>
+          <Connector name="vx" kind="input"><c:Real/></Connector>
+        </Connectors>
+      </Component>
+      <Component name="fwd" source="./resources/kin/Fwd.fmu" type="application/x-fmu-sharedlibrary"/>
+      <Component name="inv" source="resources/kin/Inv.fmu">
+        <ParameterBindings>
+          <ParameterBinding source="resources/geometry.ssv"/>
+        </ParameterBindings>
+      </Component>
+      <Component name="cmd" source="resources/cmd.fmu">
+        <ParameterBindings>
+          <ParameterBinding>
+            <ParameterValues>
+              <v:ParameterSet version="1.0" name="command">
+                <v:Parameters>
+                  <v:Parameter name="vy_expr"><v:String value="0.5"/></v:Parameter>
+                  <v:Parameter name="vx_expr"><v:String value="0.2"/></v:Parameter>
+                  <v:Parameter name="w_expr"><v:String value="0"/></v:Parameter>
+                </v:Parameters>
+              </v:ParameterSet>
+            </ParameterValues>
+          </ParameterBinding>
+        </ParameterBindings>
+      </Component>
+    </Elements>
+    <Connections>
+      <Connection startElement="fwd" startConnector="w" endElement="integrator" endConnector="w"/>
+      <Connection startElement="inv" startConnector="w4" endElement="fwd" endConnector="w4"/>
+      <Connection startElement="cmd" startConnector="vy" endElement="inv" endConnector="vy"/>
+      <Connection startElement="fwd" startConnector="vx" endElement="integrator" endConnector="vx"/>
+      <Connection startElement="inv" startConnector="w1" endElement="fwd" endConnector="w1"/>
+      <Connection startElement="cmd" startConnector="w" endElement="inv" endConnector="w"/>
+      <Connection startElement="inv" startConnector="w3" endElement="fwd" endConnector="w3"/>
+      <Connection startElement="fwd" startConnector="vy" endElement="integrator" endConnector="vy"/>
+      <Connection startElement="inv" startConnector="w2" endElement="fwd" endConnector="w2"/>
+      <Connection startElement="cmd" startConnector="vx" endElement="inv" endConnector="vx"/>
+    </Connections>
+  </System>
+  <DefaultExperiment startTime="0" stopTime="4"/>
+</SystemStructureDescription>
+"""
+
+GEOMETRY_SSV = """<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    version="1.0" name="geometry">
+  <ssv:Parameters>
+    <ssv:Parameter name="R"><ssv:Real value="0.05"/></ssv:Parameter>
+    <ssv:Parameter name="L"><ssv:Real value="0.2"/></ssv:Parameter>
+  </ssv:Parameters>
+</ssv:ParameterSet>
+"""
+# inv (Center2Wheel) gets R = 0.05, L = 0.2 while fwd (Wheel2Center) keeps the defaults
+# R = 0.06, L = 0.16: with w = 0 the wheel speeds scale by 0.06/0.05 and the rotation part
+# cancels, so the commanded (0.2, 0.5) m/s comes out as (0.24, 0.6) m/s: after 4 s (0.96, 2.4).
+THIRD_PARTY_FILES = {"resources/pose.fmu": "PoseIntegrator",
+                     "resources/kin/Fwd.fmu": "Wheel2Center",
+                     "resources/kin/Inv.fmu": "Center2Wheel",
+                     "resources/cmd.fmu": "VelocitySource"}
+
+
+def write_third_party(dest: Path, built_fmus, ssd_text=THIRD_PARTY, bare=False) -> Path:
+    if bare:
+        folder = dest / "third_party"
+        for name, model in THIRD_PARTY_FILES.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(built_fmus[model], folder / name)
+        (folder / "resources" / "geometry.ssv").write_text(GEOMETRY_SSV)
+        (folder / "car.ssd").write_text(ssd_text)
+        return folder / "car.ssd"
+    path = dest / "third_party.ssp"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, model in sorted(THIRD_PARTY_FILES.items(), reverse=True):
+            zf.write(built_fmus[model], name)
+        zf.writestr("resources/geometry.ssv", GEOMETRY_SSV)
+        zf.writestr("SystemStructure.ssd", ssd_text)
+    return path
+
+
+@pytest.mark.parametrize("bare", [False, True], ids=["ssp", "bare-ssd"])
+def test_third_party_ssp_runs_under_our_master(bare, tmp_path, built_fmus, cache_home):
+    path = write_third_party(tmp_path, built_fmus, bare=bare)
+    scenario = ssp.load_ssp(path)
+    assert scenario.name == "third_party_car"
+    assert scenario.experiment.stop_time == 4.0
+    assert scenario.experiment.master == "trapezoidal"        # defaults: no annotation
+    params = {c.name: c.parameters for c in scenario.components}
+    assert params["cmd"] == {"vy_expr": "0.5", "vx_expr": "0.2", "w_expr": "0"}
+    assert params["inv"] == {"R": 0.05, "L": 0.2}
+    out = tmp_path / "out"
+    proc = cli("run", path, "--out", out, "--no-plots",
+               env_extra={"XDG_CACHE_HOME": str(cache_home)})
+    assert proc.returncode == 0, proc.stderr
+    end = json.loads((out / "summary.json").read_text())["end_pose"]
+    assert end["x"] == pytest.approx(0.96, abs=1e-9)
+    assert end["y"] == pytest.approx(2.4, abs=1e-9)
+    assert end["theta"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_broken_ssp_unknown_connector_exits_2(tmp_path, built_fmus, cache_home):
+    env = {"XDG_CACHE_HOME": str(cache_home)}
+    # connector not among the component's declared connectors: found by the SSP reader
+    text = THIRD_PARTY.replace('startConnector="vy" endElement="inv" endConnector="vy"',
+                               'startConnector="vy" endElement="inv" endConnector="vz"')
+    path = write_third_party(tmp_path, built_fmus, text)
+    out = tmp_path / "out"
+    proc = cli("run", path, "--out", out, "--no-plots", env_extra=env)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert "SystemStructure.ssd: Connections/Connection[3]" in proc.stderr
+    assert "'vz'" in proc.stderr and str(path) in proc.stderr
+    assert not out.exists()
+    # no Connectors declared: the graph check names the same SSD place
+    text = THIRD_PARTY.replace('startConnector="w4" endElement="fwd" endConnector="w4"',
+                               'startConnector="w4" endElement="fwd" endConnector="w5"')
+    path = write_third_party(tmp_path / "b", built_fmus, text, bare=True)
+    proc = cli("validate", path, env_extra=env)
+    assert proc.returncode == 2, proc.stderr
+    assert "car.ssd: Connections/Connection[2]: " in proc.stderr
+    assert "instance 'fwd' has no variable 'w5'" in proc.stderr
+
+
+@pytest.mark.parametrize("edit, place, message", [
+    (('source="resources/cmd.fmu"', 'source="resources/nothere.fmu"'),
+     "Component[4][@name='cmd']/@source", "not found in the archive"),
+    (('source="resources/cmd.fmu"', 'source="../../etc/passwd"'),
+     "Component[4][@name='cmd']/@source", "relative path inside"),
+    (('<v:String value="0.5"/>', '<v:Real value="fast"/>'),
+     "Parameter[1][@name='vy_expr']", "not a valid Real"),
+    (('stopTime="4"', 'stopTime="-1"'), "DefaultExperiment", "must be after start_time"),
+    (('</System>', '</System'), "line", "XML syntax error"),
+])
+def test_broken_ssp_places(edit, place, message, tmp_path, built_fmus):
+    text = THIRD_PARTY.replace(*edit)
+    assert text != THIRD_PARTY
+    path = write_third_party(tmp_path, built_fmus, text)
+    with pytest.raises(ssp.ScenarioError) as info:
+        ssp.load_ssp(path)
+    report = str(info.value)
+    assert "SystemStructure.ssd: " in report and place in report and message in report, report
+
+
+def test_not_an_ssp(tmp_path):
+    bad = tmp_path / "x.ssp"
+    bad.write_text("hello")
+    with pytest.raises(ssp.ScenarioError, match="not an SSP archive"):
+        ssp.load_ssp(bad)
+    with zipfile.ZipFile(tmp_path / "y.ssp", "w") as zf:
+        zf.writestr("other.txt", "x")
+    with pytest.raises(ssp.ScenarioError, match="has no SystemStructure.ssd"):
+        ssp.load_ssp(tmp_path / "y.ssp")
+
+
+# ------------------------------------------------------------------------------------ doctor
+
+def test_doctor_prints_an_existing_libpython(fmu_dir):
+    proc = cli("doctor", "--fmu-dir", fmu_dir)
+    assert proc.returncode == 0, proc.stderr
+    lines = [l for l in proc.stdout.splitlines() if l.startswith("LD_PRELOAD=")]
+    if not lines:
+        pytest.skip("this Python has no shared libpython: " + proc.stdout)
+    lib = Path(lines[0].split("=", 1)[1])
+    assert lib.is_file() and "libpython" in lib.name
+    for model in ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator"):
+        assert str(fmu_dir / f"{model}.fmu") in proc.stdout
