@@ -31,14 +31,22 @@ def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
             except Exception as err:  # the build is ours; report it as an input problem
                 raise ValueError(f"building the bundled FMU {spec} into {fmu_dir} failed: {err}") from err
         return path
-    path = (scenario_dir / spec).resolve() if not Path(spec).is_absolute() else Path(spec)
-    if not path.exists():
+    if "\0" in spec:
+        raise ValueError(f"FMU path {spec!r:.80} contains a NUL character")
+    try:
+        path = (scenario_dir / spec).resolve() if not Path(spec).is_absolute() else Path(spec)
+        exists, is_file, is_dir = path.exists(), path.is_file(), path.is_dir()
+    except (OSError, RuntimeError) as err:     # name too long, symlink loop, ...
+        raise ValueError(f"FMU {spec!r:.80}: cannot use this path: "
+                         f"{getattr(err, 'strerror', None) or err}") from None
+    if not exists:
         hint = ""
         if not spec.endswith(".fmu"):
             hint = f" (bundled FMUs: {', '.join(fmu_build.BUNDLED)})"
         raise ValueError(f"FMU {spec!r} not found (looked for {path}){hint}")
-    if not path.is_file():
-        raise ValueError(f"FMU {spec!r} is a folder, not an .fmu file")
+    if not is_file:
+        raise ValueError(f"FMU {spec!r} is {'a folder' if is_dir else 'a special file'}, "
+                         "not an .fmu file")
     return path
 
 

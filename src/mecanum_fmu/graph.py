@@ -17,7 +17,7 @@ from . import fmu_library
 from .blocks.expression import ExpressionError, compile_expression
 from .blocks.kinematics import check_geometry
 from .errors import Problem, ScenarioError
-from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number
+from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 
 VALUE_TYPES = ("Real", "Integer", "Boolean", "String")
 
@@ -222,14 +222,15 @@ def _settable(var: ScalarVariable | None) -> bool:
 def _type_problem(var: ScalarVariable, value: Scalar) -> str | None:
     kind = port_type(var)
     ok = {"Real": is_number(value),
-          "Integer": isinstance(value, int) and not isinstance(value, bool),
+          "Integer": (isinstance(value, int) and not isinstance(value, bool)
+                      and -2**31 <= value < 2**31),      # fmi2Integer is 32-bit
           "Boolean": isinstance(value, bool),
           "String": isinstance(value, str)}.get(kind, False)
     if ok:
         return None
-    wanted = {"Real": "a number", "Integer": "a whole number", "Boolean": "true or false",
+    wanted = {"Real": "a number", "Integer": "a whole number from -2**31 to 2**31-1", "Boolean": "true or false",
               "String": "text (quote it)"}.get(kind, kind)
-    return f"'{var.name}' is {kind}: expected {wanted}, got {value!r}"
+    return f"'{var.name}' is {kind}: expected {wanted}, got {show(value)}"
 
 
 def _check_bundled_values(comp, md: ModelDescription, own, values, bad,

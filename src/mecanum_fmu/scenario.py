@@ -101,6 +101,14 @@ def is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def is_finite(value: Any) -> bool:
+    """A number that is a finite float (an int too large for a float is not)."""
+    try:
+        return is_number(value) and math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def load_scenario(path: str | Path) -> Scenario:
     """Read and check a scenario file. Raises ScenarioError listing every problem found."""
     path = Path(path)
@@ -199,8 +207,8 @@ def _experiment(raw: Any, bad) -> Experiment:
         if not is_number(value):
             bad(f"experiment.{key}", f"expected a number of seconds, got {show(value)}")
             ok = False
-        elif not math.isfinite(value):
-            bad(f"experiment.{key}", f"{value} is not a finite number")
+        elif not is_finite(value):
+            bad(f"experiment.{key}", f"{show(value)} is not a finite number")
             ok = False
         else:
             values[key] = float(value)
@@ -251,8 +259,8 @@ def _parameters(raw: Any, place: str, bad) -> dict[str, Scalar]:
             bad(place, f"parameter name {show(key)} must be text")
         elif not isinstance(value, (bool, int, float, str)):
             bad(f"{place}.{key}", f"expected a number, true/false or text, got {_type_name(value)}")
-        elif isinstance(value, float) and not math.isfinite(value):
-            bad(f"{place}.{key}", f"{value} is not a finite number")
+        elif is_number(value) and not is_finite(value):
+            bad(f"{place}.{key}", f"{show(value)} is not a finite number")
         else:
             out[key] = value
     return out
