@@ -19,7 +19,7 @@ from .blocks.kinematics import check_geometry
 from .errors import Problem, ScenarioError
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 
-VALUE_TYPES = ("Real", "Integer", "Boolean", "String")
+VALUE_TYPES = ("Real", "Integer", "Boolean")    # what moves between FMUs and is recorded
 
 
 @dataclass(frozen=True)
@@ -173,6 +173,10 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
             bad(conn.place, f"type mismatch: '{conn.source}' is {src.type}, "
                             f"'{conn.target}' is {dst.type}")
             ok = False
+        if port_type(src) not in VALUE_TYPES and port_type(src) == port_type(dst):
+            bad(conn.place, f"'{conn.source}' is {src.type}: connections carry Real, Integer "
+                            "and Boolean values (set a String once as a parameter instead)")
+            ok = False
         if conn.target in drivers:
             bad(conn.place, f"input '{conn.target}' already has a driver "
                             f"({drivers[conn.target]}); an input takes one connection")
@@ -192,7 +196,10 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
         seen = set()
         for ref, place in scenario.outputs:
             var = lookup(ref, place)
-            if var is not None and ref not in seen:
+            if var is not None and port_type(var) not in VALUE_TYPES:
+                bad(place, f"'{ref}' is {var.type}: only Real, Integer and Boolean variables "
+                           "are recorded")
+            elif var is not None and ref not in seen:
                 seen.add(ref)
                 recorded.append(port(ref, var))
 

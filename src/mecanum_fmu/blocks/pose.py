@@ -11,13 +11,15 @@ def pose_step(x: float, y: float, theta: float,
     """
     phi = w * h
     if abs(phi) < 1e-6:
-        # Series of sin(phi)/phi and (1 - cos(phi))/phi: avoids 0/0 and cancellation.
+        # Series of sin(phi)/phi and (1 - cos(phi))/phi: avoids 0/0.
         phi2 = phi * phi
         a = 1.0 - phi2 / 6.0 + phi2 * phi2 / 120.0
         b = phi / 2.0 - phi * phi2 / 24.0
     else:
         a = math.sin(phi) / phi
-        b = (1.0 - math.cos(phi)) / phi
+        # 1 - cos(phi) = 2 sin^2(phi/2): no cancellation for small phi.
+        half = math.sin(0.5 * phi)
+        b = 2.0 * half * half / phi
     # Displacement in the body frame at the start of the step.
     dx = h * (a * vx - b * vy)
     dy = h * (b * vx + a * vy)
