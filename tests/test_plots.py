@@ -28,18 +28,20 @@ WHEEL_LABELS = ["w1 front-right", "w2 front-left", "w3 rear-left", "w4 rear-righ
 def make_run(n: int = 101, stop: float = 10.0, drop: tuple[str, ...] = ()):
     """Results and Truth for vx = sin t, vy = cos t, w = 0 (the exact unit circle)."""
     t = np.linspace(0.0, stop, n)
+    dt = stop / max(n - 1, 1)
     vx, vy, w = np.sin(t), np.cos(t), np.zeros_like(t)
     cols = {"source.vx": vx, "source.vy": vy, "source.w": w,
             "c2w.w1": (-C * vx + vy + K * w) / R, "c2w.w2": (C * vx + vy - K * w) / R,
             "c2w.w3": (-C * vx + vy - K * w) / R, "c2w.w4": (C * vx + vy + K * w) / R,
-            "w2c.vx": vx.copy(), "w2c.vy": vy.copy(), "w2c.w": w.copy(),
+            # reconstructed twist lags one sample behind (as a zero-order hold would)
+            "w2c.vx": np.sin(t - dt), "w2c.vy": np.cos(t - dt), "w2c.w": w.copy(),
             "pose.x": 1 - np.cos(t), "pose.y": np.sin(t), "pose.theta": np.zeros_like(t)}
     cols = {k: v for k, v in cols.items() if k not in drop and k.split(".")[0] not in drop}
     data = np.empty(n, dtype=[("time", "f8")] + [(k, "f8") for k in cols])
     data["time"] = t
     for k, v in cols.items():
         data[k] = v
-    results = Results(tuple(cols), data, "gauss-seidel", 0.0, stop, stop / (n - 1), n - 1, 0.1)
+    results = Results(tuple(cols), data, "gauss-seidel", 0.0, stop, dt, max(n - 1, 0), 0.1)
     truth = Truth(t, 1 - np.cos(t), np.sin(t), np.zeros_like(t), vx, vy, w)
     return results, truth
 
@@ -123,6 +125,7 @@ def test_twist_panel_solid_vs_dashed(run, figures):
         assert cmd.get_linestyle() == "-" and rec.get_linestyle() == "--"
         np.testing.assert_array_equal(cmd.get_ydata(), results[f"source.{var}"])
         np.testing.assert_array_equal(rec.get_ydata(), results[f"w2c.{var}"])
+        assert cmd.get_color() == rec.get_color()
 
 
 @pytest.mark.parametrize("role, gone", [("pose", {"path"}), ("inverse", {"wheels"}),
@@ -140,6 +143,21 @@ def test_unrecorded_columns_drop_panel():
     results, truth = make_run(drop=("c2w", "pose.y"))
     figs = plots.build_figures(results, ROLES, truth)
     assert list(figs) == ["velocities", "vy", "twist"]
+
+
+def test_partial_source_columns():
+    results, truth = make_run(drop=("source.w",))
+    figs = plots.build_figures(results, ROLES, truth)
+    assert [l.get_label() for l in figs["velocities"].axes[0].get_lines()] == ["vx", "vy"]
+    assert "w commanded" not in lines_by_label(figs["twist"].axes[0])
+    assert "w reconstructed" in lines_by_label(figs["twist"].axes[0])
+
+
+def test_empty_run(tmp_path):
+    results, truth = make_run(n=0)
+    assert plots.build_figures(results, ROLES, None) == {}
+    assert len(plots.build_dashboard(results, ROLES, None).axes) == 0
+    assert [p.name for p in plots.write_plots(results, ROLES, None, tmp_path)] == ["dashboard.png"]
 
 
 def test_path_without_truth():
@@ -186,7 +204,8 @@ def test_write_plots(run, tmp_path):
     assert len(dash.axes) == len(paths) - 1 == len(PANEL_KEYS)
     suptitle = dash.get_suptitle()
     assert "circle" in suptitle and "gauss-seidel" in suptitle and "0.1" in suptitle
-    assert sorted(ax.get_title() for ax in dash.axes) == sorted(p.title for p in plots.PANELS.values())
+    assert sorted(ax.get_title() for ax in dash.axes) == sorted(plots.PANELS[k].title
+                                                                for k in PANEL_KEYS)
 
 
 def test_write_plots_subset(run, tmp_path):

@@ -114,6 +114,42 @@ def _draw_twist(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -
     ax.legend()
 
 
+def _icr_world(results: Results, roles: Roles) -> tuple[np.ndarray, np.ndarray]:
+    """The ICR (forward block's icr_x, icr_y, body frame) in the world frame, rows with has_icr."""
+    p, f = roles.pose, roles.forward
+    th = results[f"{p}.theta"] if _col(results, p, "theta") else np.zeros(len(results.time))
+    bx, by = results[f"{f}.icr_x"], results[f"{f}.icr_y"]
+    c, s = np.cos(th), np.sin(th)
+    wx = results[f"{p}.x"] + c * bx - s * by
+    wy = results[f"{p}.y"] + s * bx + c * by
+    has = np.asarray(results[f"{f}.has_icr"], dtype=bool)
+    return wx[has], wy[has]
+
+
+def _draw_icr(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Instantaneous centre of rotation in the world frame (where it exists) over the path."""
+    x, y = results[f"{roles.pose}.x"], results[f"{roles.pose}.y"]
+    idx = decimate_index(len(results.time))
+    ax.plot(x[idx], y[idx], color="C0", lw=1.2, label="path")
+    wx, wy = _icr_world(results, roles)
+    # Near w = 0 the ICR runs off to infinity: show only what lies within one path size
+    # (at least 0.5 m) of the path, so the path stays readable.
+    span = max(float(np.ptp(x)), float(np.ptp(y)), 0.5)
+    near = ((wx >= x.min() - span) & (wx <= x.max() + span)
+            & (wy >= y.min() - span) & (wy <= y.max() + span))
+    wx, wy = wx[near], wy[near]
+    if len(wx):
+        keep = decimate_index(len(wx))
+        ax.plot(wx[keep], wy[keep], ".", color="C3", ms=3, label="ICR")
+    else:
+        ax.plot([], [], ".", color="C3", label="ICR (none: w = 0)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m] (right)")
+    ax.set_ylabel("y [m] (forward)")
+    ax.grid(True)
+    ax.legend()
+
+
 Drawer = Callable[[Axes, Results, Roles, Truth | None], None]
 
 
@@ -135,6 +171,10 @@ PANELS: dict[str, Panel] = {
     "twist": Panel("Commanded vs reconstructed twist",
                    lambda r, ro: any(_col(r, ro.source, v) and _col(r, ro.forward, v)
                                      for v in TWIST), _draw_twist),
+    "icr": Panel("Instantaneous centre of rotation (world frame)",
+                 lambda r, ro: bool(_col(r, ro.pose, "x") and _col(r, ro.pose, "y")
+                                    and all(_col(r, ro.forward, v)
+                                            for v in ("icr_x", "icr_y", "has_icr"))), _draw_icr),
 }
 
 

@@ -1,0 +1,126 @@
+"""The basic motions of a mecanum chassis and their wheel-sign patterns (seeds/003 table 2-1).
+
+A wheel-sign pattern is the sign of each wheel speed w1..w4 that the inverse kinematics
+(SPEC.md section 3) gives for a twist: it is meaningful only while the twist is constant.
+
+    python -m mecanum_fmu.modes        # print the markdown table of docs/modes.md
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from .blocks.kinematics import center_to_wheel
+
+DEFAULT_GEOMETRY = {"alpha": math.pi / 4, "L": 0.16, "W": 0.12, "R": 0.06}
+SIGN_TOL = 1e-9               # |wi| below this (times max(1, max |wj|)) counts as 0
+
+# seeds/003 numbers its motors M1 front-left, M2 rear-left, M3 rear-right, M4 front-right:
+# Mi = our wheel SEEDS003_WHEEL[i - 1] (ours: 1 front-right, 2 front-left, 3 rear-left, 4 rear-right).
+SEEDS003_WHEEL = (2, 3, 4, 1)
+
+
+@dataclass(frozen=True)
+class Mode:
+    key: str                  # scenarios/modes/<key>.yaml
+    name: str
+    vx: float                 # body frame: +X right [m/s]
+    vy: float                 # +Y forward [m/s]
+    w: float                  # counter-clockwise [rad/s]
+    direction: str            # what the car does, in our frame
+
+
+MODES = (
+    Mode("forward", "forward", 0.0, 0.3, 0.0, "moves along +Y"),
+    Mode("backward", "backward", 0.0, -0.3, 0.0, "moves along -Y"),
+    Mode("left", "sideways left", -0.3, 0.0, 0.0, "moves along -X"),
+    Mode("right", "sideways right", 0.3, 0.0, 0.0, "moves along +X"),
+    Mode("diagonal", "diagonal forward-left", -0.3, 0.3, 0.0, "moves along (-X, +Y)"),
+    Mode("spin_cw", "spin clockwise", 0.0, 0.0, -0.8, "turns in place, theta decreasing"),
+    Mode("spin_ccw", "spin counter-clockwise", 0.0, 0.0, 0.8, "turns in place, theta increasing"),
+)
+
+
+def _sign(value: float, tol: float) -> str:
+    return "0" if abs(value) <= tol else ("+" if value > 0 else "-")
+
+
+def wheel_sign_list(vx: float, vy: float, w: float, alpha: float = DEFAULT_GEOMETRY["alpha"],
+                    L: float = DEFAULT_GEOMETRY["L"], W: float = DEFAULT_GEOMETRY["W"],
+                    R: float = DEFAULT_GEOMETRY["R"], tol: float = SIGN_TOL) -> list[str]:
+    """Signs ("+", "-", "0") of w1..w4 for the twist (vx, vy, w), our wheel numbering."""
+    speeds = center_to_wheel(vx, vy, w, alpha, L, W, R)
+    scale = tol * max(1.0, max(abs(s) for s in speeds))
+    return [_sign(s, scale) for s in speeds]
+
+
+def wheel_signs(vx: float, vy: float, w: float, alpha: float = DEFAULT_GEOMETRY["alpha"],
+                L: float = DEFAULT_GEOMETRY["L"], W: float = DEFAULT_GEOMETRY["W"],
+                R: float = DEFAULT_GEOMETRY["R"], tol: float = SIGN_TOL) -> str:
+    """The wheel-sign pattern of a constant twist, e.g. "w1 -  w2 +  w3 -  w4 +"."""
+    signs = wheel_sign_list(vx, vy, w, alpha, L, W, R, tol)
+    return "  ".join(f"w{i} {s}" for i, s in enumerate(signs, start=1))
+
+
+def seeds003_signs(signs: list[str]) -> list[str]:
+    """Our w1..w4 signs reordered as seeds/003's M1..M4."""
+    return [signs[wheel - 1] for wheel in SEEDS003_WHEEL]
+
+
+def geometry_of(start_values: Mapping | None) -> dict[str, float]:
+    """alpha, L, W, R from an instance's start values, defaults where not set."""
+    values = dict(start_values or {})
+    return {k: float(values.get(k, v)) for k, v in DEFAULT_GEOMETRY.items()}
+
+
+def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
+    """The wheel-sign pattern of a run whose commanded twist is constant; None otherwise
+    (no source, twist not recorded, empty run, or a twist that changes)."""
+    from .ground_truth import find_roles
+    roles = find_roles(graph)
+    if roles.source is None or len(results.time) == 0:
+        return None
+    cols = [f"{roles.source}.{v}" for v in ("vx", "vy", "w")]
+    if not all(c in results.names for c in cols):
+        return None
+    twist = []
+    for c in cols:
+        values = np.asarray(results[c], dtype=float)
+        if not np.all(np.isfinite(values)) or np.ptp(values) > tol * max(1.0, np.max(np.abs(values))):
+            return None
+        twist.append(float(values[0]))
+    inverse = roles.inverse if roles.inverse is not None else roles.forward
+    geometry = geometry_of(graph.instance(inverse).start_values if inverse else None)
+    try:
+        return wheel_signs(*twist, **geometry)
+    except (ArithmeticError, ValueError):
+        return None
+
+
+def markdown_table(geometry: Mapping | None = None) -> str:
+    """The seven modes: twist, our wheel signs w1..w4 and seeds/003's M1..M4."""
+    g = geometry_of(geometry)
+    head = ("| mode | vx [m/s] | vy [m/s] | w [rad/s] | w1 FR | w2 FL | w3 RL | w4 RR "
+            "| M1 FL | M2 RL | M3 RR | M4 FR | the car |")
+    rule = "|" + "---|" * 13
+    rows = [head, rule]
+    for m in MODES:
+        ours = wheel_sign_list(m.vx, m.vy, m.w, **g)
+        seeds = seeds003_signs(ours)
+        rows.append(f"| {m.name} (`scenarios/modes/{m.key}.yaml`) | {m.vx:g} | {m.vy:g} | {m.w:g} | "
+                    + " | ".join(ours) + " | " + " | ".join(seeds) + f" | {m.direction} |")
+    return "\n".join(rows)
+
+
+def main() -> None:
+    g = DEFAULT_GEOMETRY
+    print(f"<!-- python -m mecanum_fmu.modes; alpha = {math.degrees(g['alpha']):g} deg, "
+          f"L = {g['L']:g} m, W = {g['W']:g} m, R = {g['R']:g} m -->")
+    print(markdown_table())
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,33 @@
+"""Shared fixtures: the four bundled FMUs, built once per test session."""
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+try:
+    import mecanum_fmu  # noqa: F401
+except ImportError:  # package not installed: fall back to the src layout
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+
+MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator")
+
+
+@pytest.fixture(scope="session")
+def built_fmus(tmp_path_factory):
+    """modelName -> Path of the FMU, built once into a fresh temporary folder.
+
+    Build before any FMU is loaded into this process: the build imports each slave script
+    under its FMU module name and must not meet an already loaded copy.
+    """
+    from mecanum_fmu.fmu_build import build_all
+
+    dest = tmp_path_factory.mktemp("built_fmus")
+    paths = [Path(p) for p in build_all(dest)]
+    fmus = {p.stem: p for p in paths}
+    assert sorted(fmus) == sorted(MODEL_NAMES)
+    for path in paths:
+        assert path.is_file() and path.parent == dest
+    return fmus
