@@ -37,7 +37,7 @@ _LOG: dict[str, list[str]] = {}
 
 def _on_log(env, instance_name, status, category, message):
     name = instance_name.decode("utf-8", "replace") if instance_name else "?"
-    text = message.decode("utf-8", "replace") if message else ""
+    text = " ".join((message.decode("utf-8", "replace") if message else "").split())
     messages = _LOG.setdefault(name, [])
     messages.append(f"[{STATUS.get(status, status)}] {text}")
     del messages[:-20]
@@ -90,7 +90,9 @@ class _Slave:
 
     def instantiate(self) -> None:
         _LOG.pop(self.name, None)
-        self.fmu.instantiate(callbacks=_CALLBACKS, loggingOn=False)
+        # loggingOn: pythonfmu drops every message otherwise, errors included; _on_log keeps
+        # the last few per instance so a failure can quote the FMU's own reason.
+        self.fmu.instantiate(callbacks=_CALLBACKS, loggingOn=True)
         self.component = self.fmu.component
 
     def terminate(self) -> None:
