@@ -93,6 +93,7 @@ def test_wheels_panel(run, figures):
     results, _ = run
     ax = figures["wheels"].axes[0]
     assert [line.get_label() for line in ax.get_lines()] == WHEEL_LABELS
+    assert [line.get_linestyle() for line in ax.get_lines()] == ["-", "-", "--", "--"]
     t = results.time
     expected = [(np.cos(t) - np.sin(t)) / R, (np.cos(t) + np.sin(t)) / R,
                 (np.cos(t) - np.sin(t)) / R, (np.cos(t) + np.sin(t)) / R]

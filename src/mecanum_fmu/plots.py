@@ -90,9 +90,10 @@ def _draw_vy(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> N
 def _draw_wheels(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
     """The four wheel speeds from inverse kinematics."""
     idx, t = _t(results)
-    for var, where in WHEELS:
+    # Rear wheels dashed: with w = 0, w1 = w3 and w2 = w4 (SPEC 5) and the lines overlap.
+    for i, (var, where) in enumerate(WHEELS):
         if name := _col(results, roles.inverse, var):
-            ax.plot(t, results[name][idx], label=f"{var} {where}")
+            ax.plot(t, results[name][idx], "--" if i >= 2 else "-", label=f"{var} {where}")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("wheel speed [rad/s]")
     ax.grid(True)
@@ -105,7 +106,8 @@ def _draw_twist(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -
     for i, var in enumerate(TWIST):
         cmd, rec = _col(results, roles.source, var), _col(results, roles.forward, var)
         if cmd:
-            ax.plot(t, results[cmd][idx], "-", color=f"C{i}", label=f"{var} commanded")
+            ax.plot(t, results[cmd][idx], "-", color=f"C{i}", lw=3, alpha=0.5,
+                    label=f"{var} commanded")
         if rec:
             ax.plot(t, results[rec][idx], "--", color=f"C{i}", label=f"{var} reconstructed")
     ax.set_xlabel("t [s]")
