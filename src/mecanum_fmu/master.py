@@ -186,6 +186,9 @@ def simulate(graph: Graph, experiment: Experiment,
     # Recording copies the whole buffers (one contiguous copy each); columns are picked at the end.
     rec_real = np.empty((n_steps + 1, len(real_buf)), dtype=np.float64)
     rec_int = np.empty((n_steps + 1, len(int_buf)), dtype=np.int32)
+    # Inputs are set from these. Jacobi: a copy of the values at t_k, frozen before anyone
+    # steps, so every component sees t_k whatever the order; otherwise the live buffers.
+    real_in, int_in = (real_buf.copy(), int_buf.copy()) if jacobi else (real_buf, int_buf)
     layout = _Layout(graph, tuple(str(p.ref) for p in graph.recorded),
                      [real_slots[p] if p.type == "Real" else int_slots[p] for p in graph.recorded],
                      start, stop, h, n_steps)
@@ -201,7 +204,8 @@ def simulate(graph: Graph, experiment: Experiment,
             stack.callback(slave.free)
             slaves.append(slave)
         by_name = {s.name: s for s in slaves}
-        primes = _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf,
+        primes = _plan(slaves, graph, outputs_of, real_slots, int_slots,
+                       (real_buf, int_buf), (real_in, int_in),
                        trapezoidal)
         terminated: list[_Slave] = []
 
@@ -258,37 +262,22 @@ def simulate(graph: Graph, experiment: Experiment,
                 t = start + k * h
                 h_k = h if k < n_steps - 1 else stop - t
                 if jacobi:
-                    for s, comp, do_step, writes, reads in program:
-                        for fill, c_set, vrs, n, pointer in writes:
-                            if fill is not None:
-                                fill()
-                            st = c_set(comp, vrs, n, pointer)
-                            if st > 1:
-                                fail(s, "set", st, t)
-                    for s, comp, do_step, writes, reads in program:
-                        st = do_step(comp, t, h_k, 1)
+                    real_in[:] = real_buf
+                    int_in[:] = int_buf
+                for s, comp, do_step, writes, reads in program:
+                    for fill, c_set, vrs, n, pointer in writes:
+                        if fill is not None:
+                            fill()
+                        st = c_set(comp, vrs, n, pointer)
                         if st > 1:
-                            fail(s, _step_failure(s), st, t)
-                    for s, comp, do_step, writes, reads in program:
-                        for c_get, vrs, n, pointer in reads:
-                            st = c_get(comp, vrs, n, pointer)
-                            if st > 1:
-                                fail(s, "get", st, t + h_k)
-                else:
-                    for s, comp, do_step, writes, reads in program:
-                        for fill, c_set, vrs, n, pointer in writes:
-                            if fill is not None:
-                                fill()
-                            st = c_set(comp, vrs, n, pointer)
-                            if st > 1:
-                                fail(s, "set", st, t)
-                        st = do_step(comp, t, h_k, 1)
+                            fail(s, "set", st, t)
+                    st = do_step(comp, t, h_k, 1)
+                    if st > 1:
+                        fail(s, _step_failure(s), st, t)
+                    for c_get, vrs, n, pointer in reads:
+                        st = c_get(comp, vrs, n, pointer)
                         if st > 1:
-                            fail(s, _step_failure(s), st, t)
-                        for c_get, vrs, n, pointer in reads:
-                            st = c_get(comp, vrs, n, pointer)
-                            if st > 1:
-                                fail(s, "get", st, t + h_k)
+                            fail(s, "get", st, t + h_k)
                 rec_real[k + 1] = real_buf
                 rec_int[k + 1] = int_buf
                 rows = k + 2
@@ -364,11 +353,12 @@ def _set_one(slave: _Slave, port: Port, value) -> None:
     setter([port.vr], [value])
 
 
-def _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf,
+def _plan(slaves, graph, outputs_of, real_slots, int_slots, outputs_to, inputs_from,
           trapezoidal: bool) -> list[Callable[[], None]]:
     """Preallocate, per instance and type, one batched get and one batched set.
 
-    A get writes straight into the buffer. A set reads straight from the buffer when its
+    A get writes straight into the buffers `outputs_to` (Real, Int); a set takes its values
+    from `inputs_from`: straight from the buffer when its
     sources sit in one contiguous run in the right order (the usual chain), else from a
     staging array filled by one np.take. With `trapezoidal`, a Real input that no output of
     its FMU depends on (it only drives the FMU's state over the step) takes the mean of its
@@ -378,17 +368,17 @@ def _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf,
     """
     position = {s.name: i for i, s in enumerate(slaves)}
     primes = []
-    buffers = {"Real": (real_buf, real_slots, ctypes.c_double, np.float64),
-               "Integer": (int_buf, int_slots, ctypes.c_int, np.int32),
-               "Boolean": (int_buf, int_slots, ctypes.c_int, np.int32)}
+    (real_out, int_out), (real_in, int_in) = outputs_to, inputs_from
+    buffers = {"Real": (real_out, real_in, real_slots, ctypes.c_double, np.float64),
+               "Integer": (int_out, int_in, int_slots, ctypes.c_int, np.int32),
+               "Boolean": (int_out, int_in, int_slots, ctypes.c_int, np.int32)}
     for s in slaves:
-        s.reads, s.writes = [], []
         ports = outputs_of[s.name]
         for kind, c_get in (("Real", s.c_get_real), ("Integer", s.c_get_int),
                             ("Boolean", s.c_get_bool)):
             mine = [p for p in ports if p.type == kind]
             if mine:
-                buf, slots, ctype, _ = buffers[kind]
+                buf, _, slots, ctype, _ = buffers[kind]
                 first = slots[mine[0]]
                 # slots were handed out per instance and type: one contiguous run
                 assert [slots[p] for p in mine] == list(range(first, first + len(mine)))
@@ -405,7 +395,7 @@ def _plan(slaves, graph, outputs_of, real_slots, int_slots, real_buf, int_buf,
         for kind, c_set, mine in groups:
             if not mine:
                 continue
-            buf, slots, ctype, dtype = buffers["Real" if kind == "Blend" else kind]
+            _, buf, slots, ctype, dtype = buffers["Real" if kind == "Blend" else kind]
             src = np.array([slots[l.source] for l in mine], dtype=np.intp)
             vrs = _vr_array([l.target.vr for l in mine])
             if kind == "Blend":
