@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -70,30 +69,30 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         results = master.simulate(graph, scenario.experiment, progress=progress)
     except (SimulationError, Interrupted) as err:
         if err.results is not None:
-            files += _write_tables(graph, err.results, None, out_dir, error=str(err))
+            summary = summarize(graph, err.results, None)
+            summary["error_message"] = str(err)
+            files += _write_tables(err.results, summary, out_dir)
         err.files = files
         raise
     truth = ground_truth(graph, results.time) if results.steps else None
-    files += _write_tables(graph, results, truth, out_dir)
     summary = summarize(graph, results, truth)
+    files += _write_tables(results, summary, out_dir)
     for line in report_lines(summary):
         log(line)
     if plots:
         from .plots import write_plots
         files += write_plots(results, find_roles(graph), truth, out_dir, title=scenario.name)
     if animate:
-        from .animation import graph_geometry, write_animation
+        from .animation import write_animation
+        from .modes import graph_geometry
         files.append(write_animation(results, find_roles(graph), truth, graph_geometry(graph),
                                      out_dir / "animation.gif"))
     return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
 
 
-def _write_tables(graph, results, truth, out_dir: Path, error: str | None = None) -> list[Path]:
+def _write_tables(results: Results, summary: dict, out_dir: Path) -> list[Path]:
     csv_path = out_dir / "results.csv"
     write_csv(results, csv_path)
-    summary = summarize(graph, results, truth)
-    if error:
-        summary["error_message"] = error
     json_path = out_dir / "summary.json"
     write_json(summary, json_path)
     return [csv_path, json_path]
