@@ -214,7 +214,8 @@ def test_modes_doc_is_generated():
 def test_animation(max_frames, fmu_dir, tmp_path):
     from PIL import Image
 
-    from mecanum_fmu.animation import graph_geometry, write_animation
+    from mecanum_fmu.animation import write_animation
+    from mecanum_fmu.modes import graph_geometry
     outcome = run_scenario(ROOT / "scenarios" / "circle.yaml", tmp_path, fmu_dir)
     roles = runner.find_roles(outcome.graph)
     geometry = graph_geometry(outcome.graph)

@@ -17,24 +17,16 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from .ground_truth import Roles, Truth, find_roles
+from .ground_truth import Roles, Truth
+from .modes import geometry_of
 from .results import Results
 
 FPS = 20
 MAX_FRAMES = 100
 FIG_SIZE = (5.0, 5.0)           # inches
 DPI = 80                        # -> 400 x 400 pixels
-DEFAULTS = {"L": 0.16, "W": 0.12, "R": 0.06, "alpha": math.pi / 4}
 WHEEL_POS = ((1, 1), (-1, 1), (-1, -1), (1, -1))   # (sign of X, sign of Y) of wheels 1..4
 WHEEL_COLORS = ("C3", "C1", "C2", "C4")
-
-
-def graph_geometry(graph) -> dict[str, float]:
-    """L, W, R, alpha from the inverse-kinematics instance's start values (defaults if unset)."""
-    roles = find_roles(graph)
-    name = roles.inverse or roles.forward
-    values = dict(graph.instance(name).start_values) if name else {}
-    return {k: float(values.get(k, v)) for k, v in DEFAULTS.items()}
 
 
 def frame_indices(n: int, max_frames: int = MAX_FRAMES) -> np.ndarray:
@@ -57,7 +49,7 @@ def write_animation(results: Results, roles: Roles, truth: Truth | None,
                     graph_params: Mapping | None, path: Path | str,
                     max_frames: int = MAX_FRAMES) -> Path:
     """Write the animated GIF to path and return it. graph_params: L, W (and R) in metres."""
-    params = {k: float((graph_params or {}).get(k, v)) for k, v in DEFAULTS.items()}
+    params = geometry_of(graph_params)
     L, W, R = params["L"], params["W"], params["R"]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -108,7 +100,7 @@ def write_animation(results: Results, roles: Roles, truth: Truth | None,
     wl, ww = 0.5 * R, 0.25 * min(L, W)                        # wheel drawn 2*wl long, 2*ww wide
     wheel_shape = np.array([[ww, wl], [-ww, wl], [-ww, -wl], [ww, -wl]])
     wheel_patches = []
-    for j, (sx, sy) in enumerate(WHEEL_POS):
+    for _ in WHEEL_POS:
         patch = Polygon(wheel_shape, closed=True, facecolor="0.3", edgecolor="k", lw=0.5)
         ax.add_patch(patch)
         wheel_patches.append(patch)

@@ -76,6 +76,15 @@ def geometry_of(start_values: Mapping | None) -> dict[str, float]:
     return {k: float(values.get(k, v)) for k, v in DEFAULT_GEOMETRY.items()}
 
 
+def graph_geometry(graph) -> dict[str, float]:
+    """alpha, L, W, R of a graph's kinematics instance (inverse first, else forward);
+    defaults where not set or where the graph has neither."""
+    from .ground_truth import find_roles
+    roles = find_roles(graph)
+    name = roles.inverse or roles.forward
+    return geometry_of(graph.instance(name).start_values if name else None)
+
+
 def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
     """The wheel-sign pattern of a run whose commanded twist is constant; None otherwise
     (no source, twist not recorded, empty run, or a twist that changes)."""
@@ -92,10 +101,8 @@ def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
         if not np.all(np.isfinite(values)) or np.ptp(values) > tol * max(1.0, np.max(np.abs(values))):
             return None
         twist.append(float(values[0]))
-    inverse = roles.inverse if roles.inverse is not None else roles.forward
-    geometry = geometry_of(graph.instance(inverse).start_values if inverse else None)
     try:
-        return wheel_signs(*twist, **geometry)
+        return wheel_signs(*twist, **graph_geometry(graph))
     except (ArithmeticError, ValueError):
         return None
 
