@@ -7,7 +7,6 @@ drivers, parameters, and algebraic loops found from the FMUs' ModelStructure dep
 from __future__ import annotations
 
 import graphlib
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -118,7 +117,7 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
 
     # Parameters and start values (shared ones go to every component that has them).
     start_values: dict[str, dict[str, Scalar]] = {}
-    for name, value in scenario.parameters.items():
+    for name in scenario.parameters:
         takers = [c for c in scenario.components if c.name in variables
                   and _settable(variables[c.name].get(name))]
         if not takers and len(variables) == len(scenario.components):
@@ -129,7 +128,7 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
         own = variables[comp.name]
         merged = {k: v for k, v in scenario.parameters.items() if _settable(own.get(k))}
         merged.update(comp.parameters)
-        for key, value in comp.parameters.items():
+        for key in comp.parameters:
             place = f"{comp.place}.parameters.{key}"
             var = own.get(key)
             if var is None:
@@ -311,11 +310,11 @@ def _dependency_order(instances: list[Instance], links: list[Link], label: str):
             "feedthrough; break it with a block whose outputs do not depend on its inputs)")]) from None
     position = {node: i for i, node in enumerate(order)}
     link_order = sorted(links, key=lambda l: position[str(l.target.ref)])
-
-    def key(inst: Instance):
-        inputs = [position[n] for n in position if n.split(".", 1)[0] == inst.name
-                  and n in link_of]
-        return max(inputs, default=-1)
+    # An instance steps after the latest of its connected inputs in the dependency order.
+    last_input: dict[str, int] = {}
+    for node, link in link_of.items():
+        name = link.target.ref.instance
+        last_input[name] = max(last_input.get(name, -1), position[node])
     declared = {inst.name: i for i, inst in enumerate(instances)}
-    step_order = sorted(instances, key=lambda i: (key(i), declared[i.name]))
+    step_order = sorted(instances, key=lambda i: (last_input.get(i.name, -1), declared[i.name]))
     return step_order, link_order
