@@ -19,6 +19,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from helpers import CHAIN_CONNECTIONS
 
 REPO = Path(__file__).resolve().parents[1]
 try:
@@ -213,19 +214,9 @@ def test_scenario_is_a_folder_or_missing(tmp_path, capsys):
 def test_feedback_through_pose_is_not_a_loop(tmp_path, capsys):
     """pose.theta -> c2w.w closes a cycle, but PoseIntegrator has no direct feedthrough."""
     path = tmp_path / "feedback.yaml"
-    path.write_text(EXPERIMENT + COMPONENTS + """\
-connections:
-  - [source.vx, c2w.vx]
-  - [source.vy, c2w.vy]
-  - [pose.theta, c2w.w]
-  - [c2w.w1, w2c.w1]
-  - [c2w.w2, w2c.w2]
-  - [c2w.w3, w2c.w3]
-  - [c2w.w4, w2c.w4]
-  - [w2c.vx, pose.vx]
-  - [w2c.vy, pose.vy]
-  - [w2c.w,  pose.w]
-""")
+    path.write_text(EXPERIMENT + COMPONENTS
+                    + CHAIN_CONNECTIONS.replace("[source.w,  c2w.w]", "[pose.theta, c2w.w]"))
+    assert "[pose.theta, c2w.w]" in path.read_text()
     code, out, err = validate(path, capsys)
     assert code == 0, err
     assert "ok -" in out
@@ -234,18 +225,8 @@ connections:
 
 def test_unconnected_input_is_a_warning(tmp_path, capsys):
     path = tmp_path / "loose.yaml"
-    path.write_text(EXPERIMENT + COMPONENTS + """\
-connections:
-  - [source.vx, c2w.vx]
-  - [source.vy, c2w.vy]
-  - [c2w.w1, w2c.w1]
-  - [c2w.w2, w2c.w2]
-  - [c2w.w3, w2c.w3]
-  - [c2w.w4, w2c.w4]
-  - [w2c.vx, pose.vx]
-  - [w2c.vy, pose.vy]
-  - [w2c.w,  pose.w]
-""")
+    path.write_text(EXPERIMENT + COMPONENTS
+                    + CHAIN_CONNECTIONS.replace("  - [source.w,  c2w.w]\n", ""))
     code, out, err = validate(path, capsys)
     assert code == 0, err
     assert "warning:" in err and "input 'w' is not connected" in err
