@@ -1,7 +1,6 @@
 """The co-simulation master: step order, lag of each master, Integer/Boolean transfer,
 failures, clean-up, recording and the trapezoidal fall-back."""
 import json
-import math
 import re
 import subprocess
 import sys

@@ -12,7 +12,8 @@ from . import __version__
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 
 
-def _positive_float(text: str) -> float:
+def _number(text: str) -> float:
+    # ranges (step > 0, stop > start) are checked with the scenario's own experiment check
     try:
         return float(text)
     except ValueError:
@@ -31,8 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
                                      "plots to results/<name>/ (or --out).")
     run.add_argument("scenario", help="scenario file (.yaml)")
     run.add_argument("--out", type=Path, help="output folder (default: results/<scenario name>)")
-    run.add_argument("--step-size", type=_positive_float, help="communication step (s)")
-    run.add_argument("--stop-time", type=_positive_float, help="end of the run (s)")
+    run.add_argument("--step-size", type=_number, help="communication step (s)")
+    run.add_argument("--stop-time", type=_number, help="end of the run (s)")
     run.add_argument("--master", help="trapezoidal (default, second order), gauss-seidel or jacobi")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument("--animate", action="store_true", help="also write animation.gif")
@@ -171,7 +172,6 @@ def cmd_fmus(args) -> int:
 
 
 def cmd_info(args) -> int:
-    from . import fmu_build
     from .fmu_library import default_fmu_dir, read_description, resolve_fmu
     try:
         path = resolve_fmu(args.fmu, Path.cwd(), default_fmu_dir())
