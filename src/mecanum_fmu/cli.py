@@ -68,6 +68,23 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     exp.set_defaults(func=cmd_export_ssp)
 
+    cross = sub.add_parser("cross-check", help="run a scenario in libcosim and Ecos too and "
+                           "compare with our Jacobi master",
+                           description="Export the scenario as SSP, run it in other FMI hosts "
+                                       "(libcosim, Ecos, Ecos' command-line program) with the "
+                                       "same step, and compare their end values with our "
+                                       "Jacobi master (all three use the Jacobi scheme). Exit 1 "
+                                       "if a host disagrees or fails.")
+    cross.add_argument("scenario", help="scenario file (.yaml, .ssp or .ssd)")
+    cross.add_argument("--step-size", type=_number, help="communication step (s)")
+    cross.add_argument("--stop-time", type=_number, help="end of the run (s)")
+    cross.add_argument("--hosts", default="libcosim,ecos,ecos-cli",
+                       help="comma-separated, from: libcosim, ecos, ecos-cli (default: all)")
+    cross.add_argument("--require", action="store_true",
+                       help="exit 1 when a host is not installed (default: say so and go on)")
+    cross.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
+    cross.set_defaults(func=cmd_cross_check)
+
     doctor = sub.add_parser("doctor", help="how to load the FMUs in other tools (LD_PRELOAD)",
                             description="Print where the FMUs are and the LD_PRELOAD line "
                                         "non-Python hosts need for pythonfmu FMUs.")
@@ -94,7 +111,12 @@ def main(argv: list[str] | None = None) -> int:
         return err.exit_code
     except MecanumError as err:
         print(f"error: {err}", file=sys.stderr)
+        for path in getattr(err, "files", []):      # e.g. the plots failed after the run
+            print(f"  kept: {path}", file=sys.stderr)
         return err.exit_code
+    except KeyboardInterrupt:       # outside the stepping loop: loading, plotting
+        print("interrupted", file=sys.stderr)
+        return Interrupted.exit_code
 
 
 def exit_with(argv: list[str] | None = None) -> None:
@@ -103,10 +125,21 @@ def exit_with(argv: list[str] | None = None) -> None:
     With pythonfmu FMUs loaded, CPython's finalization aborts now and then ("corrupted
     double-linked list", about 1 run in 30, after every result file was written). Every file
     is closed by then, so flush the standard streams and exit at once."""
-    code = main(argv)
+    try:
+        code = main(argv)
+    finally:
+        _remove_extractions()
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
+
+
+def _remove_extractions() -> None:
+    """The FMUs' extraction folders, one per FMU in the temporary folder: os._exit skips every
+    clean-up, and each run would leave about 3 MB behind."""
+    master = sys.modules.get(f"{__package__}.master")
+    if master is not None:
+        master.remove_extractions()
 
 
 def _progress(enabled: bool):
@@ -204,6 +237,33 @@ def cmd_export_ssp(args) -> int:
     graph = prepare(args.scenario, fmu_dir=args.fmu_dir)
     path = export_ssp(graph, args.output)
     print(f"wrote {path} ({len(graph.instances)} components, {len(graph.links)} connections)")
+    return 0
+
+
+def cmd_cross_check(args) -> int:
+    from .cross_check import cross_check, report_lines
+    from .ground_truth import ground_truth
+    from .other_hosts import HOSTS
+    from .runner import prepare
+    hosts = [h.strip() for h in args.hosts.split(",") if h.strip()]
+    unknown = [h for h in hosts if h not in HOSTS]
+    if unknown or not hosts:
+        raise ScenarioError([Problem("command line", "--hosts", f"unknown host(s) "
+                             f"{', '.join(unknown) or '(none given)'}; choose from "
+                             f"{', '.join(HOSTS)}")])
+    graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
+                    fmu_dir=args.fmu_dir)
+    exp = graph.scenario.experiment
+    print(f"{graph.scenario.label}: jacobi coupling, step {exp.step_size:g} s over "
+          f"[{exp.start_time:g}, {exp.stop_time:g}] s")
+    check = cross_check(graph, hosts)
+    truth = ground_truth(graph, [exp.start_time, exp.stop_time])
+    for line in report_lines(check, truth.end[:2] if truth is not None else None):
+        print(line)
+    missing = [r for r in check.rows if r.run is None and "install:" in (r.problem or "")]
+    bad = [r for r in check.rows if not r.agrees and r not in missing]
+    if bad or (args.require and missing):
+        return 1
     return 0
 
 

@@ -40,6 +40,11 @@ FMU_MIME = "application/x-fmu-sharedlibrary"
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 _MAX_SSD_BYTES = 10_000_000
 _VALUE_TAGS = ("Real", "Integer", "Boolean", "String")
+# Every component's inline parameter set carries this one name. SSP applies inline bindings
+# always; Ecos applies only the set named at init (`ecos simulate --parameterSet
+# initialValues`, `EcosSimulation.init(parameter_set="initialValues")`), so one shared name
+# lets a single option apply every component's values there.
+PARAMETER_SET = "initialValues"
 
 for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)
@@ -92,7 +97,7 @@ def build_ssd(graph, sources: dict[str, str]) -> bytes:
             binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
             values = ET.SubElement(binding, _q("ssd", "ParameterValues"))
             pset = ET.SubElement(values, _q("ssv", "ParameterSet"),
-                                 {"version": "1.0", "name": f"{inst.name}.parameters"})
+                                 {"version": "1.0", "name": PARAMETER_SET})
             params = ET.SubElement(pset, _q("ssv", "Parameters"))
             for key in sorted(inst.start_values):
                 tag, text = _format(inst.start_values[key])
