@@ -219,6 +219,33 @@ def test_a_run_after_a_failure_works(tmp_path, fmus, capsys):
     assert code == 0, err
 
 
+def _pooled(name):
+    return [c for (_, _, inst), pool in master._POOL.items() if inst == name for _, c in pool]
+
+
+def test_instances_are_reset_and_reused_and_can_be_released(tmp_path):
+    graph = runner.prepare(chain_scenario(tmp_path, "reuse", master="trapezoidal"))
+    master.release_instances()
+    first = master.simulate(graph, graph.scenario.experiment)
+    kept = {i.name: _pooled(i.name) for i in graph.instances}
+    assert all(len(v) == 1 for v in kept.values()), kept     # terminated and pooled, not freed
+    again = master.simulate(graph, graph.scenario.experiment)
+    # the same instances ran again (after fmi2Reset) and gave the same bytes
+    assert {i.name: _pooled(i.name) for i in graph.instances} == kept
+    assert again.data.tobytes() == first.data.tobytes()
+    assert master.release_instances() >= 4 and not any(master._POOL.values())
+    fresh = master.simulate(graph, graph.scenario.experiment)
+    assert fresh.data.tobytes() == first.data.tobytes()
+
+
+def test_an_instance_that_failed_is_not_reused(tmp_path, fmus, capsys):
+    master.release_instances()
+    assert run_cli(failing_scenario(tmp_path, fmus, "fails_pool", mode=0, fail_at=1.0),
+                   tmp_path / "a", capsys)[0] == 1
+    assert _pooled("breaker") == []                      # Error: freed, not pooled
+    assert len(_pooled("source")) == 1 and len(_pooled("pose")) == 1
+
+
 def test_raising_step_fails_cleanly_in_a_fresh_process(tmp_path, fmus):
     out = tmp_path / "out"
     proc = run_in_fresh_process(failing_scenario(tmp_path, fmus, "raises", mode=1), out)

@@ -56,6 +56,18 @@ _CALLBACKS.allocateMemory = defaultCallbacks.allocateMemory
 _CALLBACKS.freeMemory = defaultCallbacks.freeMemory
 
 
+def release_instances() -> int:
+    """Free every pooled instance (see _POOL); the next run instantiates afresh. Returns how
+    many were freed. For a long-lived process that is done simulating."""
+    freed = 0
+    for pool in _POOL.values():
+        while pool:
+            fmu, component = pool.pop()
+            fmu._functions["fmi2FreeInstance"](component)
+            freed += 1
+    return freed
+
+
 def remove_extractions() -> None:
     """Delete the extraction folders. Only for a process about to leave with os._exit (which
     skips every clean-up): the loaded libraries stay mapped, pooled instances are abandoned."""
@@ -96,6 +108,7 @@ class _Slave:
         self.c_get_bool, self.c_set_bool = f["fmi2GetBoolean"], f["fmi2SetBoolean"]
         self.c_do_step = f["fmi2DoStep"]
         self.broken = 0       # worst status returned: Error (3) or Fatal (4) limit what may follow
+        self.failed = False   # returned Discard or worse: freed, never pooled
         # filled by _plan(): (c_get, vrs, n, pointer) and (fill, c_set, vrs, n, pointer)
         self.reads: list = []
         self.writes: list = []
@@ -128,7 +141,7 @@ class _Slave:
         # unload the library (see _EXTRACTED). An instance that returned Fatal is left alone
         # (pythonfmu crashes the process if it is touched again).
         pool = _POOL.setdefault(self.key, [])
-        if self.component is not None and not self.broken and len(pool) < _POOL_MAX:
+        if self.component is not None and not self.failed and len(pool) < _POOL_MAX:
             pool.append((self.fmu, self.component))
         elif self.component is not None and self.broken < 4:
             self.fmu._functions["fmi2FreeInstance"](self.component)
@@ -244,6 +257,7 @@ def simulate(graph: Graph, experiment: Experiment,
 
         def fail(slave: _Slave, function: str, status: int, when: float):
             slave.broken = status if status >= 3 else 0
+            slave.failed = True
             raise SimulationError(
                 f"{function} returned {STATUS.get(status, status)}"
                 + (f" (FMU says: {slave.last_log()})" if slave.last_log() else ""),
