@@ -6,7 +6,6 @@ Run: make bench   (or: .venv/bin/python bench/accuracy.py)
 from __future__ import annotations
 
 import dataclasses
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -78,4 +77,5 @@ def _plot(rows, path: Path) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main() and 0)
+    main()
+    master.exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded

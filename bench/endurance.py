@@ -10,8 +10,6 @@ Run: PYTHONPATH=src python bench/endurance.py [--runs 1000] [--full]
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -87,8 +85,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    master.remove_extractions()
-    os._exit(code)     # no interpreter shutdown with pythonfmu FMUs loaded (see cli.exit_with)
+    master.exit_now(main())     # no interpreter shutdown with pythonfmu FMUs loaded

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
-import sys
 import time
 from pathlib import Path
 
@@ -125,4 +124,5 @@ def main() -> dict:
 
 
 if __name__ == "__main__":
-    sys.exit(main() and 0)
+    main()
+    master.exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded

@@ -9,7 +9,6 @@ Run: make bench   (or: .venv/bin/python bench/other_hosts.py)
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 import tempfile
@@ -80,3 +79,4 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+    master.exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded

@@ -1,8 +1,5 @@
 """`make bench`: every benchmark, measured in one run on this machine. Not tests: nothing here
 asserts a time; it prints ratios measured side by side."""
-import os
-import sys
-
 import accuracy
 import endurance
 import loop_overhead
@@ -17,7 +14,4 @@ if __name__ == "__main__":
     print("\n== the same run in other FMI hosts (bench/other_hosts.py)")
     other_hosts.main()
     print("\n== 1,000 runs in one process (bench/endurance.py)")
-    code = endurance.main([])
-    sys.stdout.flush()
-    master.remove_extractions()
-    os._exit(code)      # no interpreter shutdown with pythonfmu FMUs loaded (see cli.exit_with)
+    master.exit_now(endurance.main([]))    # no interpreter shutdown with pythonfmu FMUs loaded

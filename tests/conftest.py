@@ -42,9 +42,5 @@ def pytest_unconfigure(config):
     """Leave without interpreter shutdown, as `mecanum_fmu.cli.exit_with` does: with pythonfmu
     FMUs loaded, CPython's finalization aborts now and then. The report is printed by now."""
     if hasattr(config, "_mecanum_exitstatus"):
-        master = sys.modules.get("mecanum_fmu.master")
-        if master is not None:          # os._exit skips clean-up: the FMUs' extraction folders
-            master.remove_extractions()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(config._mecanum_exitstatus)
+        from mecanum_fmu.master import exit_now
+        exit_now(config._mecanum_exitstatus)

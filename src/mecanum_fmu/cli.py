@@ -4,7 +4,6 @@ package's exceptions into messages and exit codes (0 ok, 1 simulation failed, 2 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -120,26 +119,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def exit_with(argv: list[str] | None = None) -> None:
-    """The console entry point: run main() and leave without interpreter shutdown.
-
-    With pythonfmu FMUs loaded, CPython's finalization aborts now and then ("corrupted
-    double-linked list", about 1 run in 30, after every result file was written). Every file
-    is closed by then, so flush the standard streams and exit at once."""
-    try:
-        code = main(argv)
-    finally:
-        _remove_extractions()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
-
-
-def _remove_extractions() -> None:
-    """The FMUs' extraction folders, one per FMU in the temporary folder: os._exit skips every
-    clean-up, and each run would leave about 3 MB behind."""
-    master = sys.modules.get(f"{__package__}.master")
-    if master is not None:
-        master.remove_extractions()
+    """The console entry point: run main() and leave without interpreter shutdown (see
+    master.exit_now; with pythonfmu FMUs loaded CPython's finalization aborts now and then)."""
+    code = main(argv)      # SystemExit (--help, bad options) and bugs propagate as usual
+    from .master import exit_now
+    exit_now(code)
 
 
 def _progress(enabled: bool):

@@ -190,4 +190,4 @@ if __name__ == "__main__":
     code = _child(sys.argv[1:])
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(code)     # skip interpreter shutdown with pythonfmu loaded (see cli.exit_with)
+    os._exit(code)     # skip interpreter shutdown with pythonfmu loaded (see master.exit_now)
