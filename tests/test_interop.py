@@ -131,6 +131,17 @@ def test_cross_check_rejects_an_unknown_host(tmp_path):
     assert "Traceback" not in proc.stderr
 
 
+def test_cross_check_refuses_a_step_that_does_not_divide_the_run():
+    # the hosts take fixed steps: 0.03 s would end libcosim at 10.02 s and Ecos at 9.99 s
+    proc = subprocess.run([sys.executable, "-m", "mecanum_fmu", "cross-check",
+                           str(ROOT / "scenarios/circle.yaml"), "--step-size", "0.03"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "circle.yaml" in proc.stderr and "experiment.step_size" in proc.stderr
+    assert "--step-size 0.025" in proc.stderr          # 10 / 0.025 = 400 steps
+    assert "Traceback" not in proc.stderr and proc.stdout == ""
+
+
 @pytest.fixture
 def hidden_hosts(tmp_path, monkeypatch):
     """Child processes see `libcosimpy` and `ecospy` packages that fail to import."""
