@@ -93,8 +93,10 @@ def _steps(start: float, stop: float, step: float) -> int:
 def _libcosim(ssp: str, start: float, stop: float, step: float, names: list[str]) -> dict:
     from importlib.metadata import version
     from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
 
+    log_output_level(CosimLogLevel.WARNING)     # by default it logs every FMI call
     ns = 1_000_000_000
     t0 = time.perf_counter()
     execution = CosimExecution.from_ssp_file(ssp, step_size=int(round(step * ns)))
