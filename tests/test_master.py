@@ -1,9 +1,12 @@
 """The co-simulation master: step order, lag of each master, Integer/Boolean transfer,
 failures, clean-up, recording and the trapezoidal fall-back."""
 import json
+import os
 import re
+import signal
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -11,6 +14,7 @@ from fmpy import read_model_description
 
 from helpers import ROOT, chain_scenario, read_csv, test_fmus, write_scenario
 from mecanum_fmu import cli, master, runner
+from mecanum_fmu.errors import Interrupted
 
 H = 0.05
 R, C, K = 0.06, 1.0, 0.16 + 0.12      # SPEC 3 with alpha = 45 deg: c = 1, k = L + W*c
@@ -244,6 +248,33 @@ def test_an_instance_that_failed_is_not_reused(tmp_path, fmus, capsys):
                    tmp_path / "a", capsys)[0] == 1
     assert _pooled("breaker") == []                      # Error: freed, not pooled
     assert len(_pooled("source")) == 1 and len(_pooled("pose")) == 1
+
+
+def test_ctrl_c_through_the_python_api_stops_the_run_and_keeps_the_rows(tmp_path):
+    """SIGINT while the FMUs run (from a timer thread 1 s into a ~20 s run, so it lands
+    wherever the main thread is - mostly inside an FMU's Python code) ends the run as
+    Interrupted with the rows so far; no FMU sees a KeyboardInterrupt (which pythonfmu would
+    turn into Fatal about 2 times in 3), so the instances end cleanly and are reused."""
+    graph = runner.prepare(chain_scenario(tmp_path, "long", step_size=1e-4, stop_time=100.0))
+    master.release_instances()
+    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(Interrupted) as caught:
+            master.simulate(graph, graph.scenario.experiment)
+    finally:
+        timer.cancel()
+    partial = caught.value.results
+    assert partial is not None and not partial.complete
+    assert 0 < partial.steps < 1_000_000
+    assert caught.value.time == partial.time[-1]
+    # the kept rows are the circle's (SPEC 5): gauss-seidel, pose.y = right Riemann sum of cos
+    t = partial.time
+    assert np.allclose(np.diff(t), 1e-4, atol=1e-12, rtol=0)
+    right_sum = np.concatenate([[0.0], np.cumsum(1e-4 * np.cos(t[1:]))])
+    assert np.allclose(partial["pose.y"], right_sum, atol=1e-8, rtol=0)
+    assert all(len(_pooled(i.name)) == 1 for i in graph.instances)    # ended cleanly
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler   # handler restored
 
 
 def test_raising_step_fails_cleanly_in_a_fresh_process(tmp_path, fmus):

@@ -10,13 +10,15 @@ import ctypes
 import hashlib
 import os
 import shutil
+import signal
 import sys
 import tempfile
+import threading
 import time as _time
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, NoReturn
+from typing import Callable, Iterator, NoReturn
 
 import numpy as np
 from fmpy import extract
@@ -68,6 +70,27 @@ def release_instances() -> int:
             fmu._functions["fmi2FreeInstance"](component)
             freed += 1
     return freed
+
+
+@contextmanager
+def _ctrl_c_latched() -> Iterator[list[bool]]:
+    """While the FMUs run, Ctrl-C only sets a flag that the stepping loop checks once per step.
+
+    The bundled FMUs run Python code on this thread, so Python's default SIGINT handler would
+    raise KeyboardInterrupt inside an FMU call about 2 times in 3, and pythonfmu turns that
+    into fmi2Fatal (the run fails instead of stopping, the instance cannot even be freed).
+    Only on the main thread with the default handler installed; elsewhere the flag stays
+    False and Ctrl-C behaves as usual."""
+    flag = [False]
+    install = (threading.current_thread() is threading.main_thread()
+               and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    if install:
+        signal.signal(signal.SIGINT, lambda signum, frame: flag.__setitem__(0, True))
+    try:
+        yield flag
+    finally:
+        if install:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def remove_extractions() -> None:
@@ -251,6 +274,7 @@ def simulate(graph: Graph, experiment: Experiment,
     t = start
     wall = 0.0
     with ExitStack() as stack:
+        ctrl_c = stack.enter_context(_ctrl_c_latched())
         for inst in graph.instances:
             slave = _Slave(inst)
             slave.instantiate()
@@ -313,6 +337,8 @@ def simulate(graph: Graph, experiment: Experiment,
         next_report = tick + 1.0
         try:
             for k in range(n_steps):
+                if ctrl_c[0]:
+                    raise KeyboardInterrupt
                 t = start + k * h
                 h_k = h if k < n_steps - 1 else stop - t
                 if jacobi:
@@ -340,6 +366,8 @@ def simulate(graph: Graph, experiment: Experiment,
                     if now >= next_report:
                         progress((t - start) / (stop - start))
                         next_report = now + 0.5
+            if ctrl_c[0]:                 # pressed during the last step
+                raise KeyboardInterrupt
         except KeyboardInterrupt:
             wall = _time.perf_counter() - tick
             partial = layout.results(rec_real, rec_int, rows, experiment, wall, False)

@@ -7,9 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import signal
-import threading
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -69,13 +66,7 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     out_dir.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
     try:
-        with _ctrl_c_outside_fmus(progress) as (ticker, pending):
-            try:
-                results = master.simulate(graph, scenario.experiment, progress=ticker)
-            except KeyboardInterrupt:       # before the stepping loop: nothing recorded yet
-                raise Interrupted(scenario.experiment.start_time) from None
-            if pending():                   # Ctrl-C in an FMU call during the last steps
-                raise Interrupted(results.stop_time, results=results)
+        results = master.simulate(graph, scenario.experiment, progress=progress)
     except (SimulationError, Interrupted) as err:
         if err.results is not None:
             summary = summarize(graph, err.results, None)
@@ -105,48 +96,6 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         failure.files = files
         raise failure from err
     return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
-
-
-@contextmanager
-def _ctrl_c_outside_fmus(progress: Callable[[float], None] | None):
-    """Make Ctrl-C during master.simulate end the run as Interrupted, every time.
-
-    The bundled FMUs run Python code on this thread, so Python's default SIGINT handler would
-    raise KeyboardInterrupt inside an FMU call about 2 times in 3; pythonfmu turns that into
-    an fmi2Fatal status (exit 1, "simulation failed", the instance left unfreed). While the
-    master runs, a Ctrl-C that arrives inside code the master called (an FMU, fmpy, a
-    callback) is held back and raised from the master's next progress call (at most about
-    1 s later), where the master's own handler turns it into Interrupted. Yields (the
-    progress callable to hand to the master, a function telling whether one is held back).
-    Only the main thread with the default handler installed is affected."""
-    held = [False]
-
-    def ticker(fraction: float) -> None:
-        if held[0]:
-            held[0] = False
-            raise KeyboardInterrupt
-        if progress is not None:
-            progress(fraction)
-
-    def on_sigint(signum, frame):
-        if frame is not None and frame.f_code is not master.simulate.__code__:
-            caller = frame.f_back
-            while caller is not None:
-                if caller.f_code is master.simulate.__code__:
-                    held[0] = True      # inside something the master called
-                    return
-                caller = caller.f_back
-        raise KeyboardInterrupt
-
-    install = (threading.current_thread() is threading.main_thread()
-               and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
-    if install:
-        signal.signal(signal.SIGINT, on_sigint)
-    try:
-        yield ticker, (lambda: held[0])
-    finally:
-        if install:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _write_tables(results: Results, summary: dict, out_dir: Path) -> list[Path]:
