@@ -166,6 +166,7 @@ def test_cross_check_goes_on_without_a_host_unless_required(seed, hidden_hosts):
     graph, _, _, _ = seed
     check = cross_check(graph, ["libcosim"])
     assert check.rows[0].run is None and "pip install libcosimpy" in check.rows[0].problem
+    assert check.rows[0].missing
     assert not check.rows[0].agrees
     base = [sys.executable, "-m", "mecanum_fmu", "cross-check", str(ROOT / "scenarios/circle.yaml"),
             "--hosts", "libcosim", "--fmu-dir", str(Path(graph.instances[0].fmu_path).parent)]

@@ -52,6 +52,7 @@ class Row:
     difference: float | None        # max relative difference from ours over `compared`
     tolerance: float
     problem: str | None = None      # why there is no run
+    missing: bool = False           # ... because the host is not installed
 
     @property
     def agrees(self) -> bool:
@@ -60,6 +61,7 @@ class Row:
 
 @dataclass(frozen=True)
 class CrossCheck:
+    title: str                      # scenario, coupling, step and span
     ours: HostRun
     compared: list[str]
     rows: list[Row]
@@ -117,6 +119,8 @@ def cross_check(graph: Graph, hosts: tuple[str, ...] | list[str] = HOSTS,
     problem = fixed_step_problem(graph)
     if problem is not None:
         raise ScenarioError([problem])
+    title = (f"{graph.scenario.label}: jacobi coupling, step {exp.step_size:g} s over "
+             f"[{exp.start_time:g}, {exp.stop_time:g}] s")
     with tempfile.TemporaryDirectory(prefix="mecanum-cross-") as tmp:
         ssp = export_ssp(graph, Path(workdir or tmp) / f"{graph.scenario.name}.ssp")
         ours = ours_jacobi(graph, names)
@@ -127,16 +131,17 @@ def cross_check(graph: Graph, hosts: tuple[str, ...] | list[str] = HOSTS,
                 run = run_host(host, ssp, start=exp.start_time, stop=exp.stop_time,
                                step=exp.step_size, variables=names)
             except (HostUnavailable, HostFailed) as err:
-                rows.append(Row(host, None, None, tolerance, str(err)))
+                rows.append(Row(host, None, None, tolerance, str(err),
+                                missing=isinstance(err, HostUnavailable)))
                 continue
             rows.append(Row(host, run, difference(run.values, ours.values, names), tolerance))
-    return CrossCheck(ours, names, rows, ssp if workdir else None)
+    return CrossCheck(title, ours, names, rows, ssp if workdir else None)
 
 
 def report_lines(check: CrossCheck, exact: tuple[float, float] | None = None) -> list[str]:
     ours = check.ours
     xy = [n for n in check.compared if n.endswith((".x", ".y"))][:2]
-    lines = [f"compared at the end time: {', '.join(check.compared)}"]
+    lines = [check.title, f"compared at the end time: {', '.join(check.compared)}"]
     head = f"{'host':<26} {'end time':>9} " + " ".join(f"{n:>12}" for n in xy)
     lines.append(head + f" {'max rel diff':>12} {'setup s':>8} {'steps s':>8}")
 
