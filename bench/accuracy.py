@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from mecanum_fmu import master
+from mecanum_fmu.process import exit_now
 from mecanum_fmu.runner import prepare
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -78,4 +79,4 @@ def _plot(rows, path: Path) -> None:
 
 if __name__ == "__main__":
     main()
-    master.exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded
+    exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from mecanum_fmu import master
+from mecanum_fmu.process import exit_now
 from mecanum_fmu.runner import prepare, run
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,4 +86,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    master.exit_now(main())     # no interpreter shutdown with pythonfmu FMUs loaded
+    exit_now(main())     # no interpreter shutdown with pythonfmu FMUs loaded

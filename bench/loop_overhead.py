@@ -15,6 +15,7 @@ from pathlib import Path
 from fmpy.fmi2 import FMU2Slave
 
 from mecanum_fmu import master
+from mecanum_fmu.process import exit_now
 from mecanum_fmu.runner import prepare
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,7 +26,7 @@ def _instances(graph):
     fmus = []
     for inst in graph.instances:   # source, c2w, w2c, pose (dependency order)
         md = inst.model
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=master.extracted(inst.fmu_path),
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=master.RUNTIME.extracted(inst.fmu_path),
                         modelIdentifier=md.coSimulation.modelIdentifier,
                         instanceName=f"bare_{inst.name}")
         fmu.instantiate()
@@ -125,4 +126,4 @@ def main() -> dict:
 
 if __name__ == "__main__":
     main()
-    master.exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded
+    exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from mecanum_fmu import master
+from mecanum_fmu.process import exit_now
 from mecanum_fmu.cross_check import compared_outputs, difference, ours_jacobi
 from mecanum_fmu.other_hosts import HOSTS, HostUnavailable, run_host
 from mecanum_fmu.runner import prepare
@@ -79,4 +80,4 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
-    master.exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded
+    exit_now(0)      # no interpreter shutdown with pythonfmu FMUs loaded

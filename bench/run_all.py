@@ -5,6 +5,7 @@ import endurance
 import loop_overhead
 import other_hosts
 from mecanum_fmu import master
+from mecanum_fmu.process import exit_now
 
 if __name__ == "__main__":
     print("== accuracy per cost (bench/accuracy.py)")
@@ -14,4 +15,4 @@ if __name__ == "__main__":
     print("\n== the same run in other FMI hosts (bench/other_hosts.py)")
     other_hosts.main()
     print("\n== 1,000 runs in one process (bench/endurance.py)")
-    master.exit_now(endurance.main([]))    # no interpreter shutdown with pythonfmu FMUs loaded
+    exit_now(endurance.main([]))    # no interpreter shutdown with pythonfmu FMUs loaded

@@ -42,5 +42,5 @@ def pytest_unconfigure(config):
     """Leave without interpreter shutdown, as `mecanum_fmu.cli.exit_with` does: with pythonfmu
     FMUs loaded, CPython's finalization aborts now and then. The report is printed by now."""
     if hasattr(config, "_mecanum_exitstatus"):
-        from mecanum_fmu.master import exit_now
+        from mecanum_fmu.process import exit_now
         exit_now(config._mecanum_exitstatus)

@@ -1,7 +1,7 @@
 """The four built FMUs: standard conformance, model structure, reproducibility, behaviour.
 
 Process rules (pythonfmu): every FMU is loaded from ONE extraction folder per content
-(``mecanum_fmu.master.extracted``), the shared library is never unloaded (only
+(``mecanum_fmu.runtime.RUNTIME.extracted``), the shared library is never unloaded (only
 fmi2FreeInstance, never fmpy's freeInstance/freeLibrary), and simulate_fmu always gets an
 instance created here, so it never extracts or unloads anything itself.
 """
@@ -23,7 +23,8 @@ from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2Ca
 from fmpy.validation import validate_fmu
 
 import mecanum_fmu
-from mecanum_fmu.master import extracted
+from mecanum_fmu.runtime import RUNTIME
+extracted = RUNTIME.extracted
 
 MODELS = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator")
 

@@ -224,7 +224,7 @@ def test_a_run_after_a_failure_works(tmp_path, fmus, capsys):
 
 
 def _pooled(name):
-    return [c for (_, _, inst), pool in master._POOL.items() if inst == name for _, c in pool]
+    return master.RUNTIME.kept_components(name)
 
 
 def test_instances_are_reset_and_reused_and_can_be_released(tmp_path):
@@ -237,7 +237,7 @@ def test_instances_are_reset_and_reused_and_can_be_released(tmp_path):
     # the same instances ran again (after fmi2Reset) and gave the same bytes
     assert {i.name: _pooled(i.name) for i in graph.instances} == kept
     assert again.data.tobytes() == first.data.tobytes()
-    assert master.release_instances() >= 4 and not any(master._POOL.values())
+    assert master.release_instances() >= 4 and not any(_pooled(i.name) for i in graph.instances)
     fresh = master.simulate(graph, graph.scenario.experiment)
     assert fresh.data.tobytes() == first.data.tobytes()
 

@@ -120,9 +120,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def exit_with(argv: list[str] | None = None) -> None:
     """The console entry point: run main() and leave without interpreter shutdown (see
-    master.exit_now; with pythonfmu FMUs loaded CPython's finalization aborts now and then)."""
+    process.exit_now; with pythonfmu FMUs loaded CPython's finalization aborts now and then)."""
     code = main(argv)      # SystemExit (--help, bad options) and bugs propagate as usual
-    from .master import exit_now
+    from .process import exit_now
     exit_now(code)
 
 

@@ -189,7 +189,5 @@ def _child(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    code = _child(sys.argv[1:])
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)     # skip interpreter shutdown with pythonfmu loaded (see master.exit_now)
+    from mecanum_fmu.process import exit_now
+    exit_now(_child(sys.argv[1:]))

@@ -1,0 +1,110 @@
+"""One running FMU instance: the fmpy object, its raw C functions and its status rules."""
+from __future__ import annotations
+
+import ctypes
+
+from fmpy.fmi2 import FMU2Slave
+
+from ..graph import Instance, Port
+from ..runtime import RUNTIME, STATUS, Kept
+
+_fmi2Terminated = 3    # fmi2StatusKind
+
+
+class FmuCallError(Exception):
+    """An FMI call returned Discard or worse: which call, on which instance, with what status."""
+
+    def __init__(self, running: "RunningInstance", function: str, status: int):
+        self.running, self.function, self.status = running, function, status
+        super().__init__(f"{function} returned {STATUS.get(status, status)}")
+
+
+class RunningInstance:
+    """An instance taken from the runtime's pool (reset) or instantiated afresh, and handed
+    back (or freed) by free(). Transfers are filled in by the plan."""
+
+    def __init__(self, inst: Instance):
+        self.inst = inst
+        self.name = inst.name
+        md = inst.model
+        unzipped = RUNTIME.extracted(inst.fmu_path)
+        self.key = (unzipped, md.guid, inst.name)
+        kept = RUNTIME.take(self.key)
+        if kept is None:
+            self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                                 modelIdentifier=md.coSimulation.modelIdentifier,
+                                 instanceName=inst.name)
+            self.component, self.log = None, RUNTIME.new_log()
+        else:
+            self.fmu, self.component, self.log = kept.fmu, kept.component, kept.log
+        f = self.fmu._functions
+        self.c_get = {"Real": f["fmi2GetReal"], "Integer": f["fmi2GetInteger"],
+                      "Boolean": f["fmi2GetBoolean"]}
+        self.c_set = {"Real": f["fmi2SetReal"], "Integer": f["fmi2SetInteger"],
+                      "Boolean": f["fmi2SetBoolean"]}
+        self.c_do_step = f["fmi2DoStep"]
+        self.broken = 0       # worst status returned: Error (3) or Fatal (4) limit what may follow
+        self.failed = False   # returned Discard or worse: freed, never kept
+        self.reads: list = []     # (c_get, vrs, n, pointer), filled by the plan
+        self.writes: list = []    # (fill, c_set, vrs, n, pointer)
+
+    def call(self, function: str, status: int) -> None:
+        if status > 1:
+            raise FmuCallError(self, function, status)
+
+    def mark_failed(self, status: int) -> None:
+        self.broken = status if status >= 3 else 0
+        self.failed = True
+
+    def instantiate(self) -> None:
+        if self.component is not None:           # kept: back to just instantiated
+            status = self.fmu._functions["fmi2Reset"](self.component)
+            if status <= 1:
+                return
+            if status < 4:
+                self.fmu._functions["fmi2FreeInstance"](self.component)
+            self.component = None
+        # loggingOn: pythonfmu drops every message otherwise, errors included; the log keeps
+        # the last few so that a failure can quote the FMU's own reason.
+        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+        self.component = self.fmu.component
+
+    def terminate(self) -> None:
+        # FMI 2.0: after Error an instance may only be freed; after Fatal, not even that.
+        if self.component is not None and not self.broken:
+            self.fmu._functions["fmi2Terminate"](self.component)
+
+    def free(self) -> None:
+        """Back to the pool if it ended cleanly, else fmi2FreeInstance only: the library is
+        never unloaded. An instance that returned Fatal is left alone (pythonfmu crashes the
+        process if it is touched again)."""
+        if self.component is None:
+            return
+        if not self.failed and RUNTIME.keep(self.key, Kept(self.fmu, self.component, self.log)):
+            pass
+        elif self.broken < 4:
+            self.fmu._functions["fmi2FreeInstance"](self.component)
+            RUNTIME.forget_log(self.log)
+        self.component = None
+
+    def step_failure(self) -> str:
+        """Name the failed step; 'terminated early' only when the FMU itself says so."""
+        terminated = ctypes.c_int(0)
+        try:
+            status = self.fmu._functions["fmi2GetBooleanStatus"](
+                self.component, _fmi2Terminated, ctypes.byref(terminated))
+        except Exception:   # an FMU may not export it at all
+            return "fmi2DoStep"
+        if status == 0 and terminated.value == 1:
+            return "fmi2DoStep (the FMU terminated early)"
+        return "fmi2DoStep"
+
+    def get_one(self, port: Port):
+        getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,
+                  "Boolean": self.fmu.getBoolean}[port.type]
+        return getter([port.vr])[0]
+
+    def set_one(self, port: Port, value) -> None:
+        setter = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
+                  "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}[port.type]
+        setter([port.vr], [value])

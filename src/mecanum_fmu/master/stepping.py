@@ -1,0 +1,120 @@
+"""Initialisation and the stepping loop over prepared instances."""
+from __future__ import annotations
+
+import signal
+import threading
+import time as _time
+from contextlib import contextmanager
+from typing import Callable, Iterator
+
+from fmpy.fmi1 import FMICallException
+
+from ..graph import Graph, port_type
+from .instance import FmuCallError, RunningInstance
+from .recorder import Recorder
+
+
+@contextmanager
+def ctrl_c_latched() -> Iterator[list[bool]]:
+    """While the FMUs run, Ctrl-C only sets a flag that the stepping loop checks once per step.
+
+    The bundled FMUs run Python code on this thread, so Python's default SIGINT handler would
+    raise KeyboardInterrupt inside an FMU call about 2 times in 3, and pythonfmu turns that
+    into fmi2Fatal (the run fails instead of stopping, the instance cannot even be freed).
+    Only on the main thread with the default handler installed; elsewhere the flag stays
+    False and Ctrl-C behaves as usual."""
+    flag = [False]
+    install = (threading.current_thread() is threading.main_thread()
+               and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    if install:
+        signal.signal(signal.SIGINT, lambda signum, frame: flag.__setitem__(0, True))
+    try:
+        yield flag
+    finally:
+        if install:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def _guarded(r: RunningInstance, action: Callable[[], None]) -> None:
+    """Run an fmpy call on r; an FMI error becomes an FmuCallError that names r."""
+    try:
+        action()
+    except FMICallException as err:
+        raise FmuCallError(r, err.function, err.status) from None
+
+
+def _set_start_values(r: RunningInstance) -> None:
+    variables = {v.name: v for v in r.inst.model.modelVariables}
+    for name, value in r.inst.start_values.items():
+        var = variables[name]
+        setter = {"Real": r.fmu.setReal, "Integer": r.fmu.setInteger,
+                  "Boolean": r.fmu.setBoolean, "String": r.fmu.setString}[port_type(var)]
+        setter([var.valueReference], [value])
+
+
+def initialise(running: list[RunningInstance], graph: Graph, start: float, stop: float) -> None:
+    """Start values, initialization mode, the links walked in dependency order (so that t0 is
+    consistent), then every output read once into the buffers. Raises FmuCallError."""
+    by_name = {r.name: r for r in running}
+    for r in running:
+        _guarded(r, lambda: _set_start_values(r))
+        _guarded(r, lambda: r.fmu.setupExperiment(startTime=start, stopTime=stop))
+    for r in running:
+        _guarded(r, r.fmu.enterInitializationMode)
+    for link in graph.links:
+        source, target = by_name[link.source.ref.instance], by_name[link.target.ref.instance]
+        value = []
+        _guarded(source, lambda: value.append(source.get_one(link.source)))
+        _guarded(target, lambda: target.set_one(link.target, value[0]))
+    for r in running:
+        _guarded(r, r.fmu.exitInitializationMode)
+    for r in running:
+        for c_get, vrs, n, pointer in r.reads:
+            r.call("get", c_get(r.component, vrs, n, pointer))
+
+
+class StepFailure(Exception):
+    """A call in the stepping loop returned Discard or worse."""
+
+    def __init__(self, running: RunningInstance, function: str, status: int, time: float):
+        self.running, self.function, self.status, self.time = running, function, status, time
+
+
+def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bool],
+             freeze: Callable[[], None] | None,
+             progress: Callable[[float], None] | None) -> None:
+    """The hot loop: everything it touches was prepared. Raises StepFailure, KeyboardInterrupt."""
+    exp = recorder.experiment
+    start, stop, h, n_steps = exp.start_time, exp.stop_time, exp.step_size, recorder.n_steps
+    program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
+    record = recorder.record
+    next_report = _time.perf_counter() + 1.0
+    for k in range(n_steps):
+        if ctrl_c[0]:
+            raise KeyboardInterrupt
+        t = start + k * h
+        h_k = h if k < n_steps - 1 else stop - t
+        if freeze is not None:
+            freeze()
+        for r, comp, do_step, writes, reads in program:
+            for fill, c_set, vrs, n, pointer in writes:
+                if fill is not None:
+                    fill()
+                st = c_set(comp, vrs, n, pointer)
+                if st > 1:
+                    raise StepFailure(r, "set", st, t)
+            st = do_step(comp, t, h_k, 1)
+            if st > 1:
+                raise StepFailure(r, r.step_failure(), st, t)
+            for c_get, vrs, n, pointer in reads:
+                st = c_get(comp, vrs, n, pointer)
+                if st > 1:
+                    raise StepFailure(r, "get", st, t + h_k)
+        record()
+        if progress is not None and not k & 255:
+            now = _time.perf_counter()
+            if now >= next_report:
+                progress((t - start) / (stop - start))
+                next_report = now + 0.5
+    if ctrl_c[0]:                 # pressed during the last step
+        raise KeyboardInterrupt
