@@ -157,7 +157,7 @@ def cmd_run(args) -> int:
 
 def cmd_validate(args) -> int:
     from .runner import prepare
-    graph = prepare(args.scenario, fmu_dir=args.fmu_dir)
+    graph = prepare(args.scenario, fmu_dir=args.fmu_dir, build=False)
     for warning in graph.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     exp = graph.scenario.experiment
@@ -169,17 +169,11 @@ def cmd_validate(args) -> int:
 
 
 def cmd_fmus(args) -> int:
-    from . import fmu_build
+    from .fmu_build import build_all
     from .fmu_library import default_fmu_dir
-    dest = args.dest or default_fmu_dir()
-    for name in fmu_build.BUNDLED:
-        path = fmu_build.bundled_fmu_path(name, dest)
-        if args.force or not fmu_build.is_current(name, path):
-            fmu_build.build_fmu(name, dest)
-            state = "built"
-        else:
-            state = "up to date"
-        print(f"{path}  ({path.stat().st_size // 1024} KiB, {state})")
+    build_all(args.dest or default_fmu_dir(), only_stale=not args.force,
+              report=lambda path, state: print(f"{path}  ({path.stat().st_size // 1024} KiB, "
+                                               f"{state})"))
     from .doctor import find_libpython
     lib = find_libpython()
     print("other FMI tools: FMPy loads them as they are; a non-Python host (OMSimulator, "

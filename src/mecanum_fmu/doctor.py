@@ -30,8 +30,8 @@ def find_libpython() -> Path | None:
 
 
 def doctor_lines(fmu_dir: Path | None = None) -> list[str]:
-    from . import fmu_build
-    from .fmu_library import default_fmu_dir
+    from .bundled import MODELS
+    from .fmu_library import bundled_fmu_path, default_fmu_dir, is_current
 
     fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
     lib = find_libpython()
@@ -49,11 +49,11 @@ def doctor_lines(fmu_dir: Path | None = None) -> list[str]:
     lines.append(f"  if the host cannot find Python's standard library, also set "
                  f"PYTHONHOME={sys.base_prefix}")
     lines.append(f"FMUs ({fmu_dir}):")
-    for name in fmu_build.BUNDLED:
-        path = fmu_build.bundled_fmu_path(name, fmu_dir)
+    for name in MODELS:
+        path = bundled_fmu_path(name, fmu_dir)
         if not path.is_file():
             state = "missing - build with `python -m mecanum_fmu fmus`"
-        elif fmu_build.is_current(name, path):
+        elif is_current(name, path):
             state = "up to date"
         else:
             state = "stale - rebuild with `python -m mecanum_fmu fmus`"

@@ -7,83 +7,26 @@ builds from the same sources are byte-identical (the GUID is a hash of the sourc
 """
 from __future__ import annotations
 
-import hashlib
 import importlib
-import re
 import sys
 import tempfile
-import uuid
 import zipfile
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 from xml.etree import ElementTree as ET
 
 import pythonfmu
 from pythonfmu import FmuBuilder
 
-PACKAGE_DIR = Path(__file__).resolve().parent
-REPO_FMU_DIR = PACKAGE_DIR.parent.parent / "fmus"
-
-# modelName -> slave module in mecanum_fmu.slaves. The FMU script gets a unique module name
-# (mecanum_fmu_<module>) so that all four load into one process without clashing.
-BUNDLED = {
-    "VelocitySource": "velocity_source",
-    "Center2Wheel": "center2wheel",
-    "Wheel2Center": "wheel2center",
-    "PoseIntegrator": "pose_integrator",
-}
+from .bundled import MODELS
+from .fmu_library import bundled_fmu_path, is_current, slave_source
+from .storage import write_zip
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},
               "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"}}
 
-_INLINE = re.compile(r"^from mecanum_fmu\.blocks\.(\w+) import [\w, ]+# inline$", re.MULTILINE)
-_FIXED_DATE = (1980, 1, 1, 0, 0, 0)
 
-
-@dataclass(frozen=True)
-class SlaveSource:
-    model_name: str
-    module_name: str      # top-level module name inside the FMU
-    script: str           # self-contained script text
-
-    @property
-    def digest(self) -> str:
-        """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
-        text = self.script + "\npythonfmu " + pythonfmu.__version__
-        return hashlib.sha256(text.encode()).hexdigest()
-
-    @property
-    def guid(self) -> str:
-        return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "mecanum_fmu:" + self.digest)) + "}"
-
-
-def slave_source(model_name: str) -> SlaveSource:
-    """The self-contained FMU script for a bundled model, with the block maths inlined."""
-    module = BUNDLED[model_name]
-    text = (PACKAGE_DIR / "slaves" / f"{module}.py").read_text()
-
-    def inline(match: re.Match) -> str:
-        block = (PACKAGE_DIR / "blocks" / f"{match.group(1)}.py").read_text()
-        return f"# --- inlined from mecanum_fmu/blocks/{match.group(1)}.py ---\n{block}# --- end ---"
-
-    return SlaveSource(model_name, f"mecanum_fmu_{module}", _INLINE.sub(inline, text))
-
-
-def bundled_fmu_path(model_name: str, fmu_dir: Path = REPO_FMU_DIR) -> Path:
-    return Path(fmu_dir) / f"{model_name}.fmu"
-
-
-def is_current(model_name: str, fmu_path: Path) -> bool:
-    """True when fmu_path exists and was built from the current sources (GUID match)."""
-    try:
-        with zipfile.ZipFile(fmu_path) as zf:
-            root = ET.fromstring(zf.read("modelDescription.xml"))
-    except (OSError, KeyError, zipfile.BadZipFile, ET.ParseError):
-        return False
-    return root.get("guid") == slave_source(model_name).guid
-
-
-def build_fmu(model_name: str, dest_dir: Path = REPO_FMU_DIR) -> Path:
+def build_fmu(model_name: str, dest_dir: Path) -> Path:
     """Build one bundled FMU into dest_dir and return its path."""
     source = slave_source(model_name)
     dest_dir = Path(dest_dir)
@@ -101,23 +44,22 @@ def build_fmu(model_name: str, dest_dir: Path = REPO_FMU_DIR) -> Path:
                        if not info.filename.endswith("/")}
     entries["modelDescription.xml"] = _fix_model_description(
         entries["modelDescription.xml"], slave_class, source.guid)
-    partial = target.with_suffix(".fmu.part")
-    with zipfile.ZipFile(partial, "w") as zf:
-        for name in sorted(entries):
-            info = zipfile.ZipInfo(name, date_time=_FIXED_DATE)
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = 0o644 << 16
-            zf.writestr(info, entries[name], compresslevel=9)
-    partial.replace(target)   # atomic: a reader never sees a half-written FMU
-    return target
+    return write_zip(target, entries, compresslevel=9)
 
 
-def build_all(dest_dir: Path = REPO_FMU_DIR, only_stale: bool = False) -> list[Path]:
+def build_all(dest_dir: Path, only_stale: bool = False,
+              report: Callable[[Path, str], None] | None = None) -> list[Path]:
+    """Build every bundled FMU (only the missing and stale ones with only_stale) into
+    dest_dir; report(path, "built" | "up to date") after each. The one build loop."""
     paths = []
-    for name in BUNDLED:
+    for name in MODELS:
         path = bundled_fmu_path(name, dest_dir)
+        state = "up to date"
         if not (only_stale and is_current(name, path)):
             build_fmu(name, dest_dir)
+            state = "built"
+        if report is not None:
+            report(path, state)
         paths.append(path)
     return paths
 

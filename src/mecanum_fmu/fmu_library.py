@@ -1,35 +1,88 @@
 """Find the FMU behind a component and read its model description (fmpy's reader)."""
 from __future__ import annotations
 
+import hashlib
+import re
+import uuid
 import zipfile
-from xml.etree import ElementTree
+from dataclasses import dataclass
+from importlib.metadata import version
 from pathlib import Path
+from xml.etree import ElementTree
 
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
-from . import fmu_build
+from .bundled import MODELS
+from .storage import cache_root
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+_INLINE = re.compile(r"^from mecanum_fmu\.blocks\.(\w+) import [\w, ]+# inline$", re.MULTILINE)
 
 
 def default_fmu_dir() -> Path:
     """fmus/ in a source checkout; a per-version cache folder for a plain install."""
-    repo = fmu_build.PACKAGE_DIR.parent.parent
+    repo = PACKAGE_DIR.parent.parent
     if (repo / "pyproject.toml").is_file():
         return repo / "fmus"
     from mecanum_fmu import __version__
-    return Path.home() / ".cache" / "mecanum_fmu" / __version__ / "fmus"
+    return cache_root() / __version__ / "fmus"
+
+
+@dataclass(frozen=True)
+class SlaveSource:
+    """The self-contained FMU script of a bundled model and the identity derived from it."""
+    model_name: str
+    module_name: str      # top-level module name inside the FMU
+    script: str           # self-contained script text
+
+    @property
+    def digest(self) -> str:
+        """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
+        text = self.script + "\npythonfmu " + version("pythonfmu")
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    @property
+    def guid(self) -> str:
+        return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "mecanum_fmu:" + self.digest)) + "}"
+
+
+def slave_source(model_name: str) -> SlaveSource:
+    """The self-contained FMU script for a bundled model, with the block maths inlined (a
+    pythonfmu script is loaded as a top-level module from the FMU's resources/)."""
+    module = MODELS[model_name].module
+    text = (PACKAGE_DIR / "slaves" / f"{module}.py").read_text()
+
+    def inline(match: re.Match) -> str:
+        block = (PACKAGE_DIR / "blocks" / f"{match.group(1)}.py").read_text()
+        return f"# --- inlined from mecanum_fmu/blocks/{match.group(1)}.py ---\n{block}# --- end ---"
+
+    return SlaveSource(model_name, f"mecanum_fmu_{module}", _INLINE.sub(inline, text))
+
+
+def bundled_fmu_path(model_name: str, fmu_dir: Path) -> Path:
+    return Path(fmu_dir) / f"{model_name}.fmu"
+
+
+def is_current(model_name: str, fmu_path: Path) -> bool:
+    """True when fmu_path exists and was built from the current sources (GUID match)."""
+    try:
+        with zipfile.ZipFile(fmu_path) as zf:
+            root = ElementTree.fromstring(zf.read("modelDescription.xml"))
+    except (OSError, KeyError, zipfile.BadZipFile, ElementTree.ParseError):
+        return False
+    return root.get("guid") == slave_source(model_name).guid
 
 
 def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
-    """A bundled model name -> its FMU (built if missing or stale); otherwise a path
-    relative to the scenario file. Raises ValueError with a user-facing reason."""
-    if spec in fmu_build.BUNDLED:
-        path = fmu_build.bundled_fmu_path(spec, fmu_dir)
-        if not fmu_build.is_current(spec, path):
-            try:
-                fmu_build.build_fmu(spec, fmu_dir)
-            except Exception as err:  # the build is ours; report it as an input problem
-                raise ValueError(f"building the bundled FMU {spec} into {fmu_dir} failed: {err}") from err
+    """A bundled model name -> its FMU in fmu_dir; otherwise a path relative to the scenario
+    file. Never builds. Raises ValueError with a user-facing reason."""
+    if spec in MODELS:
+        path = bundled_fmu_path(spec, fmu_dir)
+        if not is_current(spec, path):
+            state = "is not built" if not path.exists() else "is out of date"
+            raise ValueError(f"the bundled FMU {spec} {state} in {fmu_dir}; build it with "
+                             "`python -m mecanum_fmu fmus` (make fmus)")
         return path
     if "\0" in spec:
         raise ValueError(f"FMU path {spec!r:.80} contains a NUL character")
@@ -42,7 +95,7 @@ def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
     if not exists:
         hint = ""
         if not spec.endswith(".fmu"):
-            hint = f" (bundled FMUs: {', '.join(fmu_build.BUNDLED)})"
+            hint = f" (bundled FMUs: {', '.join(MODELS)})"
         raise ValueError(f"FMU {spec!r} not found (looked for {path}){hint}")
     if not is_file:
         raise ValueError(f"FMU {spec!r} is {'a folder' if is_dir else 'a special file'}, "

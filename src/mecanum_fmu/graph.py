@@ -13,8 +13,7 @@ from pathlib import Path
 from fmpy.model_description import ModelDescription, ScalarVariable
 
 from . import fmu_library
-from .blocks.expression import ExpressionError, compile_expression
-from .blocks.kinematics import check_geometry
+from .bundled import bundled_model
 from .errors import Problem, ScenarioError
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 
@@ -41,6 +40,12 @@ class Instance:
     @property
     def model_name(self) -> str:
         return self.model.modelName
+
+    def value(self, name: str) -> Scalar:
+        """The start value this instance runs with: the scenario's, else the model's."""
+        if name in self.start_values:
+            return self.start_values[name]
+        return start_value(next(v for v in self.model.modelVariables if v.name == name))
 
     @property
     def can_get_set_state(self) -> bool:
@@ -76,147 +81,171 @@ def port_type(var: ScalarVariable) -> str:
 
 
 def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
-    """Resolve FMUs, check the whole graph, order it. Raises ScenarioError with all problems."""
-    fmu_dir = Path(fmu_dir) if fmu_dir is not None else fmu_library.default_fmu_dir()
-    label = scenario.label
-    problems: list[Problem] = []
+    """Resolve FMUs, check the whole graph, order it. Raises ScenarioError with all problems.
+    Never builds: a bundled FMU that is missing or stale is reported with the command that
+    builds it."""
+    check = _Checker(scenario, Path(fmu_dir) if fmu_dir is not None
+                     else fmu_library.default_fmu_dir())
+    start_values = check.start_values()
+    links, drivers = check.links()
+    recorded = check.recorded()
+    if check.problems:
+        raise ScenarioError(check.problems)
+    instances = [Instance(c.name, check.models[c.name][0], check.models[c.name][1],
+                          start_values[c.name], c.place) for c in scenario.components]
+    order, link_order = _dependency_order(instances, links, scenario.label)
+    return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
+                 tuple(_unconnected_inputs(instances, drivers, scenario.label)))
 
-    def bad(place: str, message: str) -> None:
-        problems.append(Problem(label, place, message))
 
-    models: dict[str, tuple[Path, ModelDescription]] = {}
-    cache: dict[Path, ModelDescription] = {}
-    for comp in scenario.components:
-        try:
-            path = fmu_library.resolve_fmu(comp.fmu, scenario.path.parent, fmu_dir)
-            if path not in cache:
-                cache[path] = fmu_library.read_description(path)
-            models[comp.name] = (path, cache[path])
-        except ValueError as err:
-            bad(f"{comp.place}.fmu", str(err))
+class _Checker:
+    """Collects every problem of one scenario while resolving its parts against the FMUs."""
 
-    variables = {name: {v.name: v for v in md.modelVariables} for name, (_, md) in models.items()}
-    instance_names = [c.name for c in scenario.components]
+    def __init__(self, scenario: Scenario, fmu_dir: Path):
+        self.scenario, self.problems = scenario, []
+        self.models: dict[str, tuple[Path, ModelDescription]] = {}
+        cache: dict[Path, ModelDescription] = {}
+        for comp in scenario.components:
+            try:
+                path = fmu_library.resolve_fmu(comp.fmu, scenario.path.parent, fmu_dir)
+                if path not in cache:
+                    cache[path] = fmu_library.read_description(path)
+                self.models[comp.name] = (path, cache[path])
+            except ValueError as err:
+                self.bad(f"{comp.place}.fmu", str(err))
+        self.variables = {name: {v.name: v for v in md.modelVariables}
+                          for name, (_, md) in self.models.items()}
+        self.instance_names = [c.name for c in scenario.components]
 
-    def lookup(ref: VarRef, place: str) -> ScalarVariable | None:
-        if ref.instance not in instance_names:
-            bad(place, f"unknown instance '{ref.instance}' in '{ref}'"
-                       f"{did_you_mean(ref.instance, instance_names)}")
+    def bad(self, place: str, message: str) -> None:
+        self.problems.append(Problem(self.scenario.label, place, message))
+
+    def lookup(self, ref: VarRef, place: str) -> ScalarVariable | None:
+        if ref.instance not in self.instance_names:
+            self.bad(place, f"unknown instance '{_clip(ref.instance)}' in '{_clip(str(ref))}'"
+                            f"{did_you_mean(ref.instance, self.instance_names)}")
             return None
-        if ref.instance not in variables:
+        if ref.instance not in self.variables:
             return None          # its FMU could not be read: already reported
-        var = variables[ref.instance].get(ref.variable)
+        var = self.variables[ref.instance].get(ref.variable)
         if var is None:
-            bad(place, f"{models[ref.instance][1].modelName} instance '{ref.instance}' has no "
-                       f"variable '{ref.variable}'"
-                       f"{did_you_mean(ref.variable, variables[ref.instance])}")
+            self.bad(place, f"{self.models[ref.instance][1].modelName} instance "
+                            f"'{ref.instance}' has no variable '{ref.variable}'"
+                            f"{did_you_mean(ref.variable, self.variables[ref.instance])}")
         return var
 
-    def port(ref: VarRef, var: ScalarVariable) -> Port:
-        return Port(ref, port_type(var), var.valueReference, var.causality)
+    def start_values(self) -> dict[str, dict[str, Scalar]]:
+        """Parameters and start values; shared ones go to every component that has them."""
+        scenario = self.scenario
+        for name in scenario.parameters:
+            takers = [c for c in scenario.components if c.name in self.variables
+                      and _settable(self.variables[c.name].get(name))]
+            if not takers and len(self.variables) == len(scenario.components):
+                self.bad(f"parameters.{name}", f"no component has a parameter '{name}'")
+        return {comp.name: self._component_values(comp) for comp in scenario.components
+                if comp.name in self.variables}
 
-    # Parameters and start values (shared ones go to every component that has them).
-    start_values: dict[str, dict[str, Scalar]] = {}
-    for name in scenario.parameters:
-        takers = [c for c in scenario.components if c.name in variables
-                  and _settable(variables[c.name].get(name))]
-        if not takers and len(variables) == len(scenario.components):
-            bad(f"parameters.{name}", f"no component has a parameter '{name}'")
-    for comp in scenario.components:
-        if comp.name not in variables:
-            continue
-        own = variables[comp.name]
-        merged = {k: v for k, v in scenario.parameters.items() if _settable(own.get(k))}
+    def _component_values(self, comp) -> dict[str, Scalar]:
+        own, md = self.variables[comp.name], self.models[comp.name][1]
+        merged = {k: v for k, v in self.scenario.parameters.items() if _settable(own.get(k))}
         merged.update(comp.parameters)
         for key in comp.parameters:
-            place = f"{comp.place}.parameters.{key}"
             var = own.get(key)
             if var is None:
-                bad(place, f"{models[comp.name][1].modelName} has no parameter '{key}'"
-                           f"{did_you_mean(key, [v for v in own if _settable(own[v])])}")
+                self.bad(f"{comp.place}.parameters.{key}", f"{md.modelName} has no parameter "
+                         f"'{key}'{did_you_mean(key, [v for v in own if _settable(own[v])])}")
             elif not _settable(var):
-                bad(place, f"'{key}' is {var.causality} ({var.variability}), "
-                           "not a parameter or input whose start value can be set")
+                self.bad(f"{comp.place}.parameters.{key}", f"'{key}' is {var.causality} "
+                         f"({var.variability}), not a parameter or input whose start value "
+                         "can be set")
         for key, value in merged.items():
             var = own.get(key)
             if var is not None and _settable(var):
-                place = (f"{comp.place}.parameters.{key}" if key in comp.parameters
-                         else f"parameters.{key}")
                 message = _type_problem(var, value)
                 if message:
-                    bad(place, message)
-        start_values[comp.name] = merged
-        _check_bundled_values(comp, models[comp.name][1], own, merged, bad,
-                              scenario.experiment.start_time)
+                    self.bad(self._place(comp, key), message)
+        model = bundled_model(md)
+        if model is not None:
+            values = {name: merged.get(name, start_value(var)) for name, var in own.items()}
+            for key, message in model.check(values, self.scenario.experiment.start_time):
+                self.bad(self._place(comp, key), message)
+        return merged
 
-    # Connections.
-    links: list[Link] = []
-    drivers: dict[VarRef, str] = {}
-    for conn in scenario.connections:
-        src = lookup(conn.source, conn.place)
-        dst = lookup(conn.target, conn.place)
-        if src is None or dst is None:
-            continue
-        ok = True
-        if src.causality != "output":
-            bad(conn.place, f"'{conn.source}' is {'an' if src.causality[0] in 'aeiou' else 'a'} "
-                            f"{src.causality}, not an output: a connection goes "
-                            "[from output, to input]")
-            ok = False
-        if dst.causality != "input":
-            bad(conn.place, f"'{conn.target}' is {'an' if dst.causality[0] in 'aeiou' else 'a'} "
-                            f"{dst.causality}, not an input: a connection goes "
-                            "[from output, to input]")
-            ok = False
-        if port_type(src) != port_type(dst):
-            bad(conn.place, f"type mismatch: '{conn.source}' is {src.type}, "
-                            f"'{conn.target}' is {dst.type}")
-            ok = False
-        if port_type(src) not in VALUE_TYPES and port_type(src) == port_type(dst):
-            bad(conn.place, f"'{conn.source}' is {src.type}: connections carry Real, Integer "
-                            "and Boolean values (set a String once as a parameter instead)")
-            ok = False
-        if conn.target in drivers:
-            bad(conn.place, f"input '{conn.target}' already has a driver "
-                            f"({drivers[conn.target]}); an input takes one connection")
-            ok = False
-        drivers.setdefault(conn.target, conn.place)
-        if ok:
-            links.append(Link(port(conn.source, src), port(conn.target, dst), conn.place))
+    def _place(self, comp, key: str) -> str:
+        return (f"{comp.place}.parameters.{key}" if key in comp.parameters
+                else f"parameters.{key}")
 
-    # Recorded variables.
-    recorded: list[Port] = []
-    if scenario.outputs is None:
-        for comp in scenario.components:
-            for var in (models[comp.name][1].modelVariables if comp.name in models else ()):
-                if var.causality == "output" and port_type(var) in VALUE_TYPES:
-                    recorded.append(port(VarRef(comp.name, var.name), var))
-    else:
-        seen = set()
-        for ref, place in scenario.outputs:
-            var = lookup(ref, place)
+    def links(self) -> tuple[list[Link], dict[VarRef, str]]:
+        links: list[Link] = []
+        drivers: dict[VarRef, str] = {}
+        for conn in self.scenario.connections:
+            src, dst = self.lookup(conn.source, conn.place), self.lookup(conn.target, conn.place)
+            if src is None or dst is None:
+                continue
+            messages = _connection_problems(conn, src, dst, drivers)
+            for message in messages:
+                self.bad(conn.place, message)
+            drivers.setdefault(conn.target, conn.place)
+            if not messages:
+                links.append(Link(_port(conn.source, src), _port(conn.target, dst), conn.place))
+        return links, drivers
+
+    def recorded(self) -> list[Port]:
+        if self.scenario.outputs is None:
+            return [_port(VarRef(comp.name, var.name), var)
+                    for comp in self.scenario.components
+                    for var in (self.models[comp.name][1].modelVariables
+                                if comp.name in self.models else ())
+                    if var.causality == "output" and port_type(var) in VALUE_TYPES]
+        recorded, seen = [], set()
+        for ref, place in self.scenario.outputs:
+            var = self.lookup(ref, place)
             if var is not None and port_type(var) not in VALUE_TYPES:
-                bad(place, f"'{ref}' is {var.type}: only Real, Integer and Boolean variables "
-                           "are recorded")
+                self.bad(place, f"'{ref}' is {var.type}: only Real, Integer and Boolean "
+                                "variables are recorded")
             elif var is not None and ref not in seen:
                 seen.add(ref)
-                recorded.append(port(ref, var))
+                recorded.append(_port(ref, var))
+        return recorded
 
-    if problems:
-        raise ScenarioError(problems)
 
-    instances = [Instance(c.name, models[c.name][0], models[c.name][1], start_values[c.name],
-                          c.place) for c in scenario.components]
-    order, link_order = _dependency_order(instances, links, label)
+def _clip(text: str, limit: int = 80) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _port(ref: VarRef, var: ScalarVariable) -> Port:
+    return Port(ref, port_type(var), var.valueReference, var.causality)
+
+
+def _connection_problems(conn, src: ScalarVariable, dst: ScalarVariable,
+                         drivers: dict[VarRef, str]) -> list[str]:
+    problems = []
+    for ref, var, wanted in ((conn.source, src, "output"), (conn.target, dst, "input")):
+        if var.causality != wanted:
+            article = "an" if var.causality[0] in "aeiou" else "a"
+            problems.append(f"'{ref}' is {article} {var.causality}, not an {wanted}: a "
+                            "connection goes [from output, to input]")
+    if port_type(src) != port_type(dst):
+        problems.append(f"type mismatch: '{conn.source}' is {src.type}, "
+                        f"'{conn.target}' is {dst.type}")
+    elif port_type(src) not in VALUE_TYPES:
+        problems.append(f"'{conn.source}' is {src.type}: connections carry Real, Integer "
+                        "and Boolean values (set a String once as a parameter instead)")
+    if conn.target in drivers:
+        problems.append(f"input '{conn.target}' already has a driver "
+                        f"({drivers[conn.target]}); an input takes one connection")
+    return problems
+
+
+def _unconnected_inputs(instances: list[Instance], drivers, label: str) -> list[str]:
     warnings = []
     for inst in instances:
         for var in inst.model.modelVariables:
-            ref = VarRef(inst.name, var.name)
-            if var.causality == "input" and ref not in drivers:
+            if var.causality == "input" and VarRef(inst.name, var.name) not in drivers:
                 start = inst.start_values.get(var.name, var.start)
                 warnings.append(f"{label}: {inst.declared_at}: input '{var.name}' is not "
                                 f"connected; it keeps its start value {start}")
-    return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded), tuple(warnings))
+    return warnings
 
 
 def _settable(var: ScalarVariable | None) -> bool:
@@ -239,34 +268,8 @@ def _type_problem(var: ScalarVariable, value: Scalar) -> str | None:
     return f"'{var.name}' is {kind}: expected {wanted}, got {show(value)}"
 
 
-def _check_bundled_values(comp, md: ModelDescription, own, values, bad,
-                          scenario_start: float = 0.0) -> None:
-    """Our own FMUs' value rules, checked up front so a bad value is an input error (exit 2)."""
-    def value(name):
-        return values.get(name, _start(own[name]))
-
-    if md.modelName in ("Center2Wheel", "Wheel2Center") and md.author == "mecanum_fmu":
-        geometry = {k: value(k) for k in ("alpha", "L", "W", "R") if k in own}
-        if len(geometry) == 4 and all(is_number(v) for v in geometry.values()):
-            try:
-                check_geometry(**geometry)
-            except ValueError as err:
-                name = str(err).split()[1]
-                where = (f"{comp.place}.parameters.{name}" if name in comp.parameters
-                         else f"parameters.{name}")
-                bad(where, str(err))
-    if md.modelName == "VelocitySource" and md.author == "mecanum_fmu":
-        for key in ("vx_expr", "vy_expr", "w_expr"):
-            text = value(key) if key in own else None
-            if isinstance(text, str):
-                try:
-                    # evaluate once at the start: a constant part like 1/0 only fails then
-                    compile_expression(text)(scenario_start)
-                except ExpressionError as err:
-                    bad(f"{comp.place}.parameters.{key}", str(err))
-
-
-def _start(var: ScalarVariable):
+def start_value(var: ScalarVariable):
+    """The start value a model description declares, as a Python value (None: none)."""
     if var.start is None:
         return None
     kind = port_type(var)

@@ -13,18 +13,8 @@ from scipy.integrate import solve_ivp
 
 from .blocks.expression import compile_expression
 from .blocks.pose import pose_rate
+from .bundled import Roles, find_roles  # noqa: F401  (Roles: re-exported for the plots)
 from .graph import Graph
-
-SOURCE_DEFAULTS = {"vx_expr": "sin(t)", "vy_expr": "cos(t)", "w_expr": "0"}
-
-
-@dataclass(frozen=True)
-class Roles:
-    """Which instance plays which part of the original diagram (None: not in this graph)."""
-    source: str | None
-    inverse: str | None
-    forward: str | None
-    pose: str | None
 
 
 @dataclass(frozen=True)
@@ -42,14 +32,6 @@ class Truth:
         return float(self.x[-1]), float(self.y[-1]), float(self.theta[-1])
 
 
-def find_roles(graph: Graph) -> Roles:
-    def one(model: str) -> str | None:
-        inst = graph.find_model(model)
-        return inst.name if inst is not None else None
-    return Roles(one("VelocitySource"), one("Center2Wheel"), one("Wheel2Center"),
-                 one("PoseIntegrator"))
-
-
 def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
                  atol: float = 1e-12) -> Truth | None:
     """Integrate the commanded twist; None when the graph has no single VelocitySource."""
@@ -57,12 +39,11 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
     if roles.source is None:
         return None
     source = graph.instance(roles.source)
-    funcs = [compile_expression(str(source.start_values.get(k, SOURCE_DEFAULTS[k])))
-             for k in ("vx_expr", "vy_expr", "w_expr")]
+    funcs = [compile_expression(str(source.value(k))) for k in ("vx_expr", "vy_expr", "w_expr")]
     start = (0.0, 0.0, 0.0)
     if roles.pose is not None:
-        pose = graph.instance(roles.pose).start_values
-        start = tuple(float(pose.get(k, 0.0)) for k in ("x0", "y0", "theta0"))
+        pose = graph.instance(roles.pose)
+        start = tuple(float(pose.value(k)) for k in ("x0", "y0", "theta0"))
 
     def rhs(t, state):
         return pose_rate(state[2], funcs[0](t), funcs[1](t), funcs[2](t))

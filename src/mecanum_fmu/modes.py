@@ -13,9 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .blocks.kinematics import center_to_wheel
-
-DEFAULT_GEOMETRY = {"alpha": math.pi / 4, "L": 0.16, "W": 0.12, "R": 0.06}
+from .blocks.kinematics import DEFAULT_GEOMETRY, center_to_wheel
 SIGN_TOL = 1e-9               # |wi| below this (times max(1, max |wj|)) counts as 0
 
 # seeds/003 numbers its motors M1 front-left, M2 rear-left, M3 rear-right, M4 front-right:
@@ -79,7 +77,7 @@ def geometry_of(start_values: Mapping | None) -> dict[str, float]:
 def graph_geometry(graph) -> dict[str, float]:
     """alpha, L, W, R of a graph's kinematics instance (inverse first, else forward);
     defaults where not set or where the graph has neither."""
-    from .ground_truth import find_roles
+    from .bundled import find_roles
     roles = find_roles(graph)
     name = roles.inverse or roles.forward
     return geometry_of(graph.instance(name).start_values if name else None)
@@ -88,7 +86,7 @@ def graph_geometry(graph) -> dict[str, float]:
 def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
     """The wheel-sign pattern of a run whose commanded twist is constant; None otherwise
     (no source, twist not recorded, empty run, or a twist that changes)."""
-    from .ground_truth import find_roles
+    from .bundled import find_roles
     roles = find_roles(graph)
     if roles.source is None or len(results.time) == 0:
         return None

@@ -14,7 +14,8 @@ from typing import Callable
 from . import master
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
-from .ground_truth import Truth, find_roles, ground_truth
+from .bundled import MODELS, find_roles
+from .ground_truth import Truth, ground_truth
 from .results import Results, write_csv, write_json
 from .scenario import MASTERS, Scenario, check_experiment, load_scenario
 
@@ -31,8 +32,11 @@ class RunOutcome:
 
 
 def prepare(path: str | Path, *, step_size: float | None = None, stop_time: float | None = None,
-            master_name: str | None = None, fmu_dir: Path | None = None) -> Graph:
-    """Load and check a scenario (with command-line overrides) and compile its graph."""
+            master_name: str | None = None, fmu_dir: Path | None = None,
+            build: bool = True) -> Graph:
+    """Load and check a scenario (with command-line overrides) and compile its graph. With
+    build (the default), the bundled FMUs it uses are built first when missing or stale;
+    without (validate), such an FMU is reported as a problem with the command that builds it."""
     if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
         from .ssp import load_ssp
         scenario = load_ssp(path)
@@ -50,7 +54,24 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
         if problems:
             raise ScenarioError(problems)
         scenario = dataclasses.replace(scenario, experiment=experiment)
+    if build:
+        build_bundled(scenario, fmu_dir)
     return compile_graph(scenario, fmu_dir)
+
+
+def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:
+    """Build the bundled FMUs the scenario names that are missing or stale."""
+    from .fmu_build import build_fmu
+    from .fmu_library import bundled_fmu_path, default_fmu_dir, is_current
+    fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
+    for comp in scenario.components:
+        if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):
+            try:
+                build_fmu(comp.fmu, fmu_dir)
+            except Exception as err:  # the build is ours; report it with the place
+                raise ScenarioError([Problem(scenario.label, f"{comp.place}.fmu",
+                                             f"building the bundled FMU {comp.fmu} into "
+                                             f"{fmu_dir} failed: {err}")]) from err
 
 
 def default_out_dir(scenario: Scenario) -> Path:

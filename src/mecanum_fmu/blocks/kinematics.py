@@ -6,18 +6,30 @@ Body frame: +Y forward, +X right, yaw rate w counter-clockwise. Wheels 1 front-r
 import math
 
 
-def check_geometry(alpha: float, L: float, W: float, R: float) -> None:
-    """Raise ValueError naming the first parameter outside its valid range."""
+GEOMETRY = ("alpha", "L", "W", "R")
+# The seed study's chassis: 45 degree rollers, L = 0.16 m, W = 0.12 m, R = 0.06 m.
+DEFAULT_GEOMETRY = {"alpha": math.pi / 4, "L": 0.16, "W": 0.12, "R": 0.06}
+
+
+def geometry_problem(alpha: float, L: float, W: float, R: float):
+    """(parameter, message) for the first parameter outside its valid range, else None."""
     for name, value in (("alpha", alpha), ("L", L), ("W", W), ("R", R)):
         if not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ValueError(f"parameter {name} = {value!r} is not a finite number")
+            return name, f"parameter {name} = {value!r} is not a finite number"
     if not 0.0 < alpha < math.pi / 2:
-        raise ValueError(
-            f"parameter alpha = {alpha!r} rad is outside 0 < alpha < pi/2 "
-            "(cot and tan of the roller angle blow up at the ends)")
+        return "alpha", (f"parameter alpha = {alpha!r} rad is outside 0 < alpha < pi/2 "
+                         "(cot and tan of the roller angle blow up at the ends)")
     for name, value in (("L", L), ("W", W), ("R", R)):
         if not value > 0.0:
-            raise ValueError(f"parameter {name} = {value!r} m must be > 0")
+            return name, f"parameter {name} = {value!r} m must be > 0"
+    return None
+
+
+def check_geometry(alpha: float, L: float, W: float, R: float) -> None:
+    """Raise ValueError for the first parameter outside its valid range."""
+    problem = geometry_problem(alpha, L, W, R)
+    if problem is not None:
+        raise ValueError(problem[1])
 
 
 def lever_arm(alpha: float, L: float, W: float) -> float:

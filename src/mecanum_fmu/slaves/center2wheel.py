@@ -1,11 +1,10 @@
 """Center2Wheel FMU: inverse kinematics, chassis twist -> four wheel speeds."""
-import math
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
-from mecanum_fmu.blocks.kinematics import check_geometry, center_to_wheel  # inline
+from mecanum_fmu.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, center_to_wheel  # inline
 
 _TWIST = ("vx", "vy", "w")
 _WHEELS = ("w1", "w2", "w3", "w4")
@@ -26,7 +25,8 @@ class Center2Wheel(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.vx = self.vy = self.w = 0.0
-        self.alpha, self.L, self.W, self.R = math.pi / 4, 0.16, 0.12, 0.06
+        for name, value in DEFAULT_GEOMETRY.items():
+            setattr(self, name, value)
         self.w1 = self.w2 = self.w3 = self.w4 = 0.0
         docs = {"vx": "chassis velocity along body +X (right)",
                 "vy": "chassis velocity along body +Y (forward)",

@@ -1,11 +1,10 @@
 """Wheel2Center FMU: forward kinematics, four wheel speeds -> chassis twist."""
-import math
 
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
-from mecanum_fmu.blocks.kinematics import check_geometry, instantaneous_center, wheel_to_center  # inline
+from mecanum_fmu.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, instantaneous_center, wheel_to_center  # inline
 
 _WHEELS = ("w1", "w2", "w3", "w4")
 _TWIST = ("vx", "vy", "w")
@@ -28,7 +27,8 @@ class Wheel2Center(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.w1 = self.w2 = self.w3 = self.w4 = 0.0
-        self.alpha, self.L, self.W, self.R = math.pi / 4, 0.16, 0.12, 0.06
+        for name, value in DEFAULT_GEOMETRY.items():
+            setattr(self, name, value)
         self.vx = self.vy = self.w = 0.0
         self.icr_x = self.icr_y = 0.0
         self.has_icr = False

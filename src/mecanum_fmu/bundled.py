@@ -1,0 +1,84 @@
+"""What the project knows about its bundled models, in one place.
+
+Each bundled model has a pythonfmu slave in slaves/ (its variables, units, defaults and
+dependencies live there and reach the model description), a role in the original diagram,
+and value rules that are checked before a run so that a bad value is an input error (exit 2),
+not an FMU failure. Facts the model description already states (defaults, units) are read from
+it, not repeated here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Mapping
+
+from .blocks.expression import ExpressionError, compile_expression
+from .blocks.kinematics import GEOMETRY, geometry_problem
+
+AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
+
+
+@dataclass(frozen=True)
+class Model:
+    name: str            # modelName and FMU file name
+    module: str          # slave module in mecanum_fmu.slaves
+    role: str            # its part in the original diagram (see Roles)
+    # (values, start time) -> [(parameter, message)]: the model's own rules on its values
+    check: Callable[[Mapping[str, object], float], list[tuple[str, str]]]
+
+
+def _check_geometry(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    geometry = [values.get(k) for k in GEOMETRY]
+    if any(v is None or isinstance(v, (bool, str)) for v in geometry):
+        return []            # a missing or mistyped value is reported by the type check
+    problem = geometry_problem(*geometry)
+    return [problem] if problem else []
+
+
+def _check_expressions(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    problems = []
+    for key, text in values.items():
+        if key.endswith("_expr") and isinstance(text, str):
+            try:
+                # evaluate once at the start: a constant part like 1/0 only fails then
+                compile_expression(text)(start_time)
+            except ExpressionError as err:
+                problems.append((key, str(err)))
+    return problems
+
+
+def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    return []
+
+
+MODELS: dict[str, Model] = {m.name: m for m in (
+    Model("VelocitySource", "velocity_source", "source", _check_expressions),
+    Model("Center2Wheel", "center2wheel", "inverse", _check_geometry),
+    Model("Wheel2Center", "wheel2center", "forward", _check_geometry),
+    Model("PoseIntegrator", "pose_integrator", "pose", _no_rules),
+)}
+
+
+def bundled_model(md) -> Model | None:
+    """The bundled model a model description belongs to, or None for any other FMU."""
+    model = MODELS.get(md.modelName)
+    return model if model is not None and md.author == AUTHOR else None
+
+
+@dataclass(frozen=True)
+class Roles:
+    """Which instance plays which part of the original diagram (None: not in this graph)."""
+    source: str | None
+    inverse: str | None
+    forward: str | None
+    pose: str | None
+
+
+def find_roles(graph) -> Roles:
+    """The single instance of each role's bundled model (None when there is none or several)."""
+    found: dict[str, list[str]] = {}
+    for inst in graph.instances:
+        model = bundled_model(inst.model)
+        if model is not None:
+            found.setdefault(model.role, []).append(inst.name)
+    one = {role: names[0] for role, names in found.items() if len(names) == 1}
+    return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"))
