@@ -19,7 +19,7 @@ from mecanum_fmu.cross_check import HOST_TOLERANCE, TOLERANCE, compared_outputs,
     difference, ours_jacobi
 from mecanum_fmu.other_hosts import HOSTS, HostUnavailable, run_host
 from mecanum_fmu.runner import prepare
-from mecanum_fmu.ssp import export_ssp
+from mecanum_fmu.ssp_write import export_ssp
 
 REQUIRE = os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1"
 

@@ -13,8 +13,9 @@ import pytest
 
 from mecanum_fmu.fmu_library import read_description
 from mecanum_fmu.graph import compile_graph, port_type
+from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.scenario import load_scenario
-from mecanum_fmu import ssp
+from mecanum_fmu import ssp, ssp_read, ssp_write
 
 REPO = Path(__file__).resolve().parents[1]
 CIRCLE = REPO / "scenarios" / "circle.yaml"
@@ -51,7 +52,7 @@ def circle_graph(fmu_dir):
 
 @pytest.fixture
 def exported(circle_graph, tmp_path):
-    return ssp.export_ssp(circle_graph, tmp_path / "circle.ssp")
+    return ssp_write.export_ssp(circle_graph, tmp_path / "circle.ssp")
 
 
 def cli(*args, cwd=None, env_extra=None):
@@ -104,7 +105,7 @@ def test_export_structure_and_content(exported, circle_graph, built_fmus):
         for p in comp.iter(q("ssv", "Parameter")):
             (val,) = list(p)
             params[p.get("name")] = (val.tag.split("}")[1], val.get("value"))
-        want = {k: ssp._format(v) for k, v in inst.start_values.items()}
+        want = {k: ssp_write._format(v) for k, v in inst.start_values.items()}
         assert params == want
     assert len(graph.instance("c2w").start_values) == 4        # the shared geometry
     assert params_of(comps, "source")["vy_expr"] == ("String", "cos(t)")
@@ -126,8 +127,8 @@ def params_of(comps, name):
 
 
 def test_export_is_deterministic(circle_graph, tmp_path):
-    a = ssp.export_ssp(circle_graph, tmp_path / "a.ssp").read_bytes()
-    b = ssp.export_ssp(circle_graph, tmp_path / "b.ssp").read_bytes()
+    a = ssp_write.export_ssp(circle_graph, tmp_path / "a.ssp").read_bytes()
+    b = ssp_write.export_ssp(circle_graph, tmp_path / "b.ssp").read_bytes()
     assert a == b
 
 
@@ -158,7 +159,7 @@ def test_cli_export(tmp_path, fmu_dir):
 # ------------------------------------------------------------------------------------ import
 
 def test_load_ssp_gives_the_same_scenario(exported, circle_graph, fmu_dir, cache_home):
-    scenario = ssp.load_ssp(exported)
+    scenario = ssp_read.load_ssp(exported)
     orig = circle_graph.scenario
     assert scenario.name == orig.name and scenario.experiment == orig.experiment
     assert [(c.source, c.target) for c in scenario.connections] == \
@@ -181,7 +182,7 @@ def test_load_ssp_gives_the_same_scenario(exported, circle_graph, fmu_dir, cache
     assert all(Path(p).parent == cache_home / "mecanum_fmu" / "ssp" / digest / "resources"
                for p in paths)
     mtimes = {p: Path(p).stat().st_mtime_ns for p in paths}
-    again = ssp.load_ssp(exported)
+    again = ssp_read.load_ssp(exported)
     assert {c.fmu for c in again.components} == paths
     assert {p: Path(p).stat().st_mtime_ns for p in paths} == mtimes
 
@@ -298,7 +299,7 @@ def write_third_party(dest: Path, built_fmus, ssd_text=THIRD_PARTY, bare=False) 
 @pytest.mark.parametrize("bare", [False, True], ids=["ssp", "bare-ssd"])
 def test_third_party_ssp_runs_under_our_master(bare, tmp_path, built_fmus, cache_home):
     path = write_third_party(tmp_path, built_fmus, bare=bare)
-    scenario = ssp.load_ssp(path)
+    scenario = ssp_read.load_ssp(path)
     assert scenario.name == "third_party_car"
     assert scenario.experiment.stop_time == 4.0
     assert scenario.experiment.master == "trapezoidal"        # defaults: no annotation
@@ -352,8 +353,8 @@ def test_broken_ssp_places(edit, place, message, tmp_path, built_fmus):
     text = THIRD_PARTY.replace(*edit)
     assert text != THIRD_PARTY
     path = write_third_party(tmp_path, built_fmus, text)
-    with pytest.raises(ssp.ScenarioError) as info:
-        ssp.load_ssp(path)
+    with pytest.raises(ScenarioError) as info:
+        ssp_read.load_ssp(path)
     report = str(info.value)
     assert "SystemStructure.ssd: " in report and place in report and message in report, report
 
@@ -361,12 +362,12 @@ def test_broken_ssp_places(edit, place, message, tmp_path, built_fmus):
 def test_not_an_ssp(tmp_path):
     bad = tmp_path / "x.ssp"
     bad.write_text("hello")
-    with pytest.raises(ssp.ScenarioError, match="not an SSP archive"):
-        ssp.load_ssp(bad)
+    with pytest.raises(ScenarioError, match="not an SSP archive"):
+        ssp_read.load_ssp(bad)
     with zipfile.ZipFile(tmp_path / "y.ssp", "w") as zf:
         zf.writestr("other.txt", "x")
-    with pytest.raises(ssp.ScenarioError, match="has no SystemStructure.ssd"):
-        ssp.load_ssp(tmp_path / "y.ssp")
+    with pytest.raises(ScenarioError, match="has no SystemStructure.ssd"):
+        ssp_read.load_ssp(tmp_path / "y.ssp")
 
 
 # ------------------------------------------------------------------------------------ doctor

@@ -211,7 +211,7 @@ def cmd_info(args) -> int:
 
 def cmd_export_ssp(args) -> int:
     from .runner import prepare
-    from .ssp import export_ssp
+    from .ssp_write import export_ssp
     graph = prepare(args.scenario, fmu_dir=args.fmu_dir)
     path = export_ssp(graph, args.output)
     print(f"wrote {path} ({len(graph.instances)} components, {len(graph.links)} connections)")

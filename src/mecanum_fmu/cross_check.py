@@ -27,7 +27,7 @@ from . import __version__, master
 from .errors import Problem, ScenarioError
 from .graph import Graph
 from .other_hosts import HOSTS, HostFailed, HostRun, HostUnavailable, run_host
-from .ssp import export_ssp
+from .ssp_write import export_ssp
 
 TOLERANCE = 1e-9
 CSV_TOLERANCE = 1e-6        # ecos-cli: its CSV rounds to 6 decimals (one unit of the last)

@@ -38,7 +38,7 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
     build (the default), the bundled FMUs it uses are built first when missing or stale;
     without (validate), such an FMU is reported as a problem with the command that builds it."""
     if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
-        from .ssp import load_ssp
+        from .ssp_read import load_ssp
         scenario = load_ssp(path)
     else:
         scenario = load_scenario(path)

@@ -97,6 +97,18 @@ def did_you_mean(name: str, choices) -> str:
     return f"; did you mean '{close[0]}'?" if close else ""
 
 
+def is_identifier(name: Any) -> bool:
+    """The rule for instance names: letters, digits and _, not starting with a digit."""
+    return isinstance(name, str) and _NAME.fullmatch(name) is not None
+
+
+def usable_name(text: str) -> str | None:
+    """text made safe to name a results folder (letters, digits, _ . -; runs of anything else
+    become _), or None when nothing usable is left (empty, or only dots such as '..')."""
+    name = re.sub(r"[^\w.-]+", "_", text).strip("_")
+    return name if name.strip(".") else None
+
+
 def is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
@@ -128,16 +140,16 @@ def load_scenario(path: str | Path) -> Scenario:
 
     _unknown_keys(doc, _TOP_KEYS, "top level", bad)
     name = doc.get("name", path.stem)
-    if not isinstance(name, str) or not name.strip() or not re.fullmatch(r"[\w.-]+", name):
-        bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only; it names "
-                    "the results folder)")
-        name = path.stem
+    if not isinstance(name, str) or usable_name(name) != name:
+        bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only, not "
+                    "only dots; it names the results folder)")
+        name = usable_name(path.stem) or "scenario"
     description = doc.get("description", "")
     if not isinstance(description, str):
         bad("description", f"expected text, got {_type_name(description)}")
         description = ""
 
-    experiment = _experiment(doc.get("experiment", {}), bad)
+    experiment = parse_experiment(doc.get("experiment", {}), bad)
     shared = _parameters(doc.get("parameters", {}), "parameters", bad)
     components = _components(doc.get("components"), bad)
     connections = _connections(doc.get("connections", []), bad)
@@ -190,7 +202,9 @@ def _unknown_keys(mapping: dict, allowed, place: str, bad) -> None:
                        f"(allowed: {', '.join(allowed)})")
 
 
-def _experiment(raw: Any, bad) -> Experiment:
+def parse_experiment(raw: Any, bad) -> Experiment:
+    """The experiment from a mapping of its keys (defaults for those left out); problems go to
+    bad(place, message). Scenario files and SSP annotations both come through here."""
     values = dict(DEFAULT_EXPERIMENT)
     if raw is None:
         raw = {}
@@ -278,7 +292,7 @@ def _components(raw: Any, bad) -> tuple[Component, ...]:
     out = []
     for name, spec in raw.items():
         place = f"components.{name}"
-        if not isinstance(name, str) or not _NAME.match(name):
+        if not is_identifier(name):
             bad("components", f"instance name {show(name)} must be an identifier (letters, digits, _)")
             continue
         if isinstance(spec, str):
