@@ -4,7 +4,6 @@ import accuracy
 import endurance
 import loop_overhead
 import other_hosts
-from mecanum_fmu import master
 from mecanum_fmu.process import exit_now
 
 if __name__ == "__main__":

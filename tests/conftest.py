@@ -33,6 +33,12 @@ def built_fmus(tmp_path_factory):
     return fmus
 
 
+@pytest.fixture(scope="session")
+def fmu_dir(built_fmus):
+    """The folder of the freshly built bundled FMUs (a scenario's --fmu-dir)."""
+    return next(iter(built_fmus.values())).parent
+
+
 def pytest_sessionfinish(session, exitstatus):
     session.config._mecanum_exitstatus = int(exitstatus)
 

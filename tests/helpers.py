@@ -3,6 +3,9 @@ reading results.csv."""
 from __future__ import annotations
 
 import csv
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -85,3 +88,39 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     data = np.array([[float(v) for v in row] for row in body], dtype=float).reshape(
         len(body), len(header))
     return header, data
+
+
+# ---- running the CLI ----------------------------------------------------------------------
+
+def child_env(tmp: Path | None = None, **extra: str) -> dict[str, str]:
+    """A minimal environment for a child `python -m mecanum_fmu`: this checkout's src first,
+    Agg plots, no bytecode; TMPDIR=tmp when given (to see what a run leaves behind)."""
+    env = {"PYTHONPATH": os.pathsep.join([str(ROOT / "src")] + [p for p in [
+               os.environ.get("PYTHONPATH")] if p]),
+           "PATH": os.environ.get("PATH", "/usr/bin:/bin"), "MPLBACKEND": "Agg",
+           "PYTHONDONTWRITEBYTECODE": "1"}
+    for key in ("HOME", "XDG_CACHE_HOME", "MECANUM_FMU_REQUIRE_TOOLS", "LD_LIBRARY_PATH"):
+        if key in os.environ:
+            env[key] = os.environ[key]
+    if tmp is not None:
+        env["TMPDIR"] = str(tmp)
+    env.update(extra)
+    return env
+
+
+def cli_args(*args) -> list[str]:
+    return [sys.executable, "-m", "mecanum_fmu", *map(str, args)]
+
+
+def run_child(*args, cwd=None, env=None, timeout: float = 300) -> subprocess.CompletedProcess:
+    """`python -m mecanum_fmu ARGS` in a child process (text output captured)."""
+    return subprocess.run(cli_args(*args), capture_output=True, text=True, timeout=timeout,
+                          cwd=cwd or ROOT, env=env or child_env())
+
+
+def run_main(capsys, *args) -> tuple[int, str, str]:
+    """`mecanum_fmu.cli.main(ARGS)` in this process: (exit code, stdout, stderr)."""
+    from mecanum_fmu import cli
+    code = cli.main([str(a) for a in args])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err

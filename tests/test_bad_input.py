@@ -19,19 +19,14 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from helpers import CHAIN_CONNECTIONS
+from helpers import CHAIN_CONNECTIONS, child_env
 
 REPO = Path(__file__).resolve().parents[1]
-try:
-    from mecanum_fmu.cli import main
-except ImportError:  # package not installed: fall back to the src layout
-    sys.path.insert(0, str(REPO / "src"))
-    from mecanum_fmu.cli import main
+from mecanum_fmu.cli import main
 
 CORPUS_DIR = Path(__file__).resolve().parent / "bad_scenarios"
 CORPUS = sorted(CORPUS_DIR.glob("*.yaml"))
-SUBPROCESS_ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
-    [str(REPO / "src")] + [p for p in [os.environ.get("PYTHONPATH")] if p])}
+SUBPROCESS_ENV = {**os.environ, **child_env()}
 
 COMPONENTS = """\
 components:

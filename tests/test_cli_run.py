@@ -6,16 +6,14 @@ import math
 import pytest
 from scipy.integrate import solve_ivp
 
-from helpers import ROOT, SPEC_END, chain_scenario, read_csv
-from mecanum_fmu import cli
+from helpers import ROOT, SPEC_END, chain_scenario, read_csv, run_main
 
 
 def run_cli(tmp_path, capsys, *args, out="out"):
     """Run `mecanum-fmu run ARGS --out tmp_path/out --no-plots`; (exit code, stdout, stderr, out)."""
     out_dir = tmp_path / out
-    code = cli.main(["run", *map(str, args), "--out", str(out_dir), "--no-plots"])
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err, out_dir
+    code, stdout, stderr = run_main(capsys, "run", *args, "--out", out_dir, "--no-plots")
+    return code, stdout, stderr, out_dir
 
 
 def end_point(out_dir):

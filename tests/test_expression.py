@@ -2,7 +2,6 @@
 import ast
 import math
 import runpy
-import sys
 from pathlib import Path
 
 import pytest
@@ -10,13 +9,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 MODULE_PATH = Path(__file__).resolve().parents[1] / "src" / "mecanum_fmu" / "blocks" / "expression.py"
-try:
-    from mecanum_fmu.blocks.expression import (ALLOWED_CONSTANTS, ALLOWED_FUNCTIONS,
-                                               ExpressionError, compile_expression, evaluate)
-except ImportError:  # package not installed: fall back to the src layout
-    sys.path.insert(0, str(MODULE_PATH.parents[2]))
-    from mecanum_fmu.blocks.expression import (ALLOWED_CONSTANTS, ALLOWED_FUNCTIONS,
-                                               ExpressionError, compile_expression, evaluate)
+from mecanum_fmu.blocks.expression import (ALLOWED_CONSTANTS, ALLOWED_FUNCTIONS,
+                                           ExpressionError, compile_expression, evaluate)
 
 
 def rejected(text):

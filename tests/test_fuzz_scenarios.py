@@ -5,7 +5,6 @@ succeed or raise ScenarioError with located, short messages - never any other ex
 from __future__ import annotations
 
 import copy
-import sys
 from pathlib import Path
 
 import pytest
@@ -14,13 +13,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 REPO = Path(__file__).resolve().parents[1]
-try:
-    from mecanum_fmu.errors import ScenarioError
-    from mecanum_fmu.runner import prepare
-except ImportError:  # package not installed: fall back to the src layout
-    sys.path.insert(0, str(REPO / "src"))
-    from mecanum_fmu.errors import ScenarioError
-    from mecanum_fmu.runner import prepare
+from mecanum_fmu.errors import ScenarioError
+from mecanum_fmu.runner import prepare
 
 CIRCLE = yaml.safe_load((REPO / "scenarios" / "circle.yaml").read_text())
 

@@ -4,15 +4,13 @@ import json
 import os
 import re
 import signal
-import subprocess
-import sys
 import threading
 
 import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from helpers import ROOT, chain_scenario, read_csv, test_fmus, write_scenario
+from helpers import ROOT, chain_scenario, read_csv, run_child, run_main, test_fmus, write_scenario
 from mecanum_fmu import cli, master, runner
 from mecanum_fmu.errors import Interrupted
 
@@ -163,9 +161,7 @@ connections:
 
 
 def run_cli(path, out, capsys):
-    code = cli.main(["run", str(path), "--out", str(out), "--no-plots"])
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
+    return run_main(capsys, "run", path, "--out", out, "--no-plots")
 
 
 def test_step_failure_keeps_rows_up_to_the_failure(tmp_path, fmus, capsys):
@@ -193,10 +189,7 @@ def test_step_failure_keeps_rows_up_to_the_failure(tmp_path, fmus, capsys):
 def run_in_fresh_process(path, out):
     """`python -m mecanum_fmu run` in a child process: a pythonfmu slave that raises leaves
     the interpreter that loaded it liable to crash later (see the xfail below)."""
-    return subprocess.run(
-        [sys.executable, "-m", "mecanum_fmu", "run", str(path), "--out", str(out),
-         "--no-plots"], capture_output=True, text=True, timeout=60,
-        env={"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"})
+    return run_child("run", path, "--out", out, "--no-plots", timeout=60)
 
 
 def test_initialization_failure_is_reported(tmp_path, fmus):

@@ -32,11 +32,6 @@ def spec_signs(vx, vy, w):
     return ["0" if abs(s) < 1e-9 else ("+" if s > 0 else "-") for s in speeds]
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(built_fmus):
-    return next(iter(built_fmus.values())).parent
-
-
 def run_scenario(path, out, fmu_dir, **overrides):
     graph = runner.prepare(path, fmu_dir=fmu_dir, **overrides)
     return runner.run(graph, out, plots=False, log=lambda line: None)

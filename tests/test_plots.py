@@ -1,5 +1,4 @@
 """Tests for the plots: figure contents against a hand-made run of the seed scenario (SPEC 5)."""
-import sys
 from pathlib import Path
 
 import matplotlib
@@ -11,12 +10,9 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-try:
-    from mecanum_fmu import plots
-except ImportError:  # package not installed: fall back to the src layout
-    sys.path.insert(0, str(ROOT / "src"))
-    from mecanum_fmu import plots
-from mecanum_fmu.ground_truth import Roles, Truth  # noqa: E402
+from mecanum_fmu import plots  # noqa: E402
+from mecanum_fmu.bundled import Roles  # noqa: E402
+from mecanum_fmu.ground_truth import Truth  # noqa: E402
 from mecanum_fmu.results import Results  # noqa: E402
 
 R, C, K = 0.06, 1.0, 0.16 + 0.12 * 1.0     # alpha = 45 deg: c = cot(alpha) = 1, k = L + W*c

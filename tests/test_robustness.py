@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import ROOT, SPEC_END, read_csv
+from helpers import ROOT, SPEC_END, child_env, cli_args, read_csv, run_child
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
 # A run that is still stepping long after the first progress report (1 s into the loop):
@@ -31,23 +31,12 @@ LONG = ["--master", "gauss-seidel", "--step-size", "1e-3", "--stop-time", "1000"
 TIMEOUT = 180          # a safety net against a hung child, not a measurement
 
 
-def child_env(tmp: Path | None = None) -> dict[str, str]:
-    env = {"PYTHONPATH": str(ROOT / "src"), "PATH": os.environ.get("PATH", "/usr/bin:/bin"),
-           "MPLBACKEND": "Agg", "PYTHONDONTWRITEBYTECODE": "1"}
-    if "HOME" in os.environ:
-        env["HOME"] = os.environ["HOME"]
-    if tmp is not None:
-        env["TMPDIR"] = str(tmp)
-    return env
-
-
 def cli(*args) -> list[str]:
-    return [sys.executable, "-m", "mecanum_fmu", "run", *map(str, args)]
+    return cli_args("run", *args)
 
 
 def run_cli(*args, cwd=None, env=None) -> subprocess.CompletedProcess:
-    return subprocess.run(cli(*args), capture_output=True, text=True, timeout=TIMEOUT,
-                          cwd=cwd, env=env or child_env())
+    return run_child("run", *args, cwd=cwd, env=env, timeout=TIMEOUT)
 
 
 class OnTerminal:

@@ -1,16 +1,14 @@
 """SSP 1.0 export/import: structure, XSD validity, bit-identical round trip, a third-party
 SSP, a broken SSP, and the `doctor` command."""
 import json
-import os
 import shutil
-import subprocess
-import sys
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import pytest
 
+from helpers import child_env, run_child
 from mecanum_fmu.fmu_library import read_description
 from mecanum_fmu.graph import compile_graph, port_type
 from mecanum_fmu.errors import ScenarioError
@@ -32,11 +30,6 @@ def q(prefix, tag):
     return f"{{{N[prefix]}}}{tag}"
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(built_fmus):
-    return next(iter(built_fmus.values())).parent
-
-
 @pytest.fixture(autouse=True)
 def cache_home(tmp_path_factory, monkeypatch):
     """Keep the extraction cache out of the user's home."""
@@ -56,12 +49,7 @@ def exported(circle_graph, tmp_path):
 
 
 def cli(*args, cwd=None, env_extra=None):
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(REPO / "src") + os.pathsep + env.get("PYTHONPATH", "")
-    env.setdefault("MPLBACKEND", "Agg")
-    env.update(env_extra or {})
-    return subprocess.run([sys.executable, "-m", "mecanum_fmu", *map(str, args)],
-                          cwd=cwd or REPO, env=env, capture_output=True, text=True, timeout=300)
+    return run_child(*args, cwd=cwd, env=child_env(**(env_extra or {})))
 
 
 def ssd_root(path):

@@ -105,12 +105,12 @@ def main(argv: list[str] | None = None) -> int:
     except (SimulationError, Interrupted) as err:
         print(f"error: simulation failed: {err}" if isinstance(err, SimulationError)
               else f"{err}", file=sys.stderr)
-        for path in getattr(err, "files", []):
+        for path in err.files:
             print(f"  kept: {path}", file=sys.stderr)
         return err.exit_code
     except MecanumError as err:
         print(f"error: {err}", file=sys.stderr)
-        for path in getattr(err, "files", []):      # e.g. the plots failed after the run
+        for path in err.files:      # e.g. the plots failed after the run
             print(f"  kept: {path}", file=sys.stderr)
         return err.exit_code
     except KeyboardInterrupt:       # outside the stepping loop: loading, plotting

@@ -5,8 +5,14 @@ from dataclasses import dataclass
 
 
 class MecanumError(Exception):
-    """Base of every error this package raises on purpose."""
+    """Base of every error this package raises on purpose.
+
+    `files`: the result files written before the error (kept on disk, listed by the CLI)."""
     exit_code = 1
+
+    def __init__(self, *args, files: list | None = None):
+        super().__init__(*args)
+        self.files: list = list(files or [])
 
 
 @dataclass(frozen=True)
@@ -28,9 +34,14 @@ class ScenarioError(MecanumError):
         self.problems = list(problems)
         super().__init__("\n".join(str(p) for p in self.problems))
 
+    @property
+    def places(self) -> list[str]:
+        return [p.place for p in self.problems]
+
 
 class SimulationError(MecanumError):
-    """A component failed during the run (exit code 1). `results` holds what was recorded."""
+    """A component failed during the run (exit code 1): which component, at what time, with
+    what FMI status; `results` holds what was recorded up to the failure."""
     exit_code = 1
 
     def __init__(self, message: str, *, component: str | None = None, time: float | None = None,

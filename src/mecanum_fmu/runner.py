@@ -93,7 +93,7 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
             summary = summarize(graph, err.results, None)
             summary["error_message"] = str(err)
             files += _write_tables(err.results, summary, out_dir)
-        err.files = files
+        err.files.extend(files)
         raise
     truth = ground_truth(graph, results.time) if results.steps else None
     summary = summarize(graph, results, truth)
@@ -112,10 +112,8 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
             files.append(write_animation(results, find_roles(graph), truth,
                                          graph_geometry(graph), out_dir / "animation.gif"))
     except Exception as err:    # the results are written: report the figure, keep the rest
-        failure = MecanumError(f"writing the {stage} into {out_dir} failed: "
-                               f"{type(err).__name__}: {err}")
-        failure.files = files
-        raise failure from err
+        raise MecanumError(f"writing the {stage} into {out_dir} failed: "
+                           f"{type(err).__name__}: {err}", files=files) from err
     return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
 
 
