@@ -3,7 +3,8 @@
 Each frame draws, in the world frame (docs/spec.md, Pose integration), the chassis as a
 2L x 2W rectangle (L along body X, left-right; W along body Y, front-rear) at the recorded pose,
 its four wheels with an arrow along the body +Y of each wheel scaled by that wheel's rim speed
-R*wi, the path so far and the ground-truth path. Frames are decimated to at most `max_frames`, played at FPS.
+R*wi, the path so far and the ground-truth path. Frames are decimated to at most `max_frames`,
+played at FPS.
 """
 from __future__ import annotations
 
