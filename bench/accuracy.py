@@ -15,7 +15,7 @@ from mecanum_fmu.process import exit_now
 from mecanum_fmu.runner import prepare
 
 ROOT = Path(__file__).resolve().parents[1]
-EXACT = (1 - np.cos(10.0), np.sin(10.0))      # SPEC section 5
+EXACT = (1 - np.cos(10.0), np.sin(10.0))      # docs/spec.md, The seed scenario
 MASTERS = ("trapezoidal", "gauss-seidel", "jacobi")
 STEPS = (0.2, 0.1, 0.05, 0.01, 0.001)
 

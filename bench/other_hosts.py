@@ -30,7 +30,7 @@ def main() -> None:
     graph = prepare(ROOT / "scenarios" / "circle.yaml", master_name="jacobi", step_size=H,
                     stop_time=STOP)
     names = compared_outputs(graph)
-    exact = (1.0 - math.cos(STOP), math.sin(STOP))     # SPEC.md: x = 1 - cos t, y = sin t
+    exact = (1.0 - math.cos(STOP), math.sin(STOP))     # docs/spec.md: x = 1 - cos t, y = sin t
     best: dict[str, object] = {}
     missing: dict[str, str] = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -12,7 +12,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 FMU_SOURCES = Path(__file__).resolve().parent / "fmu_sources"
-# SPEC.md section 5: the seed circle's end point.
+# docs/spec.md, The seed scenario: the seed circle's end point.
 SPEC_END = (1.8390715290764525, -0.5440211108893698)
 
 _BUILT: dict[str, Path] = {}
@@ -64,7 +64,8 @@ def chain_scenario(folder: Path, name: str, *, master: str = "gauss-seidel",
                    step_size: float = 0.05, stop_time: float = 2.0,
                    order=("source", "c2w", "w2c", "pose"), outputs=None,
                    profile=("sin(t)", "cos(t)", "0")) -> Path:
-    """The seed's four-block chain (SPEC 1) with the components declared in `order`."""
+    """The seed's four-block chain (docs/spec.md, The original study) with the components
+    declared in `order`."""
     comps = dict(CHAIN_COMPONENTS)
     comps["source"] = ("source: {fmu: VelocitySource, parameters: "
                        "{vx_expr: '%s', vy_expr: '%s', w_expr: '%s'}}" % profile)

@@ -1,5 +1,5 @@
-"""`mecanum-fmu run` in-process: the seed scenario against SPEC.md section 5, the order of
-accuracy of the masters, reproducibility and command-line overrides."""
+"""`mecanum-fmu run` in-process: the seed scenario against docs/spec.md, Expected results, the
+order of accuracy of the masters, reproducibility and command-line overrides."""
 import json
 import math
 
@@ -38,7 +38,8 @@ def test_seed_scenario_matches_the_spec(tmp_path, capsys, in_repo):
     assert data[-1, 0] == 10.0
     x, y = data[-1, header.index("pose.x")], data[-1, header.index("pose.y")]
     assert abs(x - SPEC_END[0]) < 1e-3 and abs(y - SPEC_END[1]) < 1e-3
-    # the whole path lies on the unit circle around (1, 0) (SPEC 5: x = 1 - cos t, y = sin t)
+    # the whole path lies on the unit circle around (1, 0) (docs/spec.md, The seed scenario:
+    # x = 1 - cos t, y = sin t)
     px, py = data[:, header.index("pose.x")], data[:, header.index("pose.y")]
     assert max(abs(math.hypot(a - 1.0, b) - 1.0) for a, b in zip(px, py)) < 1e-3
 
@@ -65,7 +66,8 @@ ROTATING = ("0.2*sin(t)", "0.5", "0.4*cos(0.5*t)")
 
 
 def rotating_reference():
-    """End point of SPEC 4 for vx = 0.2 sin t, vy = 0.5, w = 0.4 cos(t/2), from rest at 0."""
+    """End point of the pose equations (docs/spec.md, Pose integration) for vx = 0.2 sin t,
+    vy = 0.5, w = 0.4 cos(t/2), from rest at 0."""
     def rhs(t, s):
         vx, vy, w = 0.2 * math.sin(t), 0.5, 0.4 * math.cos(0.5 * t)
         th = s[2]
@@ -126,7 +128,7 @@ def test_stop_time_override_ends_the_run_at_5(tmp_path, capsys, in_repo):
     assert len(data) == 101                  # 0, 0.05, ..., 5
     summary = json.loads((out_dir / "summary.json").read_text())
     assert summary["stop_time"] == 5.0 and summary["end_time"] == 5.0 and summary["steps"] == 100
-    # and the end point is the circle's at t = 5 (SPEC 5)
+    # and the end point is the circle's at t = 5 (docs/spec.md, The seed scenario)
     x, y = end_point(out_dir)
     assert x == pytest.approx(1 - math.cos(5.0), abs=1e-3)
     assert y == pytest.approx(math.sin(5.0), abs=1e-3)

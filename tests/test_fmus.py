@@ -28,7 +28,8 @@ extracted = RUNTIME.extracted
 
 MODELS = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator")
 
-# SPEC sections 1-4: seed geometry and the variables of each block.
+# docs/spec.md (Parameters, Kinematics, Pose integration): seed geometry and the variables of
+# each block.
 ALPHA, L0, W0, R0 = math.pi / 4, 0.16, 0.12, 0.06
 OUTPUTS = {"VelocitySource": ("vx", "vy", "w"),
            "Center2Wheel": ("w1", "w2", "w3", "w4"),
@@ -48,7 +49,7 @@ BASE_UNITS = {"m": {"m": 1}, "m/s": {"m": 1, "s": -1},
 SI_BASES = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
-# ------------------------------------------------------------------ SPEC reference formulas
+# ------------------------------------------------------- reference formulas of docs/spec.md
 
 def spec_inverse(vx, vy, w, alpha=ALPHA, L=L0, W=W0, R=R0):
     c = math.cos(alpha) / math.sin(alpha)
@@ -308,7 +309,7 @@ def test_wheel2center_is_spec_forward(built_fmus):
     expected = spec_forward(*wheels)
     for i, name in enumerate(("vx", "vy", "w")):
         np.testing.assert_allclose(result[name], expected[i], rtol=1e-12, atol=1e-14)
-    # SPEC 4: the ICR is at (-vy/w, vx/w) in the body frame.
+    # docs/spec.md, Instantaneous centre of rotation: the ICR is at (-vy/w, vx/w) in the body frame.
     vx, vy, w = expected
     assert w != 0.0
     np.testing.assert_array_equal(result["has_icr"], True)

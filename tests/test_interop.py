@@ -57,9 +57,9 @@ def test_seed_circle_in_host_agrees_with_our_jacobi(seed, host):
     run = run_or_skip(host, ssp, graph, names)
     assert run.end_time == pytest.approx(10.0, abs=1e-9)
     assert difference(run.values, ours.values, names) <= HOST_TOLERANCE.get(host, TOLERANCE)
-    # and against SPEC.md: a Jacobi chain of three feedthrough hops lags the velocity by at most
-    # 3h (2h of hops + h/2 of hold, rounded up), so the end point is off by at most
-    # 3h * |v(T) - v(0)| with v = (sin t, cos t) - first order in h
+    # and against docs/spec.md, Expected results: a Jacobi chain of three feedthrough hops lags
+    # the velocity by at most 3h (2h of hops + h/2 of hold, rounded up), so the end point is off
+    # by at most 3h * |v(T) - v(0)| with v = (sin t, cos t) - first order in h
     bound = 3 * 0.05 * math.hypot(math.sin(10.0) - 0.0, math.cos(10.0) - 1.0)
     error = math.hypot(run.values["pose.x"] - SPEC_END[0], run.values["pose.y"] - SPEC_END[1])
     assert 0 < error <= bound

@@ -1,6 +1,6 @@
-"""Mecanum kinematics against SPEC.md sections 2, 3 and 5.
+"""Mecanum kinematics against docs/spec.md (Wheel numbering, Kinematics, Expected results).
 
-Every reference value is computed here from the SPEC formulas, never taken from the code.
+Every reference value is computed here from the formulas of docs/spec.md, never taken from the code.
 """
 import math
 import re
@@ -12,14 +12,14 @@ from hypothesis import strategies as st
 
 from mecanum_fmu.blocks.kinematics import check_geometry, center_to_wheel, wheel_to_center
 
-# The seed's geometry (SPEC section 1).
+# The seed's geometry (docs/spec.md, Parameters).
 ALPHA, L0, W0, R0 = math.radians(45.0), 0.16, 0.12, 0.06
 
 
-# ------------------------------------------------------------------ references from the SPEC
+# ------------------------------------------------------------------ references from docs/spec.md
 
 def spec_matrix(alpha, L, W):
-    """The wheel matrix A of SPEC section 3, written out row by row."""
+    """The wheel matrix A of docs/spec.md, Inverse kinematics, written out row by row."""
     c = math.cos(alpha) / math.sin(alpha)
     k = L + W * c
     return np.array([[-c, 1.0, k],
@@ -28,7 +28,7 @@ def spec_matrix(alpha, L, W):
                      [c, 1.0, k]])
 
 
-# SPEC section 2: wheel positions; SPEC section 3: roller directions u.
+# docs/spec.md, Wheel numbering: wheel positions and roller directions u.
 def wheel_positions(L, W):
     return [(L, W), (-L, W), (-L, -W), (L, -W)]   # 1 FR, 2 FL, 3 RL, 4 RR
 
@@ -60,7 +60,7 @@ def forward_tolerance(alpha, L, W, R, wheels):
     return 1e-13 * (1e-300 + sum(abs(v) for v in wheels) * R) * max(1.0, 1.0 / c, 1.0 / k)
 
 
-# ------------------------------------------------------------------ the seed scenario (SPEC 5)
+# ------------------------------------------ the seed scenario (docs/spec.md, Expected results)
 
 @pytest.mark.parametrize("t", [0.0, 0.3, math.pi / 4, 1.0, 2.5, math.pi, 4.2, 7.0, 10.0])
 def test_seed_wheel_speeds(t):
@@ -100,7 +100,7 @@ def test_inverse_is_spec_matrix(twist, geometry):
 
 
 def test_inverse_written_out_for_one_case():
-    # SPEC section 3 formulas by hand: alpha = 30 deg, c = sqrt(3), k = L + W*sqrt(3).
+    # docs/spec.md, Inverse kinematics, by hand: alpha = 30 deg, c = sqrt(3), k = L + W*sqrt(3).
     alpha, L, W, R = math.radians(30.0), 0.2, 0.1, 0.05
     vx, vy, w = 0.4, -0.3, 1.5
     c = math.sqrt(3.0)
@@ -185,7 +185,8 @@ def test_forward_written_out_for_one_case():
 @settings(max_examples=300, deadline=None)
 @given(twists, geometries)
 def test_roller_constraint_holds_at_every_wheel(twist, geometry):
-    """SPEC section 3: the wheel centre's speed along the roller axis u equals the rim's."""
+    """docs/spec.md, Why the matrix is right: the wheel centre's speed along the roller axis u
+    equals the rim's."""
     vx, vy, w = twist
     alpha, L, W, R = geometry
     wheels = center_to_wheel(vx, vy, w, alpha, L, W, R)

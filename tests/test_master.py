@@ -15,7 +15,7 @@ from mecanum_fmu import cli, master, runner
 from mecanum_fmu.errors import Interrupted
 
 H = 0.05
-R, C, K = 0.06, 1.0, 0.16 + 0.12      # SPEC 3 with alpha = 45 deg: c = 1, k = L + W*c
+R, C, K = 0.06, 1.0, 0.16 + 0.12      # docs/spec.md, Kinematics, alpha = 45 deg: c = 1, k = L + W*c
 
 
 @pytest.fixture(scope="session")
@@ -38,7 +38,7 @@ def test_gauss_seidel_has_no_lag_through_feedthrough_blocks(tmp_path):
     t = res.time
     assert np.allclose(res["source.vx"], np.sin(t), atol=1e-12, rtol=0)
     assert np.allclose(res["w2c.vx"], res["source.vx"], atol=1e-12, rtol=0)
-    w1 = (-C * res["source.vx"] + res["source.vy"]) / R          # SPEC 3, w = 0
+    w1 = (-C * res["source.vx"] + res["source.vy"]) / R          # spec, Inverse kinematics, w = 0
     assert np.allclose(res["c2w.w1"], w1, atol=1e-9, rtol=0)
 
 
@@ -175,10 +175,11 @@ def test_step_failure_keeps_rows_up_to_the_failure(tmp_path, fmus, capsys):
     time = data[:, 0]
     assert 4.9 <= time[-1] <= 5.0 + 0.1
     assert np.allclose(time, np.arange(len(time)) * 0.1, atol=1e-9, rtol=0)
-    # the rows that were kept are right: the circle (SPEC 5) and breaker.y = t
+    # the rows that were kept are right: the circle (docs/spec.md, The seed scenario) and
+    # breaker.y = t
     assert np.allclose(data[:, header.index("breaker.y")], time, atol=1e-9, rtol=0)
     # gauss-seidel: pose holds the source's t_k+1 value over each step (w = 0, so pose.y is
-    # exactly the right Riemann sum of cos, SPEC 5)
+    # exactly the right Riemann sum of cos)
     right_sum = np.concatenate([[0.0], np.cumsum(0.1 * np.cos(time[1:]))])
     assert np.allclose(data[:, header.index("pose.y")], right_sum, atol=1e-9, rtol=0)
     summary = json.loads((out / "summary.json").read_text())
@@ -261,7 +262,8 @@ def test_ctrl_c_through_the_python_api_stops_the_run_and_keeps_the_rows(tmp_path
     assert partial is not None and not partial.complete
     assert 0 < partial.steps < 1_000_000
     assert caught.value.time == partial.time[-1]
-    # the kept rows are the circle's (SPEC 5): gauss-seidel, pose.y = right Riemann sum of cos
+    # the kept rows are the circle's (docs/spec.md, The seed scenario): gauss-seidel,
+    # pose.y = right Riemann sum of cos
     t = partial.time
     assert np.allclose(np.diff(t), 1e-4, atol=1e-12, rtol=0)
     right_sum = np.concatenate([[0.0], np.cumsum(1e-4 * np.cos(t[1:]))])

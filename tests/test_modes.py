@@ -1,7 +1,7 @@
 """The basic motions (scenarios/modes/), their wheel-sign patterns, the ICR and the animation.
 
-The expected wheel signs are derived here from SPEC.md section 3's matrix, independently of
-mecanum_fmu.modes; the closed forms are SPEC.md section 4's.
+The expected wheel signs are derived here from the matrix of docs/spec.md, Inverse kinematics,
+independently of mecanum_fmu.modes; the closed forms come from docs/spec.md, Pose integration.
 """
 import math
 from pathlib import Path
@@ -24,7 +24,7 @@ TWISTS = {
 
 
 def spec_signs(vx, vy, w):
-    """Signs of w1..w4 from SPEC section 3: w = (1/R) A @ [vx, vy, w]."""
+    """Signs of w1..w4 from docs/spec.md, Inverse kinematics: w = (1/R) A @ [vx, vy, w]."""
     c = 1.0 / math.tan(ALPHA)
     k = L + W * c
     A = np.array([[-c, 1, k], [c, 1, -k], [-c, 1, -k], [c, 1, k]])
@@ -141,7 +141,7 @@ def test_constant_twist_arc(v, w, stop, step, fmu_dir, tmp_path):
     T = t[-1]
     assert T == pytest.approx(stop)
     x, y, theta = res["pose.x"], res["pose.y"], res["pose.theta"]
-    # SPEC 4: theta = w t, x' = -v sin(theta), y' = v cos(theta)
+    # docs/spec.md, Pose integration: theta = w t, x' = -v sin(theta), y' = v cos(theta)
     assert theta[-1] == pytest.approx(w * T, abs=1e-9)
     assert x[-1] == pytest.approx(v / w * (math.cos(w * T) - 1.0), abs=1e-9)
     assert y[-1] == pytest.approx(v / w * math.sin(w * T), abs=1e-9)

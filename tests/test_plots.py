@@ -1,4 +1,5 @@
-"""Tests for the plots: figure contents against a hand-made run of the seed scenario (SPEC 5)."""
+"""Tests for the plots: figure contents against a hand-made run of the seed scenario
+(docs/spec.md, Expected results)."""
 from pathlib import Path
 
 import matplotlib
@@ -97,7 +98,7 @@ def test_wheels_panel(run, figures):
         np.testing.assert_array_equal(line.get_xdata(), t)
         np.testing.assert_allclose(line.get_ydata(), want, atol=1e-12)
     peak = max(np.abs(line.get_ydata()).max() for line in ax.get_lines())
-    assert peak == pytest.approx(np.sqrt(2) / R, rel=1e-3)     # SPEC 5: 23.57 rad/s
+    assert peak == pytest.approx(np.sqrt(2) / R, rel=1e-3)     # spec: 23.57 rad/s
 
 
 def test_velocity_panels(run, figures):

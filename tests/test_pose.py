@@ -1,7 +1,7 @@
-"""Pose integration against SPEC.md section 4.
+"""Pose integration against docs/spec.md, Pose integration.
 
 References are computed here: the closed-form rotation about the instantaneous centre of
-rotation (ICR), a numerical solution of the SPEC's ODE, and an exact rational Taylor series.
+rotation (ICR), a numerical solution of the spec's ODE, and an exact rational Taylor series.
 """
 import math
 from fractions import Fraction
@@ -21,13 +21,15 @@ def rotate(theta, x, y):
 
 
 def icr_world(x, y, theta, vx, vy, w):
-    """SPEC 4: the ICR is at (-vy/w, vx/w) in the body frame."""
+    """The ICR is at (-vy/w, vx/w) in the body frame (docs/spec.md, Instantaneous centre of
+    rotation)."""
     bx, by = rotate(theta, -vy / w, vx / w)
     return x + bx, y + by
 
 
 def ode_reference(start, twist, h):
-    """Integrate SPEC 4's ODE numerically (independent of any closed form)."""
+    """Integrate the pose ODE (docs/spec.md, Pose integration) numerically (independent of any
+    closed form)."""
     vx, vy, w = twist
 
     def rhs(_t, p):
@@ -122,7 +124,8 @@ def test_arc_is_a_rotation_about_the_icr(twist):
     vx, vy, w = twist
     centre = icr_world(*START, vx, vy, w)
     radius = math.hypot(vx, vy) / abs(w)
-    # The ICR lies at distance |v|/|w| from the chassis centre (SPEC 4).
+    # The ICR lies at distance |v|/|w| from the chassis centre (docs/spec.md, Instantaneous
+    # centre of rotation).
     assert math.dist(centre, START[:2]) == pytest.approx(radius, rel=1e-14)
     for h in np.linspace(0.1, 9.0, 12):
         x, y, theta = pose_step(*START, vx, vy, w, h)

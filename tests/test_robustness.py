@@ -3,7 +3,8 @@ progress line, and many runs in one process.
 
 Every run here is a fresh `python -m mecanum_fmu` (or a small Python child) process: a signal,
 a terminal and the memory of one process are what is tested. The reference values are the
-seed circle of SPEC.md section 5 (x = 1 - cos t, y = sin t for vx = sin t, vy = cos t, w = 0).
+seed circle (docs/spec.md, The seed scenario: x = 1 - cos t, y = sin t for vx = sin t,
+vy = cos t, w = 0).
 """
 from __future__ import annotations
 
@@ -121,7 +122,7 @@ def test_ctrl_c_in_the_stepping_loop_keeps_the_rows_and_exits_130(tmp_path):
     assert np.allclose(time_, np.arange(len(time_)) * 1e-3, atol=1e-9, rtol=0)
     # the message names the start of the step under way; its end may be recorded already
     assert time_[-1] - 1e-3 - 1e-9 <= float(match.group(1)) <= time_[-1] + 1e-9
-    # every kept row is a real one (not an unwritten buffer row): SPEC 5, the commanded
+    # every kept row is a real one (not an unwritten buffer row): the seed circle, the commanded
     # twist, and (gauss-seidel, w = 0) the pose as the right Riemann sums of sin t and cos t
     assert np.allclose(column(header, data, "source.vx"), np.sin(time_), atol=1e-12, rtol=0)
     assert np.allclose(column(header, data, "source.vy"), np.cos(time_), atol=1e-12, rtol=0)
@@ -300,7 +301,7 @@ def test_two_hundred_runs_in_one_process_neither_grow_nor_drift(tmp_path):
     assert report["rows"] == 11                           # 0, 0.05, ..., 0.5
     assert report["last_end"] == report["first_end"]      # exactly
     assert report["same_bytes"] is True
-    # the circle at t = 0.5 (SPEC 5), so the runs are real ones
+    # the circle at t = 0.5 (docs/spec.md, The seed scenario), so the runs are real ones
     assert report["first_end"][0] == pytest.approx(1 - math.cos(0.5), abs=1e-3)
     assert report["first_end"][1] == pytest.approx(math.sin(0.5), abs=1e-3)
     # one extraction per FMU for the whole process, not one per run

@@ -1,9 +1,10 @@
 """`run --animate`: the chassis driving along its path, as an animated GIF (no pyplot).
 
-Each frame draws, in the world frame (SPEC.md section 4), the chassis as a 2L x 2W rectangle
-(L along body X, left-right; W along body Y, front-rear) at the recorded pose, its four wheels
-with an arrow along the body +Y of each wheel scaled by that wheel's rim speed R*wi, the path so
-far and the ground-truth path. Frames are decimated to at most `max_frames`, played at FPS.
+Each frame draws, in the world frame (docs/spec.md, Pose integration), the chassis as a
+2L x 2W rectangle (L along body X, left-right; W along body Y, front-rear) at the recorded pose,
+its four wheels with an arrow along the body +Y of each wheel scaled by that wheel's rim speed
+R*wi, the path so far and the ground-truth path. Frames are decimated to at most `max_frames`,
+played at FPS.
 """
 from __future__ import annotations
 

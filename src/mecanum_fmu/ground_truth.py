@@ -1,8 +1,9 @@
 """The original study's x_desired/y_desired: the commanded twist integrated directly.
 
 The commanded twist comes from the scenario's VelocitySource expressions (evaluated with the
-same safe evaluator), integrated through SPEC section 4 with a tight-tolerance ODE solver, so
-it is independent of the FMUs, the coupling and the step size.
+same safe evaluator), integrated through the pose equations (docs/spec.md, Pose integration)
+with a tight-tolerance ODE solver, so it is independent of the FMUs, the coupling and the step
+size.
 """
 from __future__ import annotations
 

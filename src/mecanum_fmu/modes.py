@@ -1,7 +1,10 @@
-"""The basic motions of a mecanum chassis and their wheel-sign patterns (seeds/003 table 2-1).
+"""The basic motions of a mecanum chassis and their wheel-sign patterns (table 2-1 of the
+mecanum platform analysis, "Motion Model and Application Analysis of the Mecanum-Wheel
+Omnidirectional Mobile Robot"; docs/spec.md, Basic motions).
 
 A wheel-sign pattern is the sign of each wheel speed w1..w4 that the inverse kinematics
-(SPEC.md section 3) gives for a twist: it is meaningful only while the twist is constant.
+(docs/spec.md, Inverse kinematics) gives for a twist: it is meaningful only while the twist
+is constant.
 
     python -m mecanum_fmu.modes        # print the markdown table of docs/modes.md
 """
@@ -16,7 +19,8 @@ import numpy as np
 from .blocks.kinematics import DEFAULT_GEOMETRY, center_to_wheel
 SIGN_TOL = 1e-9               # |wi| below this (times max(1, max |wj|)) counts as 0
 
-# seeds/003 numbers its motors M1 front-left, M2 rear-left, M3 rear-right, M4 front-right:
+# The mecanum platform analysis (docs/spec.md, Basic motions) numbers its motors M1 front-left,
+# M2 rear-left, M3 rear-right, M4 front-right:
 # Mi = our wheel SEEDS003_WHEEL[i - 1] (ours: 1 front-right, 2 front-left, 3 rear-left, 4 rear-right).
 SEEDS003_WHEEL = (2, 3, 4, 1)
 
@@ -64,7 +68,8 @@ def wheel_signs(vx: float, vy: float, w: float, alpha: float = DEFAULT_GEOMETRY[
 
 
 def seeds003_signs(signs: list[str]) -> list[str]:
-    """Our w1..w4 signs reordered as seeds/003's M1..M4."""
+    """Our w1..w4 signs reordered as the mecanum platform analysis' M1..M4
+    (docs/spec.md, Basic motions)."""
     return [signs[wheel - 1] for wheel in SEEDS003_WHEEL]
 
 
@@ -106,7 +111,7 @@ def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
 
 
 def markdown_table(geometry: Mapping | None = None) -> str:
-    """The seven modes: twist, our wheel signs w1..w4 and seeds/003's M1..M4."""
+    """The seven modes: twist, our wheel signs w1..w4 and the mecanum platform analysis' M1..M4."""
     g = geometry_of(geometry)
     head = ("| mode | vx [m/s] | vy [m/s] | w [rad/s] | w1 FR | w2 FL | w3 RL | w4 RR "
             "| M1 FL | M2 RL | M3 RR | M4 FR | the car |")

@@ -1,4 +1,5 @@
-"""The original study's figures (SPEC sections 1 and 5) as PNGs, drawn without pyplot.
+"""The original study's figures as PNGs, drawn without pyplot (docs/spec.md, The original
+study and Expected results).
 
 One drawing function per panel, each taking an Axes; `build_figures` gives every panel its own
 figure, `build_dashboard` puts them all in one, `write_plots` saves both. A panel with nothing to
@@ -90,7 +91,8 @@ def _draw_vy(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> N
 def _draw_wheels(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
     """The four wheel speeds from inverse kinematics."""
     idx, t = _t(results)
-    # Rear wheels dashed: with w = 0, w1 = w3 and w2 = w4 (SPEC 5) and the lines overlap.
+    # Rear wheels dashed: with w = 0, w1 = w3 and w2 = w4 (docs/spec.md, The seed scenario)
+    # and the lines overlap.
     for i, (var, where) in enumerate(WHEELS):
         if name := _col(results, roles.inverse, var):
             ax.plot(t, results[name][idx], "--" if i >= 2 else "-", label=f"{var} {where}")

@@ -1,4 +1,4 @@
-"""Mecanum kinematics of the O-layout chassis (SPEC.md section 3).
+"""Mecanum kinematics of the O-layout chassis (docs/spec.md, Kinematics).
 
 Body frame: +Y forward, +X right, yaw rate w counter-clockwise. Wheels 1 front-right,
 2 front-left, 3 rear-left, 4 rear-right; a wheel speed is positive when it rolls the car forward.
@@ -64,7 +64,8 @@ def wheel_to_center(w1: float, w2: float, w3: float, w4: float,
 
 def instantaneous_center(vx: float, vy: float, w: float,
                          tol: float = 1e-9) -> tuple[float, float, bool]:
-    """Instantaneous centre of rotation in the body frame (SPEC.md section 4, seeds/003 eq. 20).
+    """Instantaneous centre of rotation in the body frame (docs/spec.md,
+    Instantaneous centre of rotation).
 
     Returns (icr_x, icr_y, has_icr): (-vy/w, vx/w, True) for |w| >= tol; a pure translation
     (|w| < tol) has none: (0.0, 0.0, False).

@@ -1,4 +1,4 @@
-"""Pose integration on SE(2) (SPEC.md section 4)."""
+"""Pose integration on SE(2) (docs/spec.md, Pose integration)."""
 import math
 
 
