@@ -51,9 +51,25 @@ def write_animation(results: Results, roles: Roles, truth: Truth | None,
                     max_frames: int = MAX_FRAMES) -> Path:
     """Write the animated GIF to path and return it. graph_params: L, W (and R) in metres."""
     params = geometry_of(graph_params)
-    L, W, R = params["L"], params["W"], params["R"]
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    x, y, theta, rim = _track(results, roles, params["R"])
+    fig = Figure(figsize=FIG_SIZE, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    _set_view(ax, x, y, truth, params["L"], params["W"])
+    update = _scene(ax, results, (x, y, theta, rim), truth, params)
+    writer = PillowWriter(fps=FPS)
+    with writer.saving(fig, str(path), dpi=DPI):
+        for i in frame_indices(len(x), max_frames):
+            update(int(i))
+            writer.grab_frame()
+    fig.clear()
+    return path
+
+
+def _track(results: Results, roles: Roles, R: float):
+    """x, y, theta of the pose and the four wheels' rim speeds R*wi [m/s], per recorded row."""
     n = len(results.time)
     pose = roles.pose
     cols = [f"{pose}.{k}" for k in ("x", "y", "theta")]
@@ -66,32 +82,36 @@ def write_animation(results: Results, roles: Roles, truth: Truth | None,
         name = f"{roles.inverse}.w{j + 1}"
         if roles.inverse is not None and name in results.names:
             wheels[:, j] = results[name]
-    rim = R * wheels                                          # wheel rim speeds [m/s]
-    peak = float(np.max(np.abs(rim))) if rim.size else 0.0
-    scale = 1.5 * W / peak if peak > 0 else 0.0               # fastest wheel: arrow 1.5 W long
+    return x, y, theta, R * wheels
 
-    # Fixed view: everything the car and the ground truth visit, plus the chassis and arrows.
+
+def _set_view(ax, x, y, truth: Truth | None, L: float, W: float) -> None:
+    """A fixed square view: everything the car and the ground truth visit, plus the chassis
+    and its arrows."""
     xs, ys = [x], [y]
     if truth is not None and len(truth.x):
         xs.append(truth.x)
         ys.append(truth.y)
+        ax.plot(truth.x, truth.y, color="0.75", lw=3, label="ground truth")
     reach = math.hypot(L, W) + 1.5 * W + 0.05
     lo_x, hi_x = min(map(np.min, xs)) - reach, max(map(np.max, xs)) + reach
     lo_y, hi_y = min(map(np.min, ys)) - reach, max(map(np.max, ys)) + reach
     half = max(hi_x - lo_x, hi_y - lo_y) / 2
     cx, cy = (lo_x + hi_x) / 2, (lo_y + hi_y) / 2
-
-    fig = Figure(figsize=FIG_SIZE, dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
     ax.set_xlim(cx - half, cx + half)
     ax.set_ylim(cy - half, cy + half)
     ax.set_aspect("equal")
     ax.grid(True, lw=0.5)
     ax.set_xlabel("x [m] (right)")
     ax.set_ylabel("y [m] (forward)")
-    if truth is not None and len(truth.x):
-        ax.plot(truth.x, truth.y, color="0.75", lw=3, label="ground truth")
+
+
+def _scene(ax, results: Results, track, truth: Truth | None, params: Mapping):
+    """Add the path, chassis, wheels and arrows to ax; return update(i) for frame i."""
+    x, y, theta, rim = track
+    L, W, R = params["L"], params["W"], params["R"]
+    peak = float(np.max(np.abs(rim))) if rim.size else 0.0
+    scale = 1.5 * W / peak if peak > 0 else 0.0               # fastest wheel: arrow 1.5 W long
     trail, = ax.plot([], [], color="C0", lw=1.2, label="path")
     body_pts = np.array([[L, W], [-L, W], [-L, -W], [L, -W]])
     body = Polygon(body_pts, closed=True, facecolor="C0", alpha=0.25, edgecolor="C0", lw=1.5)
@@ -100,11 +120,8 @@ def write_animation(results: Results, roles: Roles, truth: Truth | None,
     nose, = ax.plot([], [], color="C0", lw=1.5)
     wl, ww = 0.5 * R, 0.25 * min(L, W)                        # wheel drawn 2*wl long, 2*ww wide
     wheel_shape = np.array([[ww, wl], [-ww, wl], [-ww, -wl], [ww, -wl]])
-    wheel_patches = []
-    for _ in WHEEL_POS:
-        patch = Polygon(wheel_shape, closed=True, facecolor="0.3", edgecolor="k", lw=0.5)
-        ax.add_patch(patch)
-        wheel_patches.append(patch)
+    wheel_patches = [ax.add_patch(Polygon(wheel_shape, closed=True, facecolor="0.3",
+                                          edgecolor="k", lw=0.5)) for _ in WHEEL_POS]
     centres = np.array([[sx * L, sy * W] for sx, sy in WHEEL_POS])
     arrows = ax.quiver(np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4),
                        color=WHEEL_COLORS, angles="xy", scale_units="xy", scale=1.0,
@@ -119,17 +136,9 @@ def write_animation(results: Results, roles: Roles, truth: Truth | None,
         trail.set_data(x[:i + 1], y[:i + 1])
         for j, patch in enumerate(wheel_patches):
             patch.set_xy(_to_world(wheel_shape + centres[j], px, py, th))
-        origins = _to_world(centres, px, py, th)
         c, s = math.cos(th), math.sin(th)
         length = scale * rim[i]                               # along body +Y of each wheel
-        arrows.set_offsets(origins)
+        arrows.set_offsets(_to_world(centres, px, py, th))
         arrows.set_UVC(-s * length, c * length)
         title.set_text(f"t = {results.time[i]:.2f} s")
-
-    writer = PillowWriter(fps=FPS)
-    with writer.saving(fig, str(path), dpi=DPI):
-        for i in frame_indices(n, max_frames):
-            update(int(i))
-            writer.grab_frame()
-    fig.clear()
-    return path
+    return update

@@ -25,7 +25,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Co-simulate a four-wheel mecanum car from FMI 2.0 FMUs wired in a YAML scenario.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for add in COMMANDS:
+        add(sub)
+    return parser
 
+
+def _add_run(sub) -> None:
     run = sub.add_parser("run", help="simulate a scenario and write results, summary and plots",
                          description="Simulate a scenario; write results.csv, summary.json and "
                                      "plots to results/<name>/ (or --out).")
@@ -40,12 +45,16 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     run.set_defaults(func=cmd_run)
 
+
+def _add_validate(sub) -> None:
     val = sub.add_parser("validate", help="check a scenario and its FMUs without running",
                          description="Check a scenario and its FMUs; report every problem.")
     val.add_argument("scenario")
     val.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     val.set_defaults(func=cmd_validate)
 
+
+def _add_fmus(sub) -> None:
     fmus = sub.add_parser("fmus", help="build the four bundled FMUs",
                           description="Build VelocitySource, Center2Wheel, Wheel2Center and "
                                       "PoseIntegrator into fmus/ (only what changed).")
@@ -53,12 +62,16 @@ def build_parser() -> argparse.ArgumentParser:
     fmus.add_argument("--force", action="store_true", help="rebuild even if up to date")
     fmus.set_defaults(func=cmd_fmus)
 
+
+def _add_info(sub) -> None:
     info = sub.add_parser("info", help="describe an FMU: variables, structure, capabilities",
                           description="Print an FMU's interface: variables, units, "
                                       "dependencies, capabilities.")
     info.add_argument("fmu", help="an .fmu file or a bundled model name")
     info.set_defaults(func=cmd_info)
 
+
+def _add_export_ssp(sub) -> None:
     exp = sub.add_parser("export-ssp", help="write a scenario as an SSP 1.0 archive",
                          description="Check a scenario and write it, with its FMUs, as an "
                                      "SSP 1.0 archive (.ssp) for other co-simulation tools.")
@@ -67,6 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     exp.set_defaults(func=cmd_export_ssp)
 
+
+def _add_cross_check(sub) -> None:
     cross = sub.add_parser("cross-check", help="run a scenario in libcosim and Ecos too and "
                            "compare with our Jacobi master",
                            description="Export the scenario as SSP, run it in other FMI hosts "
@@ -84,12 +99,16 @@ def build_parser() -> argparse.ArgumentParser:
     cross.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     cross.set_defaults(func=cmd_cross_check)
 
+
+def _add_doctor(sub) -> None:
     doctor = sub.add_parser("doctor", help="how to load the FMUs in other tools (LD_PRELOAD)",
                             description="Print where the FMUs are and the LD_PRELOAD line "
                                         "non-Python hosts need for pythonfmu FMUs.")
     doctor.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     doctor.set_defaults(func=cmd_doctor)
-    return parser
+
+
+COMMANDS = (_add_run, _add_validate, _add_fmus, _add_info, _add_export_ssp, _add_cross_check, _add_doctor)
 
 
 def main(argv: list[str] | None = None) -> int:

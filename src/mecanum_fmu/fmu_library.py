@@ -74,15 +74,23 @@ def is_current(model_name: str, fmu_path: Path) -> bool:
     return root.get("guid") == slave_source(model_name).guid
 
 
+def stale_warning(spec: str, fmu_dir: Path) -> str | None:
+    """A warning when a bundled FMU was built from other sources than the installed ones."""
+    if spec in MODELS and not is_current(spec, bundled_fmu_path(spec, fmu_dir)):
+        return (f"the bundled FMU {spec} in {fmu_dir} is out of date (built from other "
+                "sources); `run` and `python -m mecanum_fmu fmus` rebuild it")
+    return None
+
+
 def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
     """A bundled model name -> its FMU in fmu_dir; otherwise a path relative to the scenario
-    file. Never builds. Raises ValueError with a user-facing reason."""
+    file. Never builds (an out-of-date bundled FMU is still returned: see stale_warning).
+    Raises ValueError with a user-facing reason."""
     if spec in MODELS:
         path = bundled_fmu_path(spec, fmu_dir)
-        if not is_current(spec, path):
-            state = "is not built" if not path.exists() else "is out of date"
-            raise ValueError(f"the bundled FMU {spec} {state} in {fmu_dir}; build it with "
-                             "`python -m mecanum_fmu fmus` (make fmus)")
+        if not path.is_file():
+            raise ValueError(f"the bundled FMU {spec} is not built in {fmu_dir}; build it "
+                             "with `python -m mecanum_fmu fmus` (make fmus)")
         return path
     if "\0" in spec:
         raise ValueError(f"FMU path {spec!r:.80} contains a NUL character")

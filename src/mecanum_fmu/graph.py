@@ -95,19 +95,22 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
                           start_values[c.name], c.place) for c in scenario.components]
     order, link_order = _dependency_order(instances, links, scenario.label)
     return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
-                 tuple(_unconnected_inputs(instances, drivers, scenario.label)))
+                 tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)))
 
 
 class _Checker:
     """Collects every problem of one scenario while resolving its parts against the FMUs."""
 
     def __init__(self, scenario: Scenario, fmu_dir: Path):
-        self.scenario, self.problems = scenario, []
+        self.scenario, self.problems, self.warnings = scenario, [], []
         self.models: dict[str, tuple[Path, ModelDescription]] = {}
         cache: dict[Path, ModelDescription] = {}
         for comp in scenario.components:
             try:
                 path = fmu_library.resolve_fmu(comp.fmu, scenario.path.parent, fmu_dir)
+                stale = fmu_library.stale_warning(comp.fmu, fmu_dir)
+                if stale and stale not in self.warnings:
+                    self.warnings.append(stale)
                 if path not in cache:
                     cache[path] = fmu_library.read_description(path)
                 self.models[comp.name] = (path, cache[path])

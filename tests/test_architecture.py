@@ -1,0 +1,82 @@
+"""The shape the project promises: short functions, commands that decide when to build, one log
+per FMU instance."""
+import ast
+import shutil
+import zipfile
+from pathlib import Path
+
+from helpers import ROOT, run_child
+
+SRC = ROOT / "src" / "mecanum_fmu"
+MAX_LINES = 60
+
+
+def test_no_function_in_src_is_longer_than_60_lines():
+    long = []
+    for path in sorted(SRC.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_LINES:
+                    long.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name} ({lines})")
+    assert not long, long
+
+
+def test_validate_never_builds_and_names_the_fix(tmp_path):
+    empty = tmp_path / "fmus"
+    empty.mkdir()
+    proc = run_child("validate", ROOT / "scenarios" / "circle.yaml", "--fmu-dir", empty)
+    assert proc.returncode == 2, proc.stderr
+    assert "is not built" in proc.stderr and "python -m mecanum_fmu fmus" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert list(empty.iterdir()) == []
+
+
+def _stale_copy(fmu: Path, dest: Path) -> Path:
+    """The same FMU with another GUID: what an FMU built from older sources looks like."""
+    with zipfile.ZipFile(fmu) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist()}
+    xml = members["modelDescription.xml"].decode()
+    start = xml.index('guid="') + 6
+    members["modelDescription.xml"] = (xml[:start] + "{00000000-0000-0000-0000-000000000000}"
+                                       + xml[xml.index('"', start):]).encode()
+    with zipfile.ZipFile(dest, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    return dest
+
+
+def test_validate_warns_about_a_stale_fmu_and_leaves_it_alone(tmp_path, built_fmus):
+    folder = tmp_path / "fmus"
+    folder.mkdir()
+    for name, path in built_fmus.items():
+        shutil.copy(path, folder / path.name)
+    stale = _stale_copy(built_fmus["Center2Wheel"], folder / "Center2Wheel.fmu")
+    before = stale.read_bytes()
+    proc = run_child("validate", ROOT / "scenarios" / "circle.yaml", "--fmu-dir", folder)
+    assert proc.returncode == 0, proc.stderr
+    assert "Center2Wheel" in proc.stderr and "out of date" in proc.stderr
+    assert stale.read_bytes() == before
+
+
+def test_run_builds_the_missing_fmus_it_needs(tmp_path):
+    folder = tmp_path / "fmus"
+    proc = run_child("run", ROOT / "scenarios" / "modes" / "forward.yaml", "--fmu-dir", folder,
+                     "--no-plots", "--out", tmp_path / "out")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        ["VelocitySource.fmu", "Center2Wheel.fmu", "Wheel2Center.fmu", "PoseIntegrator.fmu"])
+
+
+def test_each_instance_has_its_own_log():
+    """Two instances with the same name (two simulations) never share FMU messages: the
+    logger finds the log through the callbacks' componentEnvironment, not the name."""
+    from mecanum_fmu.runtime import Runtime
+    runtime = Runtime()
+    first, second = runtime.new_log(), runtime.new_log()
+    assert first.key != second.key
+    runtime._on_log(first.key, b"source", 3, b"error", b"first  failed")
+    runtime._on_log(second.key, b"source", 0, b"info", b"second ok")
+    runtime._on_log(None, b"source", 0, b"info", b"nobody's")
+    assert first.messages == ["[Error] first failed"]
+    assert second.messages == ["[OK] second ok"]
