@@ -31,6 +31,12 @@ BUNDLED = {
     "Center2Wheel": "center2wheel",
     "Wheel2Center": "wheel2center",
     "PoseIntegrator": "pose_integrator",
+    # the other two chassis of the original documents (docs/chassis.md)
+    "OmniCenter2Wheel": "omni_center2wheel",
+    "OmniWheel2Center": "omni_wheel2center",
+    "FieldToBody": "field_to_body",
+    "Bicycle": "bicycle",
+    "SteeringSource": "steering_source",
 }
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},

@@ -447,7 +447,9 @@ def _plan(slaves, graph, outputs_of, real_slots, int_slots, outputs_to, inputs_f
     its FMU depends on (it only drives the FMU's state over the step) takes the mean of its
     values at t_k and t_k+1: a trapezoidal hold, second order. t_k+1 is known when the source
     steps earlier in the Gauss-Seidel order; otherwise the mean is extrapolated from t_k and
-    t_k-1 (1.5 u_k - 0.5 u_k-1). Returns the functions that seed the blends' history at t0.
+    t_k-1 (1.5 u_k - 0.5 u_k-1). A Real input fed back from an FMU that steps later (e.g. a
+    heading from an integrator) takes its value at t_k+1 extrapolated, 2 u_k - u_k-1, so the
+    feedback stays second order. Returns the functions that seed the blends' history at t0.
     """
     position = {s.name: i for i, s in enumerate(slaves)}
     primes = []
@@ -469,10 +471,13 @@ def _plan(slaves, graph, outputs_of, real_slots, int_slots, outputs_to, inputs_f
                                 _pointer(buf, first, ctype)))
         links = [l for l in graph.links if l.target.ref.instance == s.name]
         state_only = _state_only_inputs(s.inst) if trapezoidal else set()
+        fed_back = {l.target.ref.variable for l in links
+                    if position[l.source.ref.instance] > position[s.name]} if trapezoidal else set()
+        blended = state_only | fed_back
         groups = (("Real", s.c_set_real, [l for l in links if l.target.type == "Real"
-                                          and l.target.ref.variable not in state_only]),
+                                          and l.target.ref.variable not in blended]),
                   ("Blend", s.c_set_real, [l for l in links if l.target.type == "Real"
-                                           and l.target.ref.variable in state_only]),
+                                           and l.target.ref.variable in blended]),
                   ("Integer", s.c_set_int, [l for l in links if l.target.type == "Integer"]),
                   ("Boolean", s.c_set_bool, [l for l in links if l.target.type == "Boolean"]))
         for kind, c_set, mine in groups:
@@ -486,7 +491,9 @@ def _plan(slaves, graph, outputs_of, real_slots, int_slots, outputs_to, inputs_f
                 weights = np.zeros((len(mine), 2 * len(mine)))
                 for i, l in enumerate(mine):
                     upstream_first = position[l.source.ref.instance] < position[s.name]
-                    weights[i, i], weights[i, len(mine) + i] = (0.5, 0.5) if upstream_first else (1.5, -0.5)
+                    weights[i, i], weights[i, len(mine) + i] = (
+                        ((0.5, 0.5) if upstream_first else (1.5, -0.5))
+                        if l.target.ref.variable in state_only else (2.0, -1.0))
                 fill, prime = _blend(buf, src, weights, staging)
                 primes.append(prime)
                 s.writes.append((fill, c_set, vrs, len(mine), _pointer(staging, 0, ctype)))
