@@ -69,26 +69,46 @@ def command(graph: Graph, inst: Instance, var: str) -> Callable[[float], float] 
 
 
 def chassis_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10, atol: float = 1e-12):
-    """Truth for a pose driven by FieldToBody or Bicycle; None when its commands are not all
-    expressions; NOT_MINE otherwise."""
-    from .ground_truth import Truth
+    """Truth for the single pose when FieldToBody or Bicycle drives it (None when its commands
+    are not all expressions); NOT_MINE otherwise."""
     pose = graph.find_model("PoseIntegrator")
     origin = twist_origin(graph, pose) if pose is not None else None
     if origin is None or origin.model_name not in ("FieldToBody", "Bicycle"):
         return NOT_MINE
-    names = ("vX", "vY", "omega") if origin.model_name == "FieldToBody" else ("v", "phi")
-    funcs = [command(graph, origin, n) for n in names]
+    return pose_truth(graph, pose, times, rtol, atol)
+
+
+def _twist_function(graph: Graph, origin: Instance):
+    """(t, theta) -> commanded body twist at origin's output; None without a ground truth."""
+    names = {"VelocitySource": (), "FieldToBody": ("vX", "vY", "omega"), "Bicycle": ("v", "phi")}
+    if origin.model_name not in names:
+        return None
+    if origin.model_name == "VelocitySource":
+        funcs = [compile_expression(str(_start(origin, f"{v}_expr"))) for v in ("vx", "vy", "w")]
+    else:
+        funcs = [command(graph, origin, n) for n in names[origin.model_name]]
     if any(f is None for f in funcs):
         return None
+    if origin.model_name == "VelocitySource":
+        return lambda t, theta: tuple(f(t) for f in funcs)
     if origin.model_name == "FieldToBody":
         def twist(t, theta):
             vX, vY, omega = (f(t) for f in funcs)
             return (*world_to_body(vX, vY, theta), omega)
-    else:
-        l, reference = float(_start(origin, "l")), int(_start(origin, "reference"))
+        return twist
+    l, reference = float(_start(origin, "l")), int(_start(origin, "reference"))
+    return lambda t, theta: bicycle_twist(funcs[0](t), funcs[1](t), l, reference)
 
-        def twist(t, theta):
-            return bicycle_twist(funcs[0](t), funcs[1](t), l, reference)
+
+def pose_truth(graph: Graph, pose: Instance, times: np.ndarray, rtol: float = 1e-10,
+               atol: float = 1e-12):
+    """The commanded twist that drives `pose` (from VelocitySource, FieldToBody or Bicycle,
+    past any kinematics pair) integrated from the pose's start; None when there is none."""
+    from .ground_truth import Truth
+    origin = twist_origin(graph, pose)
+    twist = _twist_function(graph, origin) if origin is not None else None
+    if twist is None or len(times) == 0:
+        return None
     start = tuple(float(_start(pose, k)) for k in ("x0", "y0", "theta0"))
     times = np.asarray(times, dtype=float)
     span = float(times[-1] - times[0]) if len(times) > 1 else 1.0
