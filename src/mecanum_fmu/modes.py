@@ -4,6 +4,7 @@ A wheel-sign pattern is the sign of each wheel speed w1..w4 that the inverse kin
 (SPEC.md section 3) gives for a twist: it is meaningful only while the twist is constant.
 
     python -m mecanum_fmu.modes        # print the markdown table of docs/modes.md
+    python -m mecanum_fmu.modes omni   # the same motions on the omni X-drive
 """
 from __future__ import annotations
 
@@ -122,7 +123,40 @@ def markdown_table(geometry: Mapping | None = None) -> str:
     return "\n".join(rows)
 
 
-def main() -> None:
+# The omni X-drive ("the omni-wheel chassis" document, docs/chassis.md) in that document's
+# numbering: 1 front-left, 2 rear-left, 3 rear-right, 4 front-right; a positive wheel speed
+# pushes the chassis counter-clockwise.
+OMNI_GEOMETRY = {"L": 0.2, "R": 0.05}
+
+
+def omni_wheel_sign_list(vx: float, vy: float, w: float, L: float = OMNI_GEOMETRY["L"],
+                         R: float = OMNI_GEOMETRY["R"], tol: float = SIGN_TOL) -> list[str]:
+    """Signs ("+", "-", "0") of the omni X-drive's w1..w4 for the twist (vx, vy, w)."""
+    from .blocks.omni import omni_center_to_wheel
+    speeds = omni_center_to_wheel(vx, vy, w, L, R)
+    scale = tol * max(1.0, max(abs(s) for s in speeds))
+    return [_sign(s, scale) for s in speeds]
+
+
+def omni_markdown_table(geometry: Mapping | None = None) -> str:
+    """The seven modes on the omni X-drive: twist and wheel signs w1..w4 (its own numbering)."""
+    g = {k: float(dict(geometry or {}).get(k, v)) for k, v in OMNI_GEOMETRY.items()}
+    rows = ["| mode | vx [m/s] | vy [m/s] | w [rad/s] | w1 FL | w2 RL | w3 RR | w4 FR "
+            "| the chassis |", "|" + "---|" * 9]
+    for m in MODES:
+        signs = omni_wheel_sign_list(m.vx, m.vy, m.w, **g)
+        rows.append(f"| {m.name} | {m.vx:g} | {m.vy:g} | {m.w:g} | " + " | ".join(signs)
+                    + f" | {m.direction} |")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> None:
+    import sys
+    if (sys.argv[1:] if argv is None else argv) == ["omni"]:
+        g = OMNI_GEOMETRY
+        print(f"<!-- python -m mecanum_fmu.modes omni; L = {g['L']:g} m, R = {g['R']:g} m -->")
+        print(omni_markdown_table())
+        return
     g = DEFAULT_GEOMETRY
     print(f"<!-- python -m mecanum_fmu.modes; alpha = {math.degrees(g['alpha']):g} deg, "
           f"L = {g['L']:g} m, W = {g['W']:g} m, R = {g['R']:g} m -->")
