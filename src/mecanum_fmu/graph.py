@@ -255,6 +255,9 @@ def _check_bundled_values(comp, md: ModelDescription, own, values, bad,
                 where = (f"{comp.place}.parameters.{name}" if name in comp.parameters
                          else f"parameters.{name}")
                 bad(where, str(err))
+    if md.author == "mecanum_fmu":      # the other chassis (docs/chassis.md)
+        from .chassis_checks import check_chassis_values
+        check_chassis_values(comp, md.modelName, value, own, bad, scenario_start)
     if md.modelName == "VelocitySource" and md.author == "mecanum_fmu":
         for key in ("vx_expr", "vy_expr", "w_expr"):
             text = value(key) if key in own else None
