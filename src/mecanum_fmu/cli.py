@@ -29,7 +29,8 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="simulate a scenario and write results, summary and plots",
                          description="Simulate a scenario; write results.csv, summary.json and "
                                      "plots to results/<name>/ (or --out).")
-    run.add_argument("scenario", help="scenario file (.yaml)")
+    run.add_argument("scenario", nargs="+", help="scenario file (.yaml); several run one after "
+                     "another, each into --out/<file name> (default results/<scenario name>)")
     run.add_argument("--out", type=Path, help="output folder (default: results/<scenario name>)")
     run.add_argument("--step-size", type=_number, help="communication step (s)")
     run.add_argument("--stop-time", type=_number, help="end of the run (s)")
@@ -135,7 +136,20 @@ def _progress(enabled: bool):
     return show
 
 
+def _run_several(args) -> int:
+    """`run a.yaml b.yaml ...`: each in turn; the first failure stops with its exit code."""
+    for path in args.scenario:
+        out = args.out / Path(path).stem if args.out is not None else None
+        one = argparse.Namespace(**{**vars(args), "scenario": [path], "out": out})
+        if (code := cmd_run(one)) != 0:
+            return code
+    return 0
+
+
 def cmd_run(args) -> int:
+    if len(args.scenario) > 1:
+        return _run_several(args)
+    args.scenario = args.scenario[0]
     from .runner import prepare, run
     graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
                     master_name=args.master, fmu_dir=args.fmu_dir)
