@@ -289,3 +289,14 @@ def test_bicycle_fmu_reference_parameter(built_fmus):
     md = read_model_description(str(built_fmus["Bicycle"]))
     ref = next(v for v in md.modelVariables if v.name == "reference")
     assert ref.type == "Integer" and ref.causality == "parameter" and int(ref.start) == 0
+
+
+@pytest.mark.parametrize("model", NEW)
+def test_new_fmu_scripts_are_self_contained(model, built_fmus):
+    import re
+    import zipfile
+    with zipfile.ZipFile(built_fmus[model]) as zf:
+        module = zf.read("resources/slavemodule.txt").decode().strip()
+        text = zf.read(f"resources/{module}.py").decode()
+    assert module == f"mecanum_fmu_{module.removeprefix('mecanum_fmu_')}" and f"class {model}(" in text
+    assert not re.search(r"^\s*(from|import)\s+mecanum_fmu(\.|\s|$)", text, re.MULTILINE)
