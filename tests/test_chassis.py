@@ -2,8 +2,8 @@
 field-oriented form, and the car-like robot as a kinematic bicycle.
 
 Reference data are written here independently of the code under test: the omni rows and the C
-routine `chassis_move` as "the omni-wheel chassis" document prints them, the bicycle's state
-equations of "the car-like robot kinematics" document, and closed-form circles.
+routine `chassis_move` as "Kinematics of a four-wheel omni-wheel chassis" prints them, the
+bicycle's state equations of "Kinematic modelling of a car", and closed-form circles.
 """
 import math
 import subprocess

@@ -123,8 +123,8 @@ def markdown_table(geometry: Mapping | None = None) -> str:
     return "\n".join(rows)
 
 
-# The omni X-drive ("the omni-wheel chassis" document, docs/chassis.md) in that document's
-# numbering: 1 front-left, 2 rear-left, 3 rear-right, 4 front-right; a positive wheel speed
+# The omni X-drive ("Kinematics of a four-wheel omni-wheel chassis", docs/chassis.md) in
+# that document's numbering: 1 front-left, 2 rear-left, 3 rear-right, 4 front-right; a positive wheel speed
 # pushes the chassis counter-clockwise.
 OMNI_GEOMETRY = {"L": 0.2, "R": 0.05}
 

@@ -1,4 +1,4 @@
-"""The car-like robot of "the car-like robot kinematics" document as a kinematic bicycle
+"""The car-like robot of "Kinematic modelling of a car" as a kinematic bicycle
 (docs/chassis.md; docs/spec.md, Kinematic bicycle).
 
 Rear-axle speed v, steering angle phi (positive turns left, counter-clockwise), wheelbase l.

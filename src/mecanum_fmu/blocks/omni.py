@@ -1,4 +1,4 @@
-"""Kinematics of the four-wheel 45-degree omni X-drive of "the omni-wheel chassis" document
+"""The four-wheel 45-degree omni X-drive of "Kinematics of a four-wheel omni-wheel chassis"
 (docs/chassis.md; docs/spec.md, Omni X-drive).
 
 Wheels in that document's numbering: 1 front-left, 2 rear-left, 3 rear-right, 4 front-right,
