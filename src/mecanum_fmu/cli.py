@@ -47,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     val.set_defaults(func=cmd_validate)
 
-    fmus = sub.add_parser("fmus", help="build the four bundled FMUs",
+    fmus = sub.add_parser("fmus", help="build the bundled FMUs",
                           description="Build VelocitySource, Center2Wheel, Wheel2Center and "
                                       "PoseIntegrator into fmus/ (only what changed).")
     fmus.add_argument("--dest", type=Path, help="output folder (default: fmus/)")

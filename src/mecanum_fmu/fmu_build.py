@@ -1,4 +1,4 @@
-"""Build the four bundled FMUs: pythonfmu's build, then a pass that makes them standard-clean.
+"""Build the bundled FMUs: pythonfmu's build, then a pass that makes them standard-clean.
 
 pythonfmu's raw output has no InitialUnknowns, no output dependencies, no units, a random GUID,
 a timestamp and stored (uncompressed) entries. ``build_fmu`` fixes all of these so that the
@@ -25,7 +25,7 @@ PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_FMU_DIR = PACKAGE_DIR.parent.parent / "fmus"
 
 # modelName -> slave module in mecanum_fmu.slaves. The FMU script gets a unique module name
-# (mecanum_fmu_<module>) so that all four load into one process without clashing.
+# (mecanum_fmu_<module>) so that all of them load into one process without clashing.
 BUNDLED = {
     "VelocitySource": "velocity_source",
     "Center2Wheel": "center2wheel",
