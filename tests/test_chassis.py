@@ -300,3 +300,45 @@ def test_new_fmu_scripts_are_self_contained(model, built_fmus):
         text = zf.read(f"resources/{module}.py").decode()
     assert module == f"mecanum_fmu_{module.removeprefix('mecanum_fmu_')}" and f"class {model}(" in text
     assert not re.search(r"^\s*(from|import)\s+mecanum_fmu(\.|\s|$)", text, re.MULTILINE)
+
+
+OMNI_DIRECT = """\
+name: omni_direct
+experiment: {start_time: 0.0, stop_time: 2.0, step_size: 0.01}
+components:
+  source: {fmu: VelocitySource, parameters: {vx_expr: "%s", vy_expr: "%s", w_expr: "%s"}}
+  c2w: {fmu: OmniCenter2Wheel}
+  w2c: {fmu: OmniWheel2Center}
+  pose: {fmu: PoseIntegrator}
+connections:
+  - [source.vx, c2w.vx]
+  - [source.vy, c2w.vy]
+  - [source.w,  c2w.w]
+  - [c2w.w1, w2c.w1]
+  - [c2w.w2, w2c.w2]
+  - [c2w.w3, w2c.w3]
+  - [c2w.w4, w2c.w4]
+  - [w2c.vx, pose.vx]
+  - [w2c.vy, pose.vy]
+  - [w2c.w,  pose.w]
+"""
+
+
+@pytest.mark.parametrize("twist", [(0.0, 0.3, 0.0), (-0.3, 0.3, 0.0), (0.0, 0.0, -0.8)])
+def test_omni_body_twist_run(twist, fmu_dir, tmp_path):
+    """Driven directly by a body twist: the pose follows it (exact for a constant twist) and
+    the run reports the omni wheel signs (the document's rows), not the mecanum ones."""
+    path = tmp_path / "omni.yaml"
+    path.write_text(OMNI_DIRECT % tuple(map(repr, twist)))
+    out = run_file(path, tmp_path / "out", fmu_dir)
+    assert out.summary["error"]["position"] < 1e-12
+    expected = "  ".join(f"w{i} {s}" for i, s in enumerate(seed_signs(*twist), start=1))
+    assert out.summary["wheel_signs"] == expected
+
+
+def test_no_wheel_signs_when_field_oriented(fmu_dir, tmp_path):
+    path = tmp_path / "field.yaml"
+    path.write_text((CHASSIS / "omni_field_circle.yaml").read_text().replace(
+        'vx_expr: "sin(t)", vy_expr: "cos(t)"', 'vx_expr: "0", vy_expr: "0.3"'))
+    out = run_file(path, tmp_path / "out", fmu_dir, stop_time=1.0)
+    assert "wheel_signs" not in out.summary

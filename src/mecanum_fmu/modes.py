@@ -102,6 +102,8 @@ def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
         if not np.all(np.isfinite(values)) or np.ptp(values) > tol * max(1.0, np.max(np.abs(values))):
             return None
         twist.append(float(values[0]))
+    if (omni := graph.find_model("OmniCenter2Wheel")) is not None and roles.inverse is None:
+        return omni_constant_twist_signs(graph, omni, roles.source, twist)
     try:
         return wheel_signs(*twist, **graph_geometry(graph))
     except (ArithmeticError, ValueError):
@@ -136,6 +138,18 @@ def omni_wheel_sign_list(vx: float, vy: float, w: float, L: float = OMNI_GEOMETR
     speeds = omni_center_to_wheel(vx, vy, w, L, R)
     scale = tol * max(1.0, max(abs(s) for s in speeds))
     return [_sign(s, scale) for s in speeds]
+
+
+def omni_constant_twist_signs(graph, omni, source: str, twist: list[float]) -> str | None:
+    """The omni X-drive's pattern when the source's twist drives it directly (not, e.g.,
+    through FieldToBody, where the body twist turns with the heading); else None."""
+    fed = {(l.target.ref.variable, l.source.ref.instance, l.source.ref.variable)
+           for l in graph.links if l.target.ref.instance == omni.name}
+    if not all((v, source, v) in fed for v in ("vx", "vy", "w")):
+        return None
+    g = {k: float(omni.start_values.get(k, v)) for k, v in OMNI_GEOMETRY.items()}
+    signs = omni_wheel_sign_list(*twist, **g)
+    return "  ".join(f"w{i} {s}" for i, s in enumerate(signs, start=1))
 
 
 def omni_markdown_table(geometry: Mapping | None = None) -> str:
