@@ -12,7 +12,9 @@ from dataclasses import dataclass
 from typing import Callable, Mapping
 
 from .blocks.expression import ExpressionError, compile_expression
+from .blocks.bicycle import bicycle_problem
 from .blocks.kinematics import GEOMETRY, geometry_problem
+from .blocks.omni import omni_geometry_problem
 
 AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
 
@@ -26,12 +28,18 @@ class Model:
     check: Callable[[Mapping[str, object], float], list[tuple[str, str]]]
 
 
-def _check_geometry(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
-    geometry = [values.get(k) for k in GEOMETRY]
-    if any(v is None or isinstance(v, (bool, str)) for v in geometry):
-        return []            # a missing or mistyped value is reported by the type check
-    problem = geometry_problem(*geometry)
-    return [problem] if problem else []
+def _numbers_rule(names: tuple[str, ...], problem: Callable):
+    """A rule over numeric parameters: problem(*values) -> (parameter, message) or None."""
+    def check(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+        numbers = [values.get(k) for k in names]
+        if any(v is None or isinstance(v, (bool, str)) for v in numbers):
+            return []            # a missing or mistyped value is reported by the type check
+        found = problem(*numbers)
+        return [found] if found else []
+    return check
+
+
+_check_geometry = _numbers_rule(GEOMETRY, geometry_problem)
 
 
 def _check_expressions(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
@@ -55,6 +63,14 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("Center2Wheel", "center2wheel", "inverse", _check_geometry),
     Model("Wheel2Center", "wheel2center", "forward", _check_geometry),
     Model("PoseIntegrator", "pose_integrator", "pose", _no_rules),
+    # the other two chassis of the original documents (docs/chassis.md)
+    Model("OmniCenter2Wheel", "omni_center2wheel", "omni-inverse",
+          _numbers_rule(("L", "R"), omni_geometry_problem)),
+    Model("OmniWheel2Center", "omni_wheel2center", "omni-forward",
+          _numbers_rule(("L", "R"), omni_geometry_problem)),
+    Model("FieldToBody", "field_to_body", "frame", _no_rules),
+    Model("Bicycle", "bicycle", "forward", _numbers_rule(("l", "reference"), bicycle_problem)),
+    Model("SteeringSource", "steering_source", "steering", _check_expressions),
 )}
 
 

@@ -34,7 +34,8 @@ def _add_run(sub) -> None:
     run = sub.add_parser("run", help="simulate a scenario and write results, summary and plots",
                          description="Simulate a scenario; write results.csv, summary.json and "
                                      "plots to results/<name>/ (or --out).")
-    run.add_argument("scenario", help="scenario file (.yaml)")
+    run.add_argument("scenario", nargs="+", help="scenario file (.yaml); several run one after "
+                     "another, each into --out/<file name> (default results/<scenario name>)")
     run.add_argument("--out", type=Path, help="output folder (default: results/<scenario name>)")
     run.add_argument("--step-size", type=_number, help="communication step (s)")
     run.add_argument("--stop-time", type=_number, help="end of the run (s)")
@@ -55,9 +56,10 @@ def _add_validate(sub) -> None:
 
 
 def _add_fmus(sub) -> None:
-    fmus = sub.add_parser("fmus", help="build the four bundled FMUs",
-                          description="Build VelocitySource, Center2Wheel, Wheel2Center and "
-                                      "PoseIntegrator into fmus/ (only what changed).")
+    fmus = sub.add_parser("fmus", help="build the bundled FMUs",
+                          description="Build every bundled model (the four blocks of the "
+                                      "mecanum study and the other chassis) into fmus/ (only "
+                                      "what changed).")
     fmus.add_argument("--dest", type=Path, help="output folder (default: fmus/)")
     fmus.add_argument("--force", action="store_true", help="rebuild even if up to date")
     fmus.set_defaults(func=cmd_fmus)
@@ -154,7 +156,20 @@ def _progress(enabled: bool):
     return show
 
 
+def _run_several(args) -> int:
+    """`run a.yaml b.yaml ...`: each in turn; the first failure stops with its exit code."""
+    for path in args.scenario:
+        out = args.out / Path(path).stem if args.out is not None else None
+        one = argparse.Namespace(**{**vars(args), "scenario": [path], "out": out})
+        if (code := cmd_run(one)) != 0:
+            return code
+    return 0
+
+
 def cmd_run(args) -> int:
+    if len(args.scenario) > 1:
+        return _run_several(args)
+    args.scenario = args.scenario[0]
     from .runner import prepare, run
     graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
                     master_name=args.master, fmu_dir=args.fmu_dir)

@@ -1,4 +1,4 @@
-"""Build the four bundled FMUs: pythonfmu's build, then a pass that makes them standard-clean.
+"""Build the bundled FMUs: pythonfmu's build, then a pass that makes them standard-clean.
 
 pythonfmu's raw output has no InitialUnknowns, no output dependencies, no units, a random GUID,
 a timestamp and stored (uncompressed) entries. ``build_fmu`` fixes all of these so that the

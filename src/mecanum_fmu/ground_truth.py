@@ -36,6 +36,9 @@ class Truth:
 def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
                  atol: float = 1e-12) -> Truth | None:
     """Integrate the commanded twist; None when the graph has no single VelocitySource."""
+    from .chassis_truth import NOT_MINE, chassis_truth   # field-oriented or car-like chassis
+    if (truth := chassis_truth(graph, times, rtol, atol)) is not NOT_MINE:
+        return truth
     roles = find_roles(graph)
     if roles.source is None:
         return None

@@ -7,6 +7,7 @@ A wheel-sign pattern is the sign of each wheel speed w1..w4 that the inverse kin
 is constant.
 
     python -m mecanum_fmu.modes        # print the markdown table of docs/modes.md
+    python -m mecanum_fmu.modes omni   # the same motions on the omni X-drive
 """
 from __future__ import annotations
 
@@ -104,6 +105,8 @@ def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
         if not np.all(np.isfinite(values)) or np.ptp(values) > tol * max(1.0, np.max(np.abs(values))):
             return None
         twist.append(float(values[0]))
+    if (omni := graph.find_model("OmniCenter2Wheel")) is not None and roles.inverse is None:
+        return omni_constant_twist_signs(graph, omni, roles.source, twist)
     try:
         return wheel_signs(*twist, **graph_geometry(graph))
     except (ArithmeticError, ValueError):
@@ -125,7 +128,52 @@ def markdown_table(geometry: Mapping | None = None) -> str:
     return "\n".join(rows)
 
 
-def main() -> None:
+# The omni X-drive ("Kinematics of a four-wheel omni-wheel chassis", docs/chassis.md) in
+# that document's numbering: 1 front-left, 2 rear-left, 3 rear-right, 4 front-right; a positive wheel speed
+# pushes the chassis counter-clockwise.
+OMNI_GEOMETRY = {"L": 0.2, "R": 0.05}
+
+
+def omni_wheel_sign_list(vx: float, vy: float, w: float, L: float = OMNI_GEOMETRY["L"],
+                         R: float = OMNI_GEOMETRY["R"], tol: float = SIGN_TOL) -> list[str]:
+    """Signs ("+", "-", "0") of the omni X-drive's w1..w4 for the twist (vx, vy, w)."""
+    from .blocks.omni import omni_center_to_wheel
+    speeds = omni_center_to_wheel(vx, vy, w, L, R)
+    scale = tol * max(1.0, max(abs(s) for s in speeds))
+    return [_sign(s, scale) for s in speeds]
+
+
+def omni_constant_twist_signs(graph, omni, source: str, twist: list[float]) -> str | None:
+    """The omni X-drive's pattern when the source's twist drives it directly (not, e.g.,
+    through FieldToBody, where the body twist turns with the heading); else None."""
+    fed = {(l.target.ref.variable, l.source.ref.instance, l.source.ref.variable)
+           for l in graph.links if l.target.ref.instance == omni.name}
+    if not all((v, source, v) in fed for v in ("vx", "vy", "w")):
+        return None
+    g = {k: float(omni.start_values.get(k, v)) for k, v in OMNI_GEOMETRY.items()}
+    signs = omni_wheel_sign_list(*twist, **g)
+    return "  ".join(f"w{i} {s}" for i, s in enumerate(signs, start=1))
+
+
+def omni_markdown_table(geometry: Mapping | None = None) -> str:
+    """The seven modes on the omni X-drive: twist and wheel signs w1..w4 (its own numbering)."""
+    g = {k: float(dict(geometry or {}).get(k, v)) for k, v in OMNI_GEOMETRY.items()}
+    rows = ["| mode | vx [m/s] | vy [m/s] | w [rad/s] | w1 FL | w2 RL | w3 RR | w4 FR "
+            "| the chassis |", "|" + "---|" * 9]
+    for m in MODES:
+        signs = omni_wheel_sign_list(m.vx, m.vy, m.w, **g)
+        rows.append(f"| {m.name} | {m.vx:g} | {m.vy:g} | {m.w:g} | " + " | ".join(signs)
+                    + f" | {m.direction} |")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> None:
+    import sys
+    if (sys.argv[1:] if argv is None else argv) == ["omni"]:
+        g = OMNI_GEOMETRY
+        print(f"<!-- python -m mecanum_fmu.modes omni; L = {g['L']:g} m, R = {g['R']:g} m -->")
+        print(omni_markdown_table())
+        return
     g = DEFAULT_GEOMETRY
     print(f"<!-- python -m mecanum_fmu.modes; alpha = {math.degrees(g['alpha']):g} deg, "
           f"L = {g['L']:g} m, W = {g['W']:g} m, R = {g['R']:g} m -->")

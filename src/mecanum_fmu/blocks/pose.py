@@ -31,3 +31,10 @@ def pose_rate(theta: float, vx: float, vy: float, w: float) -> tuple[float, floa
     """Time derivative of the pose: (x', y', theta')."""
     c, s = math.cos(theta), math.sin(theta)
     return vx * c - vy * s, vx * s + vy * c, w
+
+
+def world_to_body(vX: float, vY: float, theta: float) -> tuple[float, float]:
+    """World-frame velocity -> body-frame (vx, vy) at heading theta: the inverse of pose_rate's
+    rotation (field-oriented driving; identity at theta = 0)."""
+    c, s = math.cos(theta), math.sin(theta)
+    return vX * c + vY * s, -vX * s + vY * c

@@ -97,12 +97,17 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
     drives the FMU's state over the step) takes the mean of its values at t_k and t_k+1: a
     trapezoidal hold, second order. t_k+1 is known when the source steps earlier in the
     Gauss-Seidel order; otherwise the mean is extrapolated from t_k and t_k-1
-    (1.5 u_k - 0.5 u_k-1)."""
+    (1.5 u_k - 0.5 u_k-1). A Real input fed back from an FMU that steps later (e.g. a heading
+    from an integrator) takes its value at t_k+1 extrapolated, 2 u_k - u_k-1, so the feedback
+    stays second order."""
     links = [l for l in graph.links if l.target.ref.instance == r.name]
     state_only = _state_only_inputs(r.inst) if trapezoidal else set()
+    fed_back = ({l.target.ref.variable for l in links
+                 if position[l.source.ref.instance] > position[r.name]} if trapezoidal else set())
+    blended = state_only | fed_back
     real = [l for l in links if l.target.type == "Real"]
-    groups = (("Real", [l for l in real if l.target.ref.variable not in state_only]),
-              ("Blend", [l for l in real if l.target.ref.variable in state_only]),
+    groups = (("Real", [l for l in real if l.target.ref.variable not in blended]),
+              ("Blend", [l for l in real if l.target.ref.variable in blended]),
               ("Integer", [l for l in links if l.target.type == "Integer"]),
               ("Boolean", [l for l in links if l.target.type == "Boolean"]))
     primes = []
@@ -115,8 +120,9 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
         src = np.array([buffers.slot(l.source) for l in mine], dtype=np.intp)
         vrs, c_set = _vr_array([l.target.vr for l in mine]), r.c_set[value_kind]
         if kind == "Blend":
-            upstream = [position[l.source.ref.instance] < position[r.name] for l in mine]
-            fill, prime, staging = _blend(buf, src, upstream)
+            weights = [_hold_weights(position[l.source.ref.instance] < position[r.name],
+                                     l.target.ref.variable in state_only) for l in mine]
+            fill, prime, staging = _blend(buf, src, weights)
             primes.append(prime)
             r.writes.append((fill, c_set, vrs, len(mine), _pointer(staging, 0, ctype)))
         elif list(src) == list(range(src[0], src[0] + len(src))):
@@ -133,14 +139,22 @@ def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[
     return lambda: np.take(buffer, src, out=staging)
 
 
-def _blend(buffer: np.ndarray, src: np.ndarray, upstream_first: list[bool]):
+def _hold_weights(upstream_first: bool, state_only: bool) -> tuple[float, float]:
+    """(w_new, w_old): the mean over the step of a state-only input (known at t_k+1, or
+    extrapolated), else a fed-back input's value at t_k+1 extrapolated."""
+    if state_only:
+        return (0.5, 0.5) if upstream_first else (1.5, -0.5)
+    return 2.0, -1.0
+
+
+def _blend(buffer: np.ndarray, src: np.ndarray, pairs: list[tuple[float, float]]):
     """Inputs take w_new * (value now) + w_old * (value at the previous fill): one take, one
     dot, one copy per step. Returns (fill, prime, staging); prime() records the values at t0."""
     m = len(src)
     staging = np.zeros(m)
     weights = np.zeros((m, 2 * m))
-    for i, first in enumerate(upstream_first):
-        weights[i, i], weights[i, m + i] = (0.5, 0.5) if first else (1.5, -0.5)
+    for i, (new, old) in enumerate(pairs):
+        weights[i, i], weights[i, m + i] = new, old
     picked = np.empty(2 * m)          # [values now | values at the previous fill]
     now, old = picked[:m], picked[m:]
 
