@@ -31,10 +31,12 @@ BUNDLED = {
     "Center2Wheel": "center2wheel",
     "Wheel2Center": "wheel2center",
     "PoseIntegrator": "pose_integrator",
+    "PathFollower": "path_follower",
 }
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},
-              "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"}}
+              "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"},
+              "1/s": {"s": "-1"}}
 
 _INLINE = re.compile(r"^from mecanum_fmu\.blocks\.(\w+) import [\w, ]+# inline$", re.MULTILINE)
 _FIXED_DATE = (1980, 1, 1, 0, 0, 0)
