@@ -25,6 +25,7 @@ class Roles:
     inverse: str | None
     forward: str | None
     pose: str | None
+    follower: str | None = None     # a PathFollower: closed loop, the truth is its reference
 
 
 @dataclass(frozen=True)
@@ -47,18 +48,27 @@ def find_roles(graph: Graph) -> Roles:
         inst = graph.find_model(model)
         return inst.name if inst is not None else None
     return Roles(one("VelocitySource"), one("Center2Wheel"), one("Wheel2Center"),
-                 one("PoseIntegrator"))
+                 one("PoseIntegrator"), one("PathFollower"))
 
 
 def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
                  atol: float = 1e-12) -> Truth | None:
     """Integrate the commanded twist; None when the graph has no single VelocitySource."""
     roles = find_roles(graph)
+    if roles.follower is not None:        # closed loop: the path it is asked to follow
+        from .closed_loop import reference_truth
+        return reference_truth(graph.instance(roles.follower).start_values, times)
     if roles.source is None:
         return None
     source = graph.instance(roles.source)
     funcs = [compile_expression(str(source.start_values.get(k, SOURCE_DEFAULTS[k])))
              for k in ("vx_expr", "vy_expr", "w_expr")]
+    breaks = ()
+    if source.start_values.get("table"):  # a table replaces the expressions (profiles.py)
+        from .profiles import table_twist
+        twist_of, breaks = table_twist(str(source.start_values["table"]),
+                                       str(source.start_values.get("interpolation", "linear")))
+        funcs = [lambda t, i=i: float(twist_of(t)[i]) for i in range(3)]
     start = (0.0, 0.0, 0.0)
     if roles.pose is not None:
         pose = graph.instance(roles.pose).start_values
@@ -70,7 +80,12 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
     times = np.asarray(times, dtype=float)
     # max_step keeps the solver from stepping over short segments of piecewise profiles.
     span = float(times[-1] - times[0]) if len(times) > 1 else 1.0
-    sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, rtol=rtol, atol=atol,
-                    method="DOP853", max_step=max(span / 2000, 1e-6))
+    if len(breaks):
+        from .profiles import integrate_piecewise
+        pose = integrate_piecewise(rhs, start, times, breaks, rtol, atol)
+    else:
+        sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, rtol=rtol, atol=atol,
+                        method="DOP853", max_step=max(span / 2000, 1e-6))
+        pose = sol.y
     twist = np.array([[f(t) for f in funcs] for t in times]).reshape(len(times), 3)
-    return Truth(times, sol.y[0], sol.y[1], sol.y[2], twist[:, 0], twist[:, 1], twist[:, 2])
+    return Truth(times, pose[0], pose[1], pose[2], twist[:, 0], twist[:, 1], twist[:, 2])
