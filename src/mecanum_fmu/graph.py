@@ -255,6 +255,9 @@ def _check_bundled_values(comp, md: ModelDescription, own, values, bad,
                 where = (f"{comp.place}.parameters.{name}" if name in comp.parameters
                          else f"parameters.{name}")
                 bad(where, str(err))
+    if md.author == "mecanum_fmu" and md.modelName in ("Center2Wheel", "PathFollower"):
+        from .closed_loop import check_bundled_closed_loop
+        check_bundled_closed_loop(comp, md.modelName, value, own, bad, scenario_start)
     if md.modelName == "VelocitySource" and md.author == "mecanum_fmu":
         for key in ("vx_expr", "vy_expr", "w_expr"):
             text = value(key) if key in own else None

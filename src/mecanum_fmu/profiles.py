@@ -55,9 +55,10 @@ def table_text(value: str, scenario_dir: Path, label: str, place: str,
     try:
         parse_table(text)
     except TableError as err:
-        line = f"line {err.line}" if err.line else "table"
-        report(Problem(where, line, str(err).removeprefix(f"line {err.line}: ")
-                       + f" (table of {place})"))
+        # file:line, as compilers write it
+        report(Problem(f"{where}:{err.line}" if err.line else where, "",
+                       str(err).removeprefix(f"line {err.line}: ")
+                       + f" (the table of {label}: {place})"))
         return None
     return text
 
