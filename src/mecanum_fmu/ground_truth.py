@@ -82,10 +82,10 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
     span = float(times[-1] - times[0]) if len(times) > 1 else 1.0
     if len(breaks):
         from .profiles import integrate_piecewise
-        pose = integrate_piecewise(rhs, start, times, breaks, rtol, atol)
+        path = integrate_piecewise(rhs, start, times, breaks, rtol, atol)
     else:
         sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, rtol=rtol, atol=atol,
                         method="DOP853", max_step=max(span / 2000, 1e-6))
-        pose = sol.y
+        path = sol.y
     twist = np.array([[f(t) for f in funcs] for t in times]).reshape(len(times), 3)
-    return Truth(times, pose[0], pose[1], pose[2], twist[:, 0], twist[:, 1], twist[:, 2])
+    return Truth(times, path[0], path[1], path[2], twist[:, 0], twist[:, 1], twist[:, 2])
