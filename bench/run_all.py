@@ -1,6 +1,7 @@
 """`make bench`: every benchmark, measured in one run on this machine. Not tests: nothing here
 asserts a time; it prints ratios measured side by side."""
 import accuracy
+import closed_loop_order
 import endurance
 import loop_overhead
 import other_hosts
@@ -13,5 +14,7 @@ if __name__ == "__main__":
     loop_overhead.main()
     print("\n== the same run in other FMI hosts (bench/other_hosts.py)")
     other_hosts.main()
+    print("\n== closed-loop convergence (bench/closed_loop_order.py)")
+    closed_loop_order.main()
     print("\n== 1,000 runs in one process (bench/endurance.py)")
     exit_now(endurance.main([]))    # no interpreter shutdown with pythonfmu FMUs loaded

@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT / "src"))
 from mecanum_fmu import runner  # noqa: E402
 from mecanum_fmu.animation import write_animation  # noqa: E402
 from mecanum_fmu.modes import graph_geometry  # noqa: E402
-from mecanum_fmu.ground_truth import find_roles  # noqa: E402
+from mecanum_fmu.bundled import find_roles  # noqa: E402
 
 MODES = ("forward", "backward", "left", "right", "diagonal", "spin_ccw", "spin_cw",
          "showcase", "figure_eight")

@@ -12,7 +12,7 @@ try:
 except ImportError:  # package not installed: fall back to the src layout
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator",
+MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator", "PathFollower",
                # the other chassis (docs/chassis.md, tests/test_chassis.py)
                "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource")
 

@@ -26,7 +26,7 @@ import mecanum_fmu
 from mecanum_fmu.runtime import RUNTIME
 extracted = RUNTIME.extracted
 
-MODELS = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator")
+MODELS = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator", "PathFollower")
 
 # docs/spec.md (Parameters, Kinematics, Pose integration): seed geometry and the variables of
 # each block.
@@ -34,18 +34,21 @@ ALPHA, L0, W0, R0 = math.pi / 4, 0.16, 0.12, 0.06
 OUTPUTS = {"VelocitySource": ("vx", "vy", "w"),
            "Center2Wheel": ("w1", "w2", "w3", "w4"),
            "Wheel2Center": ("vx", "vy", "w", "icr_x", "icr_y", "has_icr"),
-           "PoseIntegrator": ("x", "y", "theta")}
+           "PoseIntegrator": ("x", "y", "theta"),
+           "PathFollower": ("vx", "vy", "w")}
 DIRECT_DEPENDENCIES = {"VelocitySource": (),
                        "Center2Wheel": ("vx", "vy", "w"),
                        "Wheel2Center": ("w1", "w2", "w3", "w4"),
-                       "PoseIntegrator": ()}
+                       "PoseIntegrator": (),
+                       "PathFollower": ("x", "y", "theta")}
 UNIT_OF = {"vx": "m/s", "vy": "m/s", "w": "rad/s",
            "w1": "rad/s", "w2": "rad/s", "w3": "rad/s", "w4": "rad/s",
            "alpha": "rad", "theta": "rad", "theta0": "rad",
            "L": "m", "W": "m", "R": "m", "x": "m", "y": "m", "x0": "m", "y0": "m",
-           "icr_x": "m", "icr_y": "m"}
+           "icr_x": "m", "icr_y": "m", "w_max": "rad/s",
+           "k_pos": "1/s", "k_theta": "1/s"}
 BASE_UNITS = {"m": {"m": 1}, "m/s": {"m": 1, "s": -1},
-              "rad": {"rad": 1}, "rad/s": {"rad": 1, "s": -1}}
+              "rad": {"rad": 1}, "rad/s": {"rad": 1, "s": -1}, "1/s": {"s": -1}}
 SI_BASES = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 

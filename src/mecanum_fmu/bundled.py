@@ -8,6 +8,7 @@ it, not repeated here.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
@@ -54,15 +55,41 @@ def _check_expressions(values: Mapping[str, object], start_time: float) -> list[
     return problems
 
 
+def _check_inverse(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """Center2Wheel: the geometry, and w_max >= 0 (0: no wheel speed limit)."""
+    problems = _check_geometry(values, start_time)
+    w_max = values.get("w_max")
+    if _is_number(w_max) and not (math.isfinite(w_max) and w_max >= 0):
+        problems.append(("w_max", f"parameter w_max = {w_max!r} rad/s must be >= 0 "
+                                  "(0: no wheel speed limit)"))
+    return problems
+
+
+def _check_follower(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """PathFollower: positive gains, and reference expressions that evaluate."""
+    problems = _check_expressions(values, start_time)
+    for name in ("k_pos", "k_theta"):
+        gain = values.get(name)
+        if _is_number(gain) and not (math.isfinite(gain) and gain > 0):
+            problems.append((name, f"gain {name} = {gain!r} 1/s must be > 0 (the rate at "
+                                   "which the error decays; try 2)"))
+    return problems
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
 def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
     return []
 
 
 MODELS: dict[str, Model] = {m.name: m for m in (
     Model("VelocitySource", "velocity_source", "source", _check_expressions),
-    Model("Center2Wheel", "center2wheel", "inverse", _check_geometry),
+    Model("Center2Wheel", "center2wheel", "inverse", _check_inverse),
     Model("Wheel2Center", "wheel2center", "forward", _check_geometry),
     Model("PoseIntegrator", "pose_integrator", "pose", _no_rules),
+    Model("PathFollower", "path_follower", "follower", _check_follower),
     # the other two chassis of the original documents (docs/chassis.md)
     Model("OmniCenter2Wheel", "omni_center2wheel", "omni-inverse",
           _numbers_rule(("L", "R"), omni_geometry_problem)),
@@ -87,6 +114,7 @@ class Roles:
     inverse: str | None
     forward: str | None
     pose: str | None
+    follower: str | None = None     # a PathFollower: closed loop, the truth is its reference
 
 
 def find_roles(graph) -> Roles:
@@ -97,4 +125,5 @@ def find_roles(graph) -> Roles:
         if model is not None:
             found.setdefault(model.role, []).append(inst.name)
     one = {role: names[0] for role, names in found.items() if len(names) == 1}
-    return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"))
+    return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"),
+                 one.get("follower"))

@@ -23,7 +23,8 @@ from .fmu_library import bundled_fmu_path, is_current, slave_source
 from .storage import write_zip
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},
-              "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"}}
+              "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"},
+              "1/s": {"s": "-1"}}
 
 
 def build_fmu(model_name: str, dest_dir: Path) -> Path:

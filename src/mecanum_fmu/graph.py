@@ -318,9 +318,51 @@ def _dependency_order(instances: list[Instance], links: list[Link], label: str):
     link_order = sorted(links, key=lambda l: position[str(l.target.ref)])
     # An instance steps after the latest of its connected inputs in the dependency order.
     last_input: dict[str, int] = {}
+    feedback = _feedback_into_state(instances, links)
     for node, link in link_of.items():
+        if node in feedback:
+            continue
         name = link.target.ref.instance
         last_input[name] = max(last_input.get(name, -1), position[node])
     declared = {inst.name: i for i, inst in enumerate(instances)}
     step_order = sorted(instances, key=lambda i: (last_input.get(i.name, -1), declared[i.name]))
     return step_order, link_order
+
+
+def _feedback_into_state(instances: list[Instance], links: list[Link]) -> set[str]:
+    """Inputs (`instance.input`) that close a feedback loop into an FMU's state: no output of
+    their FMU depends on them and their source is downstream of their FMU. Such an FMU steps
+    before the rest of its loop (on extrapolated inputs), so that the blocks with direct
+    feedthrough downstream see its outputs at the end of the step: a closed loop then stays
+    second order under the trapezoidal master. Open chains have none: their order is as before."""
+    downstream: dict[str, set[str]] = {}
+    for link in links:
+        downstream.setdefault(link.source.ref.instance, set()).add(link.target.ref.instance)
+
+    def reaches(start: str, goal: str) -> bool:
+        seen, todo = {start}, [start]
+        while todo:
+            for nxt in downstream.get(todo.pop(), ()):
+                if nxt == goal:
+                    return True
+                if nxt not in seen:
+                    seen.add(nxt)
+                    todo.append(nxt)
+        return False
+
+    depended: dict[str, set[str] | None] = {}
+    for inst in instances:
+        names: set[str] | None = set()
+        for unknown in inst.model.outputs:
+            if unknown.dependencies is None:
+                names = None          # undeclared: may depend on every input
+                break
+            names |= {d.name for d in unknown.dependencies}
+        depended[inst.name] = names
+    out = set()
+    for link in links:
+        target, source = link.target.ref, link.source.ref.instance
+        names = depended.get(target.instance)
+        if names is not None and target.variable not in names and reaches(target.instance, source):
+            out.add(str(target))
+    return out

@@ -40,10 +40,19 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
     if (truth := chassis_truth(graph, times, rtol, atol)) is not NOT_MINE:
         return truth
     roles = find_roles(graph)
+    if roles.follower is not None:        # closed loop: the path it is asked to follow
+        from .closed_loop import reference_truth
+        return reference_truth(graph.instance(roles.follower), times)
     if roles.source is None:
         return None
     source = graph.instance(roles.source)
     funcs = [compile_expression(str(source.value(k))) for k in ("vx_expr", "vy_expr", "w_expr")]
+    breaks = ()
+    if source.value("table"):  # a table replaces the expressions (profiles.py)
+        from .profiles import table_twist
+        twist_of, breaks = table_twist(str(source.value("table")),
+                                       str(source.value("interpolation")))
+        funcs = [lambda t, i=i: float(twist_of(t)[i]) for i in range(3)]
     start = (0.0, 0.0, 0.0)
     if roles.pose is not None:
         pose = graph.instance(roles.pose)
@@ -55,7 +64,12 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
     times = np.asarray(times, dtype=float)
     # max_step keeps the solver from stepping over short segments of piecewise profiles.
     span = float(times[-1] - times[0]) if len(times) > 1 else 1.0
-    sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, rtol=rtol, atol=atol,
-                    method="DOP853", max_step=max(span / 2000, 1e-6))
+    if len(breaks):
+        from .profiles import integrate_piecewise
+        path = integrate_piecewise(rhs, start, times, breaks, rtol, atol)
+    else:
+        sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, rtol=rtol, atol=atol,
+                        method="DOP853", max_step=max(span / 2000, 1e-6))
+        path = sol.y
     twist = np.array([[f(t) for f in funcs] for t in times]).reshape(len(times), 3)
-    return Truth(times, sol.y[0], sol.y[1], sol.y[2], twist[:, 0], twist[:, 1], twist[:, 2])
+    return Truth(times, path[0], path[1], path[2], twist[:, 0], twist[:, 1], twist[:, 2])

@@ -154,6 +154,43 @@ def _draw_icr(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> 
     ax.legend()
 
 
+def _draw_tracking_path(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Closed loop: the reference path (the follower's x_ref, y_ref) against the actual path."""
+    if truth is not None and len(truth.x):
+        ti = decimate_index(len(truth.x))
+        ax.plot(truth.x[ti], truth.y[ti], color="0.6", lw=3, label="reference")
+        ax.plot([truth.x[0]], [truth.y[0]], "x", color="k", label="reference start")
+    idx = decimate_index(len(results.time))
+    x, y = results[f"{roles.pose}.x"], results[f"{roles.pose}.y"]
+    ax.plot(x[idx], y[idx], color="C0", lw=1.2, label="actual")
+    ax.plot([x[0]], [y[0]], "o", color="C2", label="actual start")
+    ax.plot([x[-1]], [y[-1]], "s", color="C3", label="actual end")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m] (right)")
+    ax.set_ylabel("y [m] (forward)")
+    ax.grid(True)
+    ax.legend()
+
+
+def _draw_tracking_error(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Closed loop: distance to the reference position and heading error, log scale."""
+    if truth is None or not len(truth.x):
+        return
+    idx, t = _t(results)
+    p = roles.pose
+    dist = np.hypot(results[f"{p}.x"] - truth.x, results[f"{p}.y"] - truth.y)
+    # exact zeros (the start, a heading that never leaves its reference) have no log: not drawn
+    ax.semilogy(t, np.where(dist[idx] > 0, dist[idx], np.nan), label="position error [m]")
+    if _col(results, p, "theta"):
+        dth = results[f"{p}.theta"] - truth.theta
+        dth = np.abs(np.arctan2(np.sin(dth), np.cos(dth)))
+        ax.semilogy(t, np.where(dth[idx] > 0, dth[idx], np.nan), label="heading error [rad]")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("tracking error")
+    ax.grid(True, which="both")
+    ax.legend()
+
+
 Drawer = Callable[[Axes, Results, Roles, Truth | None], None]
 
 
@@ -179,6 +216,13 @@ PANELS: dict[str, Panel] = {
                  lambda r, ro: bool(_col(r, ro.pose, "x") and _col(r, ro.pose, "y")
                                     and all(_col(r, ro.forward, v)
                                             for v in ("icr_x", "icr_y", "has_icr"))), _draw_icr),
+    # only when a PathFollower closes the loop (its reference is the ground truth)
+    "tracking": Panel("Reference path vs actual path",
+                      lambda r, ro: bool(ro.follower and _col(r, ro.pose, "x")
+                                         and _col(r, ro.pose, "y")), _draw_tracking_path),
+    "tracking_error": Panel("Tracking error",
+                            lambda r, ro: bool(ro.follower and _col(r, ro.pose, "x")
+                                               and _col(r, ro.pose, "y")), _draw_tracking_error),
 }
 
 

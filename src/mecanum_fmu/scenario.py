@@ -26,7 +26,7 @@ Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _TOP_KEYS = ("name", "description", "experiment", "components", "connections", "outputs",
              "parameters")
-_COMPONENT_KEYS = ("fmu", "parameters", "description")
+_COMPONENT_KEYS = ("fmu", "parameters", "description", "segments")
 
 
 @dataclass(frozen=True)
@@ -152,6 +152,8 @@ def load_scenario(path: str | Path) -> Scenario:
     experiment = parse_experiment(doc.get("experiment", {}), bad)
     shared = _parameters(doc.get("parameters", {}), "parameters", bad)
     components = _components(doc.get("components"), bad)
+    components = _profiles(components, doc.get("components"), path, experiment.start_time,
+                           problems)
     connections = _connections(doc.get("connections", []), bad)
     outputs = _outputs(doc.get("outputs"), bad)
 
@@ -308,6 +310,24 @@ def _components(raw: Any, bad) -> tuple[Component, ...]:
             continue
         params = _parameters(spec.get("parameters", {}), f"{place}.parameters", bad)
         out.append(Component(name, fmu, params, place))
+    return tuple(out)
+
+
+def _profiles(components: tuple[Component, ...], raw: Any, path: Path, start_time: float,
+              problems: list[Problem]) -> tuple[Component, ...]:
+    """VelocitySources get their `table` file or `segments` as CSV text (profiles.py)."""
+    from .profiles import resolve_profile
+    out = []
+    for comp in components:
+        spec = raw[comp.name] if isinstance(raw[comp.name], dict) else {}
+        if comp.fmu == "VelocitySource":
+            params = resolve_profile(spec, comp.parameters, path.parent, start_time,
+                                     comp.place, str(path), problems.append)
+            comp = Component(comp.name, comp.fmu, params, comp.place)
+        elif "segments" in spec:
+            problems.append(Problem(str(path), f"{comp.place}.segments", "segments are for "
+                                    "a VelocitySource only"))
+        out.append(comp)
     return tuple(out)
 
 

@@ -32,6 +32,13 @@ def check_geometry(alpha: float, L: float, W: float, R: float) -> None:
         raise ValueError(problem[1])
 
 
+def check_wheel_limit(w_max: float) -> None:
+    """Raise ValueError unless w_max is a finite number >= 0 (0: no limit)."""
+    if not isinstance(w_max, (int, float)) or not math.isfinite(w_max) or w_max < 0.0:
+        raise ValueError(f"parameter w_max = {w_max!r} rad/s must be a finite number >= 0 "
+                         "(0: no wheel speed limit)")
+
+
 def lever_arm(alpha: float, L: float, W: float) -> float:
     """k = L + W*cot(alpha): the yaw lever arm in the wheel rows of the matrix."""
     return L + W / math.tan(alpha)
@@ -73,3 +80,18 @@ def instantaneous_center(vx: float, vy: float, w: float,
     if not abs(w) >= tol:
         return 0.0, 0.0, False
     return -vy / w, vx / w, True
+
+
+def limit_wheel_speeds(speeds: tuple[float, ...], w_max: float) -> tuple[float, ...]:
+    """Scale all wheel speeds by one factor so that none exceeds w_max [rad/s] in magnitude.
+
+    One common factor keeps the ratios between the wheels, so the chassis keeps its direction
+    of motion and its ICR and only slows down. w_max = 0 means no limit.
+    """
+    if not w_max > 0.0:
+        return tuple(speeds)
+    peak = max(abs(s) for s in speeds)
+    if peak <= w_max:
+        return tuple(speeds)
+    scale = w_max / peak
+    return tuple(s * scale for s in speeds)

@@ -4,7 +4,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
-from mecanum_fmu.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, center_to_wheel  # inline
+from mecanum_fmu.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, check_wheel_limit, center_to_wheel, limit_wheel_speeds  # inline
 
 _TWIST = ("vx", "vy", "w")
 _WHEELS = ("w1", "w2", "w3", "w4")
@@ -15,11 +15,13 @@ class Center2Wheel(Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Inverse kinematics of a four-wheel O-layout mecanum chassis: body twist "
                    "(vx right, vy forward, w counter-clockwise) -> wheel speeds w1..w4 "
-                   "(1 front-right, 2 front-left, 3 rear-left, 4 rear-right). Direct feedthrough.")
+                   "(1 front-right, 2 front-left, 3 rear-left, 4 rear-right). Direct feedthrough. "
+                   "w_max > 0 limits the wheel speeds: all four scale down together.")
     UNITS = {"vx": "m/s", "vy": "m/s", "w": "rad/s", "w1": "rad/s", "w2": "rad/s",
-             "w3": "rad/s", "w4": "rad/s", "alpha": "rad", "L": "m", "W": "m", "R": "m"}
+             "w3": "rad/s", "w4": "rad/s", "alpha": "rad", "L": "m", "W": "m", "R": "m",
+             "w_max": "rad/s"}
     DEPENDENCIES = {name: _TWIST for name in _WHEELS}
-    INITIAL_DEPENDENCIES = {name: _TWIST + _GEOMETRY for name in _WHEELS}
+    INITIAL_DEPENDENCIES = {name: _TWIST + _GEOMETRY + ("w_max",) for name in _WHEELS}
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
 
     def __init__(self, **kwargs):
@@ -48,13 +50,19 @@ class Center2Wheel(Fmi2Slave):
             self.register_variable(Real(name, causality=Fmi2Causality.output,
                                         variability=Fmi2Variability.continuous,
                                         description=f"{where} wheel speed, positive rolls the car forward"))
+        # Added last: the value references of the variables above stay as they were.
+        self.w_max = 0.0
+        self.register_variable(Real("w_max", causality=Fmi2Causality.parameter,
+                                    variability=Fmi2Variability.fixed,
+                                    description="wheel speed limit (0: none); over it all four "
+                                                "wheels scale down together, direction kept"))
 
     def _update(self):
         # Outputs follow the inputs at once (direct feedthrough), so a master that sets the
         # inputs reads consistent outputs without a step.
         try:
-            self.w1, self.w2, self.w3, self.w4 = center_to_wheel(
-                self.vx, self.vy, self.w, self.alpha, self.L, self.W, self.R)
+            self.w1, self.w2, self.w3, self.w4 = limit_wheel_speeds(center_to_wheel(
+                self.vx, self.vy, self.w, self.alpha, self.L, self.W, self.R), self.w_max)
         except (ArithmeticError, TypeError):
             pass  # invalid geometry: reported by enter_initialization_mode
 
@@ -65,6 +73,7 @@ class Center2Wheel(Fmi2Slave):
     def enter_initialization_mode(self):
         try:
             check_geometry(self.alpha, self.L, self.W, self.R)
+            check_wheel_limit(self.w_max)
         except ValueError as err:
             self.log(f"Center2Wheel: {err}", Fmi2Status.error)
             raise

@@ -1,9 +1,10 @@
-"""VelocitySource FMU: the commanded chassis twist as three expressions of time."""
+"""VelocitySource FMU: the commanded chassis twist as three expressions of time, or a table."""
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
 from mecanum_fmu.blocks.expression import ExpressionError, compile_expression  # inline
+from mecanum_fmu.blocks.profile_table import TableError, table_sampler  # inline
 
 _OUTPUTS = ("vx", "vy", "w")
 _EXPRESSIONS = ("vx_expr", "vy_expr", "w_expr")
@@ -14,10 +15,11 @@ class VelocitySource(Fmi2Slave):
     description = ("Commanded body-frame chassis twist (vx right, vy forward, w counter-clockwise) "
                    "as expressions of t, evaluated safely (numbers, t, arithmetic, comparisons, "
                    "sin cos tan asin acos atan atan2 sinh cosh tanh exp log sqrt abs min max floor "
-                   "ceil where, pi, e). Defaults: the seed study, vx = sin(t), vy = cos(t), w = 0.")
+                   "ceil where, pi, e). Defaults: the seed study, vx = sin(t), vy = cos(t), w = 0. "
+                   "A non-empty table (CSV text, header time,vx,vy,w) replaces the expressions.")
     UNITS = {"vx": "m/s", "vy": "m/s", "w": "rad/s"}
     DEPENDENCIES = {name: () for name in _OUTPUTS}
-    INITIAL_DEPENDENCIES = dict(zip(_OUTPUTS, ((e,) for e in _EXPRESSIONS)))
+    INITIAL_DEPENDENCIES = dict(zip(_OUTPUTS, ((e, "table", "interpolation") for e in _EXPRESSIONS)))
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
 
     def __init__(self, **kwargs):
@@ -40,6 +42,15 @@ class VelocitySource(Fmi2Slave):
             self.register_variable(Real(name, causality=Fmi2Causality.output,
                                         variability=Fmi2Variability.continuous,
                                         description=out_docs[name]))
+        # Added after the outputs: the value references of the variables above stay as they were.
+        self.table, self.interpolation = "", "linear"
+        self.register_variable(String("table", causality=Fmi2Causality.parameter,
+                                      variability=Fmi2Variability.fixed,
+                                      description="CSV text (header time,vx,vy,w; SI units); "
+                                                  "when not empty it replaces the expressions"))
+        self.register_variable(String("interpolation", causality=Fmi2Causality.parameter,
+                                      variability=Fmi2Variability.fixed,
+                                      description="between table rows: linear or hold"))
 
     def _evaluate(self, t):
         try:
@@ -54,9 +65,13 @@ class VelocitySource(Fmi2Slave):
     def enter_initialization_mode(self):
         # Compile here (not per step): a bad expression is reported at initialization.
         try:
-            self._profile = tuple(compile_expression(getattr(self, name))
-                                  for name in _EXPRESSIONS)
-        except ExpressionError as err:
+            if self.table:
+                sampler = table_sampler(self.table, self.interpolation)
+                self._profile = tuple((lambda t, i=i: sampler(t)[i]) for i in range(3))
+            else:
+                self._profile = tuple(compile_expression(getattr(self, name))
+                                      for name in _EXPRESSIONS)
+        except (ExpressionError, TableError) as err:
             self.log(f"VelocitySource: {err}", Fmi2Status.error)
             raise
         self._evaluate(self._start_time)

@@ -1,0 +1,177 @@
+"""Closed loop (issue 15, parts 3 and 4): the PathFollower, the pose feedback, wheel limits.
+
+Reference values are computed here, independently of the code under test: the follower law
+from its definition (docs/closed-loop.md) with the references differentiated by hand, the
+kinematics from SPEC.md section 3, the pose equations of section 4, and a tight scipy solve
+of the same closed-loop ODE.
+"""
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from helpers import ROOT, write_scenario
+from mecanum_fmu import master
+from mecanum_fmu.bundled import find_roles
+from mecanum_fmu.plots import available_panels
+from mecanum_fmu.runner import prepare, run
+
+CIRCLE = ROOT / "scenarios" / "closed_loop" / "track_circle.yaml"
+EIGHT = ROOT / "scenarios" / "closed_loop" / "track_figure_eight.yaml"
+K_POS = K_THETA = 2.0                          # the PathFollower's default gains
+START = (0.3, -0.2, 0.5)                       # track_circle's start pose
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(built_fmus):
+    return next(iter(built_fmus.values())).parent
+
+
+def follower_law(t, pose, ref, ref_rate, k_pos=K_POS, k_theta=K_THETA):
+    """Body twist: world velocity r' + k (r - p) turned into the body frame (SPEC.md 4)."""
+    x, y, th = pose
+    (xr, yr, thr), (dxr, dyr, dthr) = ref(t), ref_rate(t)
+    vxw, vyw = dxr + k_pos * (xr - x), dyr + k_pos * (yr - y)
+    dth = math.atan2(math.sin(thr - th), math.cos(thr - th))
+    # inverse of x' = vx cos - vy sin, y' = vx sin + vy cos
+    return (vxw * math.cos(th) + vyw * math.sin(th), -vxw * math.sin(th) + vyw * math.cos(th),
+            dthr + k_theta * dth)
+
+
+def circle_ref(t):
+    return 1 - math.cos(t), math.sin(t), 0.0
+
+
+def circle_rate(t):
+    return math.sin(t), math.cos(t), 0.0
+
+
+def reference_solution(times, start=START):
+    """The closed-loop ODE p' = R(theta) follower(t, p), solved tightly."""
+    def rhs(t, p):
+        vx, vy, w = follower_law(t, p, circle_ref, circle_rate)
+        c, s = math.cos(p[2]), math.sin(p[2])
+        return (vx * c - vy * s, vx * s + vy * c, w)
+    sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, method="DOP853",
+                    rtol=1e-12, atol=1e-13)
+    return sol.y
+
+
+# ------------------------------------------------------------------ the follower FMU alone
+
+
+def test_follower_output_is_the_law(fmu_dir, tmp_path):
+    """A scenario with the pose left unconnected: the follower sees the pose start values."""
+    text = ("name: alone\nexperiment: {start_time: 0.0, stop_time: 1.0, step_size: 0.25}\n"
+            "components:\n  follower: {fmu: PathFollower, parameters: {x_ref_expr: '2*t', "
+            "y_ref_expr: '0.5*t*t', theta_ref_expr: '0.3*sin(t)', k_pos: 1.5, k_theta: 3.0, "
+            "x: 0.2, y: -0.1, theta: 1.2}}\n")
+    graph = prepare(write_scenario(tmp_path, "alone", text), fmu_dir=fmu_dir)
+    res = master.simulate(graph, graph.scenario.experiment)
+    for k, t in enumerate(res.time):
+        expected = follower_law(t, (0.2, -0.1, 1.2), lambda t: (2 * t, 0.5 * t * t, 0.3 * math.sin(t)),
+                                lambda t: (2.0, t, 0.3 * math.cos(t)), k_pos=1.5, k_theta=3.0)
+        got = tuple(res[f"follower.{v}"][k] for v in ("vx", "vy", "w"))
+        assert got == pytest.approx(expected, abs=1e-9)
+
+
+# ------------------------------------------------------------------ the loop
+
+
+def test_the_loop_is_no_algebraic_loop_and_the_integrator_steps_first(fmu_dir):
+    graph = prepare(CIRCLE, fmu_dir=fmu_dir)
+    assert [i.name for i in graph.instances] == ["pose", "follower", "c2w", "w2c"]
+
+
+def test_track_circle_reaches_the_reference_within_1_mm_and_1_mrad(fmu_dir, tmp_path):
+    outcome = run(prepare(CIRCLE, fmu_dir=fmu_dir), tmp_path, plots=False, log=lambda s: None)
+    end = outcome.summary["end_pose"]
+    xr, yr, thr = circle_ref(10.0)
+    assert outcome.results.step_size == 0.05 and outcome.results.master == "trapezoidal"
+    assert math.hypot(end["x"] - xr, end["y"] - yr) < 1e-3
+    assert abs(end["theta"] - thr) < 1e-3
+    # the summary's ground truth is the reference path
+    assert outcome.truth.end == pytest.approx((xr, yr, thr), abs=1e-12)
+    # and it did start off the path (0.36 m, 0.5 rad away)
+    assert math.hypot(outcome.results["pose.x"][0], outcome.results["pose.y"][0]) > 0.3
+
+
+def test_closed_loop_stays_second_order(fmu_dir):
+    """Error against the tight ODE solve over the whole run at h, h/2, h/4."""
+    errors = []
+    for h in (0.1, 0.05, 0.025):
+        graph = prepare(CIRCLE, fmu_dir=fmu_dir, step_size=h)
+        res = master.simulate(graph, graph.scenario.experiment)
+        ref = reference_solution(res.time)
+        errors.append(np.max(np.hypot(res["pose.x"] - ref[0], res["pose.y"] - ref[1])))
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert all(order > 1.8 for order in orders), (errors, orders)
+
+
+def test_the_reference_solution_is_the_exponential_decay():
+    """The independent reference itself: with a holonomic chassis the position error decays
+    as exp(-k_pos t) and the heading error as exp(-k_theta t) (docs/closed-loop.md)."""
+    t = np.linspace(0, 10, 11)
+    ref = reference_solution(t)
+    decay = np.exp(-K_POS * t)
+    np.testing.assert_allclose(ref[0], 1 - np.cos(t) + (0.3 - 0.0) * decay, atol=1e-9)
+    np.testing.assert_allclose(ref[1], np.sin(t) + (-0.2 - 0.0) * decay, atol=1e-9)
+    np.testing.assert_allclose(ref[2], 0.5 * np.exp(-K_THETA * t), atol=1e-9)
+
+
+# ------------------------------------------------------------------ wheel-speed limits
+
+
+def spec_inverse(vx, vy, w, L=0.16, W=0.12, R=0.06):     # alpha = 45 deg: cot = 1
+    k = L + W
+    return np.array([-vx + vy + k * w, vx + vy - k * w, -vx + vy - k * w, vx + vy + k * w]) / R
+
+
+def test_w_max_scales_all_four_wheels_together(fmu_dir, tmp_path):
+    text = ("name: limit\nexperiment: {start_time: 0.0, stop_time: 1.0, step_size: 0.5}\n"
+            "components:\n  c2w: {fmu: Center2Wheel, parameters: {w_max: 10.0, "
+            "vx: 0.3, vy: 0.5, w: -0.4}}\n  free: {fmu: Center2Wheel, parameters: "
+            "{vx: 0.3, vy: 0.5, w: -0.4}}\n")
+    graph = prepare(write_scenario(tmp_path, "limit", text), fmu_dir=fmu_dir)
+    res = master.simulate(graph, graph.scenario.experiment)
+    free = spec_inverse(0.3, 0.5, -0.4)
+    limited = np.array([res.final(f"c2w.w{i}") for i in range(1, 5)])
+    np.testing.assert_allclose([res.final(f"free.w{i}") for i in range(1, 5)], free, rtol=1e-14)
+    assert np.max(np.abs(free)) > 10.0
+    np.testing.assert_allclose(limited, free * 10.0 / np.max(np.abs(free)), rtol=1e-14)
+
+
+def test_figure_eight_saturates_lags_and_recovers(fmu_dir, tmp_path):
+    outcome = run(prepare(EIGHT, fmu_dir=fmu_dir), tmp_path, plots=False, log=lambda s: None)
+    res = outcome.results
+    t = res.time
+    wheels = np.abs(np.vstack([res[f"c2w.w{i}"] for i in range(1, 5)]))
+    saturated = np.max(wheels, axis=0) >= 18.0 - 1e-9
+    assert np.max(wheels) <= 18.0 + 1e-12 and saturated.mean() > 0.2
+    xr, yr = 1.2 * np.cos(0.2 * np.pi * t), -0.6 * np.sin(0.4 * np.pi * t)
+    error = np.hypot(res["pose.x"] - xr, res["pose.y"] - yr)
+    assert error.max() > 0.2                       # it lags at the crossing ...
+    assert error[t == 5.0][0] < 0.1 * error.max()  # ... and catches up at the lobe end
+    # direction kept: while saturated, the body twist is parallel to the command
+    cmd = np.vstack([res["follower.vx"], res["follower.vy"]])
+    got = np.vstack([res["w2c.vx"], res["w2c.vy"]])
+    cross = cmd[0] * got[1] - cmd[1] * got[0]
+    assert np.max(np.abs(cross[saturated])) < 1e-12
+    assert np.all(np.sum(cmd * got, axis=0)[saturated] > 0)
+
+
+# ------------------------------------------------------------------ plots
+
+
+def test_tracking_panels_appear_only_with_a_follower(fmu_dir, tmp_path):
+    closed = run(prepare(CIRCLE, fmu_dir=fmu_dir), tmp_path / "c", plots=True,
+                 log=lambda s: None)
+    keys = available_panels(closed.results, find_roles(closed.graph))
+    assert {"tracking", "tracking_error"} <= set(keys)
+    assert (tmp_path / "c" / "tracking.png").is_file()
+    assert (tmp_path / "c" / "tracking_error.png").is_file()
+    open_loop = prepare(ROOT / "scenarios" / "circle.yaml", fmu_dir=fmu_dir, stop_time=1.0)
+    res = master.simulate(open_loop, open_loop.scenario.experiment)
+    keys = available_panels(res, find_roles(open_loop))
+    assert "tracking" not in keys and "tracking_error" not in keys
