@@ -14,7 +14,7 @@ from fmpy.model_description import ModelDescription, ScalarVariable
 
 from . import fmu_library
 from .blocks.expression import ExpressionError, compile_expression
-from .blocks.kinematics import check_geometry
+from .blocks.kinematics import check_geometry, check_radius_deviations
 from .errors import Problem, ScenarioError
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 
@@ -255,6 +255,14 @@ def _check_bundled_values(comp, md: ModelDescription, own, values, bad,
                 where = (f"{comp.place}.parameters.{name}" if name in comp.parameters
                          else f"parameters.{name}")
                 bad(where, str(err))
+        deviations = tuple(value(k) for k in ("dR1", "dR2", "dR3", "dR4") if k in own)
+        if len(deviations) == 4 and is_number(geometry.get("R")):
+            try:
+                check_radius_deviations(geometry["R"], deviations)
+            except ValueError as err:
+                name = str(err).split()[1]
+                bad(f"{comp.place}.parameters.{name}" if name in comp.parameters
+                    else f"parameters.{name}", str(err))
     if md.modelName == "VelocitySource" and md.author == "mecanum_fmu":
         for key in ("vx_expr", "vy_expr", "w_expr"):
             text = value(key) if key in own else None
