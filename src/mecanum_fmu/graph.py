@@ -326,3 +326,28 @@ def _dependency_order(instances: list[Instance], links: list[Link], label: str):
     declared = {inst.name: i for i, inst in enumerate(instances)}
     step_order = sorted(instances, key=lambda i: (last_input.get(i.name, -1), declared[i.name]))
     return step_order, link_order
+
+
+def settable_parameters(inst: Instance) -> list[str]:
+    """The names whose start value a scenario (or a sweep) may set on this instance."""
+    return [v.name for v in inst.model.modelVariables if _settable(v)]
+
+
+def check_start_values(graph: Graph, name: str, values: dict[str, Scalar]) -> list[str]:
+    """Check new start values for instance `name` (over its current ones) by the same rules as
+    a scenario's parameters (settable, type, our FMUs' value rules). Returns the messages."""
+    inst = graph.instance(name)
+    own = {v.name: v for v in inst.model.modelVariables}
+    messages: list[str] = []
+    for key, value in values.items():
+        var = own.get(key)
+        if not _settable(var):
+            messages.append(f"'{key}' cannot be set on {inst.model_name} instance '{name}'")
+        elif (message := _type_problem(var, value)) is not None:
+            messages.append(message)
+    if not messages:
+        stub = type("Declared", (), {"place": name, "parameters": values})
+        _check_bundled_values(stub, inst.model, own, {**inst.start_values, **values},
+                              lambda place, message: messages.append(message),
+                              graph.scenario.experiment.start_time)
+    return messages
