@@ -333,21 +333,23 @@ def settable_parameters(inst: Instance) -> list[str]:
     return [v.name for v in inst.model.modelVariables if _settable(v)]
 
 
-def check_start_values(graph: Graph, name: str, values: dict[str, Scalar]) -> list[str]:
+def check_start_values(graph: Graph, name: str, values: dict[str, Scalar]) -> list[tuple[str, str]]:
     """Check new start values for instance `name` (over its current ones) by the same rules as
-    a scenario's parameters (settable, type, our FMUs' value rules). Returns the messages."""
+    a scenario's parameters (settable, type, our FMUs' value rules). Returns (parameter,
+    message) pairs."""
     inst = graph.instance(name)
     own = {v.name: v for v in inst.model.modelVariables}
-    messages: list[str] = []
+    problems: list[tuple[str, str]] = []
     for key, value in values.items():
         var = own.get(key)
         if not _settable(var):
-            messages.append(f"'{key}' cannot be set on {inst.model_name} instance '{name}'")
+            problems.append((key, f"'{key}' cannot be set on {inst.model_name} instance '{name}'"))
         elif (message := _type_problem(var, value)) is not None:
-            messages.append(message)
-    if not messages:
+            problems.append((key, message))
+    if not problems:
         stub = type("Declared", (), {"place": name, "parameters": values})
         _check_bundled_values(stub, inst.model, own, {**inst.start_values, **values},
-                              lambda place, message: messages.append(message),
+                              lambda place, message: problems.append(
+                                  (place.rsplit(".", 1)[-1], message)),
                               graph.scenario.experiment.start_time)
-    return messages
+    return problems

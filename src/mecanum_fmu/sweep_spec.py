@@ -218,7 +218,7 @@ def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
             values.update({ref: column[s] for ref, column in draws})
             problem = None
             if draws:
-                problem = "; ".join(_problems(graph, values)) or None
+                problem = "; ".join(f"{ref}: {m}" for ref, m in _problems(graph, values)) or None
             runs.append(Run(len(runs), values, problem))
     return runs
 
@@ -251,18 +251,19 @@ def _check_parameters(sweep: Sweep, graph: Graph) -> None:
 
 
 def _check_grid_points(sweep: Sweep, graph: Graph, refs, points) -> None:
-    problems: dict[str, Problem] = {}
+    problems: dict[tuple[str, str], Problem] = {}
     for point in points:
-        for message in _problems(graph, dict(zip(refs, point))):
-            place = next((f"grid.{r}" for r in refs if f"'{r.variable}'" in message
-                          or f" {r.variable} " in message), "grid")
-            problems.setdefault(message, Problem(str(sweep.path), place, message))
+        for ref, message in _problems(graph, dict(zip(refs, point))):
+            place = f"grid.{ref}" if ref in refs else f"grid (with {ref})"
+            problems.setdefault((place, message), Problem(str(sweep.path), place, message))
     if problems:
         raise ScenarioError(list(problems.values()))
 
 
-def _problems(graph: Graph, values: dict[VarRef, Scalar]) -> list[str]:
+def _problems(graph: Graph, values: dict[VarRef, Scalar]) -> list[tuple[VarRef, str]]:
+    """(parameter, message) for each of the scenario's rules these values break."""
     by_instance: dict[str, dict[str, Scalar]] = {}
     for ref, value in values.items():
         by_instance.setdefault(ref.instance, {})[ref.variable] = value
-    return [m for name, vals in by_instance.items() for m in check_start_values(graph, name, vals)]
+    return [(VarRef(name, key), message) for name, vals in by_instance.items()
+            for key, message in check_start_values(graph, name, vals)]
