@@ -14,9 +14,12 @@ import logging
 import math
 import os
 import shutil
+import signal
 import sys
 import tempfile
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -32,7 +35,7 @@ from .sweep_spec import Run, Sweep, apply_experiment, load_sweep, plan_runs
 from .sweep_worker import CleanUp, RunResult, run_batch, with_values
 
 BATCHES_PER_WORKER = 4        # tasks per worker: load balance and little lost on a dead worker
-MAX_BATCH = 50
+MAX_BATCH = 25
 ERRORS = ("error.dx", "error.dy", "error.dtheta", "error.position")
 
 
@@ -60,31 +63,38 @@ def execute(graph: Graph, runs: list[Run], *, workers: int | None = None,
             scheduler: str | None = None,
             progress: Callable[[int, int], None] | None = None) -> Execution:
     """Run every planned run (those with a problem are failed rows without running)."""
+    tick = time.perf_counter()
+    with cluster(workers, scheduler) as (client, n_workers, address):
+        startup = time.perf_counter() - tick
+        tick = time.perf_counter()
+        results, complete = run_on(client, n_workers, graph, runs, progress)
+        wall = time.perf_counter() - tick
+    return Execution(results, n_workers, address, startup, wall, complete)
+
+
+def run_on(client, n_workers: int, graph: Graph, runs: list[Run],
+           progress: Callable[[int, int], None] | None = None) -> tuple[dict, bool]:
+    """Send the runs in batches to the client's workers and gather their rows by index.
+    Returns (rows, complete); Ctrl-C cancels what is left (complete False)."""
     from distributed import as_completed
     todo = [(r.index, r.values) for r in runs if r.problem is None]
     results = {r.index: RunResult(r.index, "failed", r.problem, {}, None, 0.0, 0.0)
                for r in runs if r.problem is not None}
     roles = find_roles(graph)
     path_names = (f"{roles.pose}.x", f"{roles.pose}.y") if roles.pose else None
-    tick = time.perf_counter()
-    with _cluster(workers, scheduler) as (client, n_workers, address):
-        startup = time.perf_counter() - tick
-        size = max(1, min(MAX_BATCH, math.ceil(len(todo) / (n_workers * BATCHES_PER_WORKER))))
-        batches = [todo[i:i + size] for i in range(0, len(todo), size)]
-        tick = time.perf_counter()
-        futures = {client.submit(run_batch, graph, b, path_names, pure=False): b for b in batches}
-        complete = True
-        try:
-            for future in as_completed(list(futures)):
-                for row in _batch_rows(future, futures[future]):
-                    results[row.index] = row
-                if progress is not None:
-                    progress(len(results), len(runs))
-        except KeyboardInterrupt:
-            client.cancel(list(futures))
-            complete = False
-        wall = time.perf_counter() - tick
-    return Execution(results, n_workers, address, startup, wall, complete)
+    size = max(1, min(MAX_BATCH, math.ceil(len(todo) / (n_workers * BATCHES_PER_WORKER))))
+    batches = [todo[i:i + size] for i in range(0, len(todo), size)]
+    futures = {client.submit(run_batch, graph, b, path_names, pure=False): b for b in batches}
+    try:
+        for future in as_completed(list(futures)):
+            for row in _batch_rows(future, futures[future]):
+                results[row.index] = row
+            if progress is not None:
+                progress(len(results), len(runs))
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        return results, False
+    return results, True
 
 
 def _batch_rows(future, batch) -> list[RunResult]:
@@ -95,8 +105,11 @@ def _batch_rows(future, batch) -> list[RunResult]:
         return [RunResult(index, "failed", message, {}, None, 0.0, 0.0) for index, _ in batch]
 
 
-class _cluster:
+class cluster:
     """Context: a connected Client, its worker count and the scheduler address (or 'local').
+    Local: one worker process per core (or `workers`), one thread each; the workers' statistical
+    profiler is off (it samples every worker thread's stack every 10 ms, costly next to FMU
+    calls that re-enter Python).
     A LocalCluster gets a scratch folder of its own, removed afterwards."""
 
     def __init__(self, workers: int | None, scheduler: str | None):
@@ -104,31 +117,42 @@ class _cluster:
         self.client = self.cluster = self.scratch = self.config = None
 
     def __enter__(self):
+        try:
+            return self._start()
+        except BaseException:            # Ctrl-C or no scheduler: leave nothing behind
+            self.__exit__(None, None, None)
+            raise
+
+    def _start(self):
         from distributed import Client, LocalCluster
         if self.scheduler:
             try:
                 self.client = Client(self.scheduler, timeout="20s")
                 self.client.wait_for_workers(1, timeout=60)
-            except (OSError, TimeoutError) as err:
+            except (OSError, TimeoutError, ValueError) as err:
                 raise ScenarioError([Problem("command line", "--scheduler", f"cannot use the "
-                                     f"Dask scheduler at {self.scheduler}: {err}; start one with "
-                                     "`dask scheduler` and `dask worker ADDRESS`")]) from None
+                                     f"Dask scheduler at {self.scheduler}: {err}; give tcp://HOST:PORT "
+                                     "of one started with `dask scheduler` (and `dask worker "
+                                     "ADDRESS`s)")]) from None
             n = len(self.client.scheduler_info(n_workers=-1)["workers"])
         else:
             n = self.workers or os.cpu_count() or 1
             self.scratch = tempfile.mkdtemp(prefix="mecanum_sweep_")
             import dask
-            self.config = dask.config.set({"temporary-directory": self.scratch})
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, local_directory=self.scratch,
-                                        silence_logs=logging.CRITICAL)
+            self.config = dask.config.set({"temporary-directory": self.scratch,
+                                           "distributed.worker.profile.enabled": False})
+            with _workers_ignore_ctrl_c():
+                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                            dashboard_address=None, local_directory=self.scratch,
+                                            silence_logs=logging.CRITICAL)
             self.client = self.cluster.get_client()
         self.client.register_plugin(CleanUp(), name=CleanUp.name)
         return self.client, n, self.scheduler or "local"
 
     def __exit__(self, *exc):
         try:
-            self.client.close()
+            if self.client is not None:
+                self.client.close()
             if self.cluster is not None:
                 self.cluster.close()
         finally:
@@ -137,6 +161,20 @@ class _cluster:
             if self.scratch:
                 shutil.rmtree(self.scratch, ignore_errors=True)
         return False
+
+
+@contextmanager
+def _workers_ignore_ctrl_c():
+    """Worker processes started in here ignore SIGINT (an ignored signal stays ignored in a
+    child, and Python keeps it so): Ctrl-C at a terminal reaches the whole process group, and
+    the client, not each worker, is the one to stop the sweep and cancel what is left."""
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        yield
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, previous)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -266,11 +304,11 @@ def run_sweep(path: str | Path, out_dir: Path | None = None, *, workers: int | N
     """The whole command. Returns the summary; raises Interrupted after writing on Ctrl-C."""
     sweep, graph, runs = prepare_sweep(path, fmu_dir)
     out_dir = Path(out_dir) if out_dir is not None else Path("results") / sweep.name
-    out_dir.mkdir(parents=True, exist_ok=True)
     log(f"{sweep.name}: {len(runs)} runs of {graph.scenario.name}, "
         + (f"scheduler {scheduler}" if scheduler else f"{workers or os.cpu_count()} local workers"))
     ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress)
     errors = end_errors(graph, runs, ex.results)
+    out_dir.mkdir(parents=True, exist_ok=True)
     write_runs_csv(out_dir / "runs.csv", sweep, graph, runs, ex.results, errors)
     summary = summarize(sweep, graph, runs, ex, errors)
     write_summary(out_dir / "summary.json", summary)
