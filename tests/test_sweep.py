@@ -236,3 +236,22 @@ def test_killed_worker_loses_no_run(twenty_runs, dask_cluster, built_fmus):
     with open(local / "runs.csv") as fh:
         expected = {int(r["run"]): float(r["pose.x"]) for r in csv.DictReader(fh)}
     assert {i: r.ends["pose.x"] for i, r in ex.results.items()} == expected
+
+
+def test_one_worn_wheel_turns_the_car_by_the_integrated_wheel_speed(built_fmus):
+    """dR1 alone adds dR1 * w1 / (4k) to the yaw rate (docs/spec.md, Kinematics: the yaw row
+    of the forward kinematics), with w1 = (vy - vx)/R at alpha = 45 deg and w = 0. Over the
+    circle the heading ends at dR1 / (4kR) * (sin 10 + cos 10 - 1); wheel 2 instead would turn
+    it by -dR2 / (4kR) * (sin 10 - cos 10 + 1)."""
+    from mecanum_fmu import master
+    from mecanum_fmu.runner import prepare
+    from mecanum_fmu.scenario import VarRef
+    from mecanum_fmu.sweep_worker import with_values
+    import math
+    graph = prepare(CIRCLE, fmu_dir=built_fmus["Wheel2Center"].parent)
+    R, k, d = 0.06, 0.16 + 0.12, 0.0003
+    for wheel, integral in ((1, math.sin(10) + math.cos(10) - 1),
+                            (2, -(math.sin(10) - math.cos(10) + 1))):
+        variant = with_values(graph, {VarRef("w2c", f"dR{wheel}"): d})
+        theta = master.simulate(variant, variant.scenario.experiment).final("pose.theta")
+        assert theta == pytest.approx(d / (4 * k * R) * integral, rel=1e-3)
