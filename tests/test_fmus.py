@@ -41,7 +41,7 @@ UNIT_OF = {"vx": "m/s", "vy": "m/s", "w": "rad/s",
            "w1": "rad/s", "w2": "rad/s", "w3": "rad/s", "w4": "rad/s",
            "alpha": "rad", "theta": "rad", "theta0": "rad",
            "L": "m", "W": "m", "R": "m", "x": "m", "y": "m", "x0": "m", "y0": "m",
-           "icr_x": "m", "icr_y": "m"}
+           "icr_x": "m", "icr_y": "m", "dR1": "m", "dR2": "m", "dR3": "m", "dR4": "m"}
 BASE_UNITS = {"m": {"m": 1}, "m/s": {"m": 1, "s": -1},
               "rad": {"rad": 1}, "rad/s": {"rad": 1, "s": -1}}
 SI_BASES = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
