@@ -305,7 +305,8 @@ def run_sweep(path: str | Path, out_dir: Path | None = None, *, workers: int | N
     sweep, graph, runs = prepare_sweep(path, fmu_dir)
     out_dir = Path(out_dir) if out_dir is not None else Path("results") / sweep.name
     log(f"{sweep.name}: {len(runs)} runs of {graph.scenario.name}, "
-        + (f"scheduler {scheduler}" if scheduler else f"{workers or os.cpu_count()} local workers"))
+        + (f"scheduler {scheduler}" if scheduler else
+           f"{workers or os.cpu_count()} local worker process(es)"))
     ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress)
     errors = end_errors(graph, runs, ex.results)
     out_dir.mkdir(parents=True, exist_ok=True)
