@@ -61,11 +61,13 @@ def prepare_sweep(path: str | Path, fmu_dir: Path | None = None) -> tuple[Sweep,
 
 def execute(graph: Graph, runs: list[Run], *, workers: int | None = None,
             scheduler: str | None = None,
-            progress: Callable[[int, int], None] | None = None) -> Execution:
+            progress: Callable[[int, int], None] | None = None,
+            log: Callable[[str], None] = lambda line: None) -> Execution:
     """Run every planned run (those with a problem are failed rows without running)."""
     tick = time.perf_counter()
     with cluster(workers, scheduler) as (client, n_workers, address):
         startup = time.perf_counter() - tick
+        log(f"{n_workers} worker(s) ready ({address}, {startup:.1f} s)")
         tick = time.perf_counter()
         results, complete = run_on(client, n_workers, graph, runs, progress)
         wall = time.perf_counter() - tick
@@ -307,7 +309,7 @@ def run_sweep(path: str | Path, out_dir: Path | None = None, *, workers: int | N
     log(f"{sweep.name}: {len(runs)} runs of {graph.scenario.name}, "
         + (f"scheduler {scheduler}" if scheduler else
            f"{workers or os.cpu_count()} local worker process(es)"))
-    ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress)
+    ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress, log=log)
     errors = end_errors(graph, runs, ex.results)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_runs_csv(out_dir / "runs.csv", sweep, graph, runs, ex.results, errors)
