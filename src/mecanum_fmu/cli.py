@@ -280,6 +280,8 @@ def cmd_sweep(args) -> int:
         def show(done: int, total: int) -> None:
             bar = "#" * (30 * done // total)
             print(f"\r  [{bar:<30}] {done}/{total} runs", end="", file=sys.stderr, flush=True)
+            if done == total:
+                print("\r" + " " * 60 + "\r", end="", file=sys.stderr, flush=True)
     try:
         summary = run_sweep(args.sweep, args.out, workers=args.workers, scheduler=args.scheduler,
                             plots=not args.no_plots, fmu_dir=args.fmu_dir, progress=show)
