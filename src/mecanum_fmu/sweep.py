@@ -146,7 +146,10 @@ class cluster:
             with _workers_ignore_ctrl_c():
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                             dashboard_address=None, local_directory=self.scratch,
-                                            silence_logs=logging.CRITICAL)
+                                            silence_logs=logging.CRITICAL, host="127.0.0.1",
+                                            # its HTTP server (health checks) on any free port,
+                                            # not 8787: several sweeps may run at once
+                                            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             self.client = self.cluster.get_client()
         self.client.register_plugin(CleanUp(), name=CleanUp.name)
         return self.client, n, self.scheduler or "local"
