@@ -166,10 +166,11 @@ def dask_cluster(tmp_path_factory):
         if p.poll() is None:
             p.terminate()
     for p in procs:
-        try:
-            p.wait(timeout=30)
+        try:      # a worker may hang in pythonfmu's exit crash (master.exit_now's reason)
+            p.wait(timeout=5)
         except subprocess.TimeoutExpired:
             p.kill()
+            p.wait()
 
 
 def _sweep_cli(args, tmp_path, env_tmp) -> subprocess.CompletedProcess:
