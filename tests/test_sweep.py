@@ -52,6 +52,10 @@ BAD = {
                          "random.samples", "> 0"),
     "output_not_settable": ("grid:\n  pose.x: [1.0]\n", "grid.pose.x", "cannot be set"),
     "bad_grid_value": ("grid:\n  w2c.R: [0.06, -0.01]\n", "grid.w2c.R", "must be > 0"),
+    "nan_value": ("grid:\n  w2c.R: [.nan]\n", "grid.w2c.R", "finite"),
+    "too_many_runs": ("random:\n  samples: 2000000\n  w2c.dR1: {normal: [0, 0.001]}\n",
+                      "random.samples", "split the study"),
+    "bad_step": ("experiment: {step_size: 0}\ngrid:\n  w2c.R: [0.06]\n", "experiment.step_size", "> 0"),
     "bad_expression": ("grid:\n  source.w_expr: ['0', 'sin(']\n", "grid.source.w_expr", ""),
     "text_for_a_number": ("grid:\n  w2c.R: ['big']\n", "grid.w2c.R", "expected a number"),
 }

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,10 +30,11 @@ import numpy as np
 from .errors import Problem, ScenarioError
 from .graph import Graph, check_start_values, settable_parameters
 from .scenario import (MASTERS, Scalar, VarRef, _read_yaml, check_experiment, did_you_mean,
-                       is_finite, parse_ref, show)
+                       is_finite, is_number, parse_ref, show)
 
 _TOP_KEYS = ("name", "description", "scenario", "experiment", "grid", "random")
 _EXPERIMENT_KEYS = ("start_time", "stop_time", "step_size", "master")
+MAX_RUNS = 1_000_000            # grid points x samples; more is surely a typo
 DISTRIBUTIONS = {"normal": "[mean, sd] with sd >= 0", "uniform": "[low, high] with low <= high"}
 
 
@@ -91,6 +93,10 @@ def load_sweep(path: str | Path) -> Sweep:
     seen = [str(ref) for ref, _ in grid] + [str(ref) for ref, _, _ in random]
     for dup in sorted({r for r in seen if seen.count(r) > 1}):
         bad(f"random.{dup}", f"'{dup}' is varied in both grid and random; vary it in one")
+    total = math.prod(len(v) for _, v in grid) * max(samples, 1)
+    if total > MAX_RUNS:
+        bad("grid" if grid else "random.samples", f"{total} runs (grid points x samples) is "
+            f"more than {MAX_RUNS:,}; split the study")
     if problems:
         raise ScenarioError(problems)
     return Sweep(path, name, (path.parent / scenario), experiment, grid, samples, seed, random)
@@ -137,6 +143,8 @@ def _grid(raw, bad) -> tuple:
             bad(place, f"expected a non-empty list of values, got {show(values)}")
         elif any(not isinstance(v, (bool, int, float, str)) for v in values):
             bad(place, "values must be numbers, true/false or text")
+        elif any(is_number(v) and not is_finite(v) for v in values):
+            bad(place, "values must be finite numbers (no .nan or .inf)")
         elif ref is not None:
             grid.append((ref, tuple(values)))
     return tuple(grid)
@@ -194,7 +202,7 @@ def apply_experiment(sweep: Sweep, graph: Graph) -> Graph:
     if not sweep.experiment:
         return graph
     experiment = dataclasses.replace(graph.scenario.experiment, **sweep.experiment)
-    problems = [Problem(str(sweep.path), f"experiment ({place})", msg)
+    problems = [Problem(str(sweep.path), place, msg)
                 for place, msg in check_experiment(experiment)]
     if problems:
         raise ScenarioError(problems)
