@@ -5,6 +5,7 @@ import closed_loop_order
 import endurance
 import loop_overhead
 import other_hosts
+import sweep
 from mecanum_fmu.process import exit_now
 
 if __name__ == "__main__":
@@ -16,5 +17,7 @@ if __name__ == "__main__":
     other_hosts.main()
     print("\n== closed-loop convergence (bench/closed_loop_order.py)")
     closed_loop_order.main()
+    print("\n== sweeps on Dask (bench/sweep.py)")
+    sweep.main([])
     print("\n== 1,000 runs in one process (bench/endurance.py)")
     exit_now(endurance.main([]))    # no interpreter shutdown with pythonfmu FMUs loaded

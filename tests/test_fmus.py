@@ -46,6 +46,7 @@ UNIT_OF = {"vx": "m/s", "vy": "m/s", "w": "rad/s",
            "alpha": "rad", "theta": "rad", "theta0": "rad",
            "L": "m", "W": "m", "R": "m", "x": "m", "y": "m", "x0": "m", "y0": "m",
            "icr_x": "m", "icr_y": "m", "w_max": "rad/s",
+           "dR1": "m", "dR2": "m", "dR3": "m", "dR4": "m",
            "k_pos": "1/s", "k_theta": "1/s"}
 BASE_UNITS = {"m": {"m": 1}, "m/s": {"m": 1, "s": -1},
               "rad": {"rad": 1}, "rad/s": {"rad": 1, "s": -1}, "1/s": {"s": -1}}

@@ -173,7 +173,8 @@ def test_wheel2center_fmu_valid(built_fmus):
     assert validate_fmu(str(path)) == []
     md = read_model_description(str(path))
     names = [v.name for v in md.modelVariables]
-    assert names[-3:] == ["icr_x", "icr_y", "has_icr"]
+    assert names[11:14] == ["icr_x", "icr_y", "has_icr"]
+    assert names[14:] == ["dR1", "dR2", "dR3", "dR4"]     # appended: earlier references unchanged
     assert names[:11] == ["w1", "w2", "w3", "w4", "alpha", "L", "W", "R", "vx", "vy", "w"]
     deps = {o.variable.name: [d.name for d in o.dependencies] for o in md.outputs}
     assert deps["has_icr"] == deps["icr_x"] == ["w1", "w2", "w3", "w4"]

@@ -14,7 +14,7 @@ from typing import Callable, Mapping
 
 from .blocks.expression import ExpressionError, compile_expression
 from .blocks.bicycle import bicycle_problem
-from .blocks.kinematics import GEOMETRY, geometry_problem
+from .blocks.kinematics import GEOMETRY, geometry_problem, radius_deviation_problem
 from .blocks.omni import omni_geometry_problem
 
 AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
@@ -55,6 +55,15 @@ def _check_expressions(values: Mapping[str, object], start_time: float) -> list[
     return problems
 
 
+def _check_forward(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """Wheel2Center: the geometry, and every effective wheel radius R + dRi > 0."""
+    problems = _check_geometry(values, start_time)
+    if not problems and "dR1" in values:
+        problems += _numbers_rule(("R", "dR1", "dR2", "dR3", "dR4"),
+                                  radius_deviation_problem)(values, start_time)
+    return problems
+
+
 def _check_inverse(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
     """Center2Wheel: the geometry, and w_max >= 0 (0: no wheel speed limit)."""
     problems = _check_geometry(values, start_time)
@@ -87,7 +96,7 @@ def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str
 MODELS: dict[str, Model] = {m.name: m for m in (
     Model("VelocitySource", "velocity_source", "source", _check_expressions),
     Model("Center2Wheel", "center2wheel", "inverse", _check_inverse),
-    Model("Wheel2Center", "wheel2center", "forward", _check_geometry),
+    Model("Wheel2Center", "wheel2center", "forward", _check_forward),
     Model("PoseIntegrator", "pose_integrator", "pose", _no_rules),
     Model("PathFollower", "path_follower", "follower", _check_follower),
     # the other two chassis of the original documents (docs/chassis.md)

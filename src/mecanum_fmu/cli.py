@@ -102,6 +102,23 @@ def _add_cross_check(sub) -> None:
     cross.set_defaults(func=cmd_cross_check)
 
 
+
+def _add_sweep(sub) -> None:
+    sweep = sub.add_parser("sweep", help="many runs of a scenario (grid and/or random draws) "
+                           "on a Dask cluster",
+                           description="Run the grid and random draws of a sweep file on a Dask "
+                                       "cluster; write runs.csv, summary.json and plots to "
+                                       "results/<name>/ (or --out). See docs/sweeps.md.")
+    sweep.add_argument("sweep", help="sweep file (.yaml)")
+    sweep.add_argument("--out", type=Path, help="output folder (default: results/<sweep name>)")
+    sweep.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    sweep.add_argument("--scheduler", help="address of a running `dask scheduler` "
+                       "(tcp://HOST:PORT) instead of local workers")
+    sweep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    sweep.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
+    sweep.set_defaults(func=cmd_sweep)
+
+
 def _add_doctor(sub) -> None:
     doctor = sub.add_parser("doctor", help="how to load the FMUs in other tools (LD_PRELOAD)",
                             description="Print where the FMUs are and the LD_PRELOAD line "
@@ -110,7 +127,8 @@ def _add_doctor(sub) -> None:
     doctor.set_defaults(func=cmd_doctor)
 
 
-COMMANDS = (_add_run, _add_validate, _add_fmus, _add_info, _add_export_ssp, _add_cross_check, _add_doctor)
+COMMANDS = (_add_run, _add_validate, _add_fmus, _add_info, _add_export_ssp, _add_cross_check, _add_sweep,
+            _add_doctor)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -279,3 +297,27 @@ def cmd_doctor(args) -> int:
     for line in doctor_lines(args.fmu_dir):
         print(line)
     return 0
+
+
+def cmd_sweep(args) -> int:
+    from .sweep import run_sweep
+    if args.workers is not None and args.workers < 1:
+        raise ScenarioError([Problem("command line", "--workers", f"{args.workers} is not a "
+                                     "worker count; give 1 or more")])
+    if args.workers is not None and args.scheduler:
+        raise ScenarioError([Problem("command line", "--workers", "the workers of --scheduler "
+                                     "are started with `dask worker`; give one of the two")])
+    show = None
+    if sys.stderr.isatty():
+        def show(done: int, total: int) -> None:
+            bar = "#" * (30 * done // total)
+            print(f"\r  [{bar:<30}] {done}/{total} runs", end="", file=sys.stderr, flush=True)
+            if done == total:
+                print("\r" + " " * 60 + "\r", end="", file=sys.stderr, flush=True)
+    try:
+        summary = run_sweep(args.sweep, args.out, workers=args.workers, scheduler=args.scheduler,
+                            plots=not args.no_plots, fmu_dir=args.fmu_dir, progress=show)
+    finally:
+        if show is not None:
+            print("\r" + " " * 60 + "\r", end="", file=sys.stderr)
+    return 0 if summary["failed"] == 0 else 1

@@ -366,3 +366,28 @@ def _feedback_into_state(instances: list[Instance], links: list[Link]) -> set[st
         if names is not None and target.variable not in names and reaches(target.instance, source):
             out.add(str(target))
     return out
+
+
+def settable_parameters(inst: Instance) -> list[str]:
+    """The names whose start value a scenario (or a sweep) may set on this instance."""
+    return [v.name for v in inst.model.modelVariables if _settable(v)]
+
+
+def check_start_values(graph: Graph, name: str, values: dict[str, Scalar]) -> list[tuple[str, str]]:
+    """Check new start values for instance `name` (over its current ones) by the same rules as
+    a scenario's parameters (settable, type, our FMUs' value rules). Returns (parameter,
+    message) pairs."""
+    inst = graph.instance(name)
+    own = {v.name: v for v in inst.model.modelVariables}
+    problems: list[tuple[str, str]] = []
+    for key, value in values.items():
+        var = own.get(key)
+        if not _settable(var):
+            problems.append((key, f"'{key}' cannot be set on {inst.model_name} instance '{name}'"))
+        elif (message := _type_problem(var, value)) is not None:
+            problems.append((key, message))
+    model = bundled_model(inst.model)
+    if not problems and model is not None:
+        merged = {n: inst.value(n) for n in own} | values
+        problems = model.check(merged, graph.scenario.experiment.start_time)
+    return problems

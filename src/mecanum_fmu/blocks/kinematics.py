@@ -39,6 +39,24 @@ def check_wheel_limit(w_max: float) -> None:
                          "(0: no wheel speed limit)")
 
 
+def radius_deviation_problem(R: float, *dR: float):
+    """(parameter, message) for the first wheel whose effective radius R + dRi is not > 0."""
+    for i, d in enumerate(dR, start=1):
+        if not isinstance(d, (int, float)) or not math.isfinite(d):
+            return f"dR{i}", f"parameter dR{i} = {d!r} is not a finite number"
+        if not R + d > 0.0:
+            return f"dR{i}", (f"parameter dR{i} = {d!r} m makes the effective radius "
+                              f"R + dR{i} = {R + d!r} m, which must be > 0")
+    return None
+
+
+def check_radius_deviations(R: float, dR: tuple[float, ...]) -> None:
+    """Raise ValueError for the first wheel whose effective radius R + dRi is not > 0."""
+    problem = radius_deviation_problem(R, *dR)
+    if problem is not None:
+        raise ValueError(problem[1])
+
+
 def lever_arm(alpha: float, L: float, W: float) -> float:
     """k = L + W*cot(alpha): the yaw lever arm in the wheel rows of the matrix."""
     return L + W / math.tan(alpha)
@@ -57,12 +75,19 @@ def center_to_wheel(vx: float, vy: float, w: float,
 
 
 def wheel_to_center(w1: float, w2: float, w3: float, w4: float,
-                    alpha: float, L: float, W: float, R: float) -> tuple[float, float, float]:
+                    alpha: float, L: float, W: float, R: float,
+                    dR: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+                    ) -> tuple[float, float, float]:
     """Forward kinematics: wheel speeds -> chassis twist (vx, vy, w).
 
     The columns of the wheel matrix are orthogonal, so this is exactly its least-squares
     inverse: inconsistent wheel speeds (slip, noise) give the best-fitting twist.
+    dR: per-wheel effective-radius deviations (a worn or slipping wheel rolls the chassis
+    with R + dRi): wheel i counts as the speed wi * (R + dRi) / R of a nominal wheel. At
+    dRi = 0 the factor is exactly 1.0, so the result is bit-for-bit the nominal one.
     """
+    if dR[0] or dR[1] or dR[2] or dR[3]:
+        w1, w2, w3, w4 = (w * ((R + d) / R) for w, d in zip((w1, w2, w3, w4), dR))
     k = L + W / math.tan(alpha)
     return (R * math.tan(alpha) / 4.0 * (-w1 + w2 - w3 + w4),
             R / 4.0 * (w1 + w2 + w3 + w4),

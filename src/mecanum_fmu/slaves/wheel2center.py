@@ -4,12 +4,13 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
-from mecanum_fmu.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, instantaneous_center, wheel_to_center  # inline
+from mecanum_fmu.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, check_radius_deviations, instantaneous_center, wheel_to_center  # inline
 
 _WHEELS = ("w1", "w2", "w3", "w4")
 _TWIST = ("vx", "vy", "w")
 _GEOMETRY = ("alpha", "L", "W", "R")
 _ICR = ("icr_x", "icr_y", "has_icr")
+_DEVIATIONS = ("dR1", "dR2", "dR3", "dR4")
 
 
 class Wheel2Center(Fmi2Slave):
@@ -19,9 +20,10 @@ class Wheel2Center(Fmi2Slave):
                    "Direct feedthrough.")
     UNITS = {"vx": "m/s", "vy": "m/s", "w": "rad/s", "w1": "rad/s", "w2": "rad/s",
              "w3": "rad/s", "w4": "rad/s", "alpha": "rad", "L": "m", "W": "m", "R": "m",
-             "icr_x": "m", "icr_y": "m"}
+             "icr_x": "m", "icr_y": "m",
+             "dR1": "m", "dR2": "m", "dR3": "m", "dR4": "m"}
     DEPENDENCIES = {name: _WHEELS for name in _TWIST + _ICR}
-    INITIAL_DEPENDENCIES = {name: _WHEELS + _GEOMETRY for name in _TWIST + _ICR}
+    INITIAL_DEPENDENCIES = {name: _WHEELS + _GEOMETRY + _DEVIATIONS for name in _TWIST + _ICR}
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
 
     def __init__(self, **kwargs):
@@ -29,6 +31,7 @@ class Wheel2Center(Fmi2Slave):
         self.w1 = self.w2 = self.w3 = self.w4 = 0.0
         for name, value in DEFAULT_GEOMETRY.items():
             setattr(self, name, value)
+        self.dR1 = self.dR2 = self.dR3 = self.dR4 = 0.0
         self.vx = self.vy = self.w = 0.0
         self.icr_x = self.icr_y = 0.0
         self.has_icr = False
@@ -63,12 +66,20 @@ class Wheel2Center(Fmi2Slave):
                                        variability=Fmi2Variability.discrete,
                                        description="true when |w| >= 1e-9 rad/s (not a pure "
                                                    "translation), so the ICR exists"))
+        # Registered last so every earlier value reference stays unchanged.
+        for name, where in zip(_DEVIATIONS, wheel_docs):
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                        variability=Fmi2Variability.fixed,
+                                        description=f"{where} wheel effective-radius deviation: "
+                                                    "the forward kinematics uses R + this "
+                                                    "(worn or slipping wheel); 0 is nominal"))
 
     def _update(self):
         # Direct feedthrough: outputs follow the inputs at once, no step needed.
         try:
             self.vx, self.vy, self.w = wheel_to_center(
-                self.w1, self.w2, self.w3, self.w4, self.alpha, self.L, self.W, self.R)
+                self.w1, self.w2, self.w3, self.w4, self.alpha, self.L, self.W, self.R,
+                (self.dR1, self.dR2, self.dR3, self.dR4))
             self.icr_x, self.icr_y, self.has_icr = instantaneous_center(self.vx, self.vy, self.w)
         except (ArithmeticError, TypeError):
             pass  # invalid geometry: reported by enter_initialization_mode
@@ -80,6 +91,7 @@ class Wheel2Center(Fmi2Slave):
     def enter_initialization_mode(self):
         try:
             check_geometry(self.alpha, self.L, self.W, self.R)
+            check_radius_deviations(self.R, (self.dR1, self.dR2, self.dR3, self.dR4))
         except ValueError as err:
             self.log(f"Wheel2Center: {err}", Fmi2Status.error)
             raise
