@@ -149,7 +149,7 @@ def hidden_hosts(tmp_path, monkeypatch):
         (tmp_path / "shadow" / name).mkdir(parents=True)
         (tmp_path / "shadow" / name / "__init__.py").write_text(
             "raise ImportError('simulated: not installed')\n")
-    src = str(Path(master.__file__).resolve().parents[1])
+    src = str(ROOT / "src")
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path / "shadow"), src]))
 
 
