@@ -1,8 +1,10 @@
 """The original study's figures (SPEC sections 1 and 5) as PNGs, drawn without pyplot.
 
 One drawing function per panel, each taking an Axes; `build_figures` gives every panel its own
-figure, `build_dashboard` puts them all in one, `write_plots` saves both. A panel with nothing to
-draw (its role is None or its columns were not recorded) is left out.
+figure, `build_dashboard` puts them all in one. `write_plots` draws the dashboard once and saves
+it and, cut from the same rendered pixels, one PNG per panel (drawing every panel twice and laying
+out seven figures cost more than the simulation). A panel with nothing to draw (its role is None
+or its columns were not recorded) is left out.
 """
 from __future__ import annotations
 
@@ -21,8 +23,11 @@ from .results import Results
 
 MAX_POINTS = 5000                 # more rows than this are decimated before drawing
 PANEL_SIZE = (6.0, 4.5)           # inches
-DASHBOARD_SIZE = (12.0, 10.0)
+DASHBOARD_SIZE = (12.0, 10.0)     # up to three rows of panels; more rows make it taller
+ROW_HEIGHT = 3.4                  # inches per row beyond three
 DPI = 100
+MARGINS = dict(left=0.07, right=0.98, wspace=0.22)   # fixed: no layout engine on the run path
+PAD = 6                           # pixels kept around a panel cut from the dashboard
 TWIST = ("vx", "vy", "w")
 WHEELS = (("w1", "front-right"), ("w2", "front-left"), ("w3", "rear-left"), ("w4", "rear-right"))
 
@@ -187,8 +192,8 @@ def available_panels(results: Results, roles: Roles) -> list[str]:
     return [key for key, panel in PANELS.items() if panel.needs(results, roles)]
 
 
-def _figure(size: tuple[float, float]) -> Figure:
-    fig = Figure(figsize=size, dpi=DPI, layout="constrained")
+def _figure(size: tuple[float, float], layout: str | None = "constrained") -> Figure:
+    fig = Figure(figsize=size, dpi=DPI, layout=layout)
     FigureCanvasAgg(fig)
     return fig
 
@@ -206,12 +211,22 @@ def build_figures(results: Results, roles: Roles, truth: Truth | None,
     return figures
 
 
+def _margins(height: float, rows: int) -> dict[str, float]:
+    """Fixed subplot margins for `rows` rows in a dashboard `height` inches tall: 0.8 in on top
+    for the title, 0.5 in below for the last x label, 0.8 in between rows (a title, an x label)."""
+    top, bottom, gap = 0.8, 0.5, 0.8
+    axes_height = (height - top - bottom - (rows - 1) * gap) / rows
+    return dict(MARGINS, top=1 - top / height, bottom=bottom / height, hspace=gap / axes_height)
+
+
 def build_dashboard(results: Results, roles: Roles, truth: Truth | None,
                     title: str = "") -> Figure:
-    """All available panels in one figure, two columns."""
-    fig = _figure(DASHBOARD_SIZE)
+    """All available panels in one figure, two columns, fixed margins."""
     keys = available_panels(results, roles)
     rows = max(1, math.ceil(len(keys) / 2))
+    height = max(DASHBOARD_SIZE[1], ROW_HEIGHT * rows)
+    fig = _figure((DASHBOARD_SIZE[0], height), layout=None)
+    fig.subplots_adjust(**_margins(height, rows))
     for i, key in enumerate(keys):
         ax = fig.add_subplot(rows, 2, i + 1)
         PANELS[key].draw(ax, results, roles, truth)
@@ -222,17 +237,49 @@ def build_dashboard(results: Results, roles: Roles, truth: Truth | None,
     return fig
 
 
+def panel_boxes(fig: Figure) -> list[tuple[int, int, int, int]]:
+    """Pixel boxes (top, bottom, left, right; rows from the top) of each axes of a drawn
+    dashboard: its tight box (title, labels, legend) plus PAD, kept inside its grid cell so
+    neighbouring panels never share pixels."""
+    renderer = fig.canvas.get_renderer()
+    width, height = fig.canvas.get_width_height()
+    title_bottom = fig.get_suptitle() and fig._suptitle.get_window_extent(renderer).y0
+    boxes = []
+    for ax in fig.axes:
+        spec = ax.get_subplotspec()
+        rows, cols = spec.get_geometry()[:2]
+        row, col = divmod(spec.num1, cols)
+        top_px = title_bottom or height       # the cells share what lies below the title
+        cell_h = top_px / rows
+        cell = (col * width / cols, (col + 1) * width / cols,
+                top_px - (row + 1) * cell_h, top_px - row * cell_h)
+        tight = ax.get_tightbbox(renderer)
+        x0, x1 = max(tight.x0 - PAD, cell[0]), min(tight.x1 + PAD, cell[1])
+        y0, y1 = max(tight.y0 - PAD, cell[2]), min(tight.y1 + PAD, cell[3])
+        boxes.append((int(height - y1), int(math.ceil(height - y0)), int(x0), int(math.ceil(x1))))
+    return boxes
+
+
+def _save_png(pixels: np.ndarray, path: Path) -> None:
+    from matplotlib.image import imsave
+    imsave(path, pixels, format="png", dpi=DPI, metadata={"Software": "mecanum_fmu (matplotlib)"})
+
+
 def write_plots(results: Results, roles: Roles, truth: Truth | None, out_dir: Path | str,
                 title: str = "") -> list[Path]:
-    """Write dashboard.png and <panel>.png for each available panel; return the paths."""
+    """Write dashboard.png and <panel>.png for each available panel; return the paths.
+
+    The dashboard is drawn once; each panel's PNG is its part of the dashboard's pixels."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    figures = {"dashboard": build_dashboard(results, roles, truth, title)}
-    figures.update(build_figures(results, roles, truth, title))
-    paths = []
-    for key, fig in figures.items():
-        path = out_dir / f"{key}.png"
-        fig.savefig(path)
-        fig.clear()            # not registered with pyplot: clearing frees it for the GC
-        paths.append(path)
+    fig = build_dashboard(results, roles, truth, title)
+    fig.canvas.draw()
+    pixels = np.asarray(fig.canvas.buffer_rgba())
+    paths = [out_dir / "dashboard.png"]
+    _save_png(pixels, paths[0])
+    for key, (top, bottom, left, right) in zip(available_panels(results, roles),
+                                               panel_boxes(fig)):
+        paths.append(out_dir / f"{key}.png")
+        _save_png(pixels[top:bottom, left:right], paths[-1])
+    fig.clear()            # not registered with pyplot: clearing frees it for the GC
     return paths
