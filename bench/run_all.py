@@ -4,6 +4,7 @@ import accuracy
 import endurance
 import loop_overhead
 import other_hosts
+import turnaround
 from mecanum_fmu import master
 
 if __name__ == "__main__":
@@ -13,5 +14,7 @@ if __name__ == "__main__":
     loop_overhead.main()
     print("\n== the same run in other FMI hosts (bench/other_hosts.py)")
     other_hosts.main()
+    print("\n== command-line turnaround: plots and validate (bench/turnaround.py)")
+    turnaround.main()
     print("\n== 1,000 runs in one process (bench/endurance.py)")
     master.exit_now(endurance.main([]))    # no interpreter shutdown with pythonfmu FMUs loaded

@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .blocks.expression import compile_expression
 from .blocks.pose import pose_rate
@@ -56,6 +55,7 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
     roles = find_roles(graph)
     if roles.source is None:
         return None
+    from scipy.integrate import solve_ivp     # here: loading and validating need no scipy
     source = graph.instance(roles.source)
     funcs = [compile_expression(str(source.start_values.get(k, SOURCE_DEFAULTS[k])))
              for k in ("vx_expr", "vy_expr", "w_expr")]

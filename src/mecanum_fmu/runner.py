@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from . import master
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
 from .ground_truth import Truth, find_roles, ground_truth
@@ -65,9 +64,14 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
     out_dir.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
+    from . import master    # here: `validate` needs neither the FMI runtime nor matplotlib
+    from .plot_worker import PlotWorker
+    plotter = PlotWorker.start() if plots else None     # imports matplotlib while we simulate
     try:
         results = master.simulate(graph, scenario.experiment, progress=progress)
     except (SimulationError, Interrupted) as err:
+        if plotter is not None:
+            plotter.cancel()
         if err.results is not None:
             summary = summarize(graph, err.results, None)
             summary["error_message"] = str(err)
@@ -81,9 +85,9 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         log(line)
     stage = "plots"
     try:
-        if plots:
-            from .plots import write_plots
-            files += write_plots(results, find_roles(graph), truth, out_dir, title=scenario.name)
+        if plotter is not None:
+            files += plotter.finish(results, find_roles(graph), truth, out_dir,
+                                    title=scenario.name)
         stage = "animation"
         if animate:
             from .animation import write_animation

@@ -1,0 +1,120 @@
+"""Draw the plots in a second process that imports matplotlib while this one simulates.
+
+Importing matplotlib costs about as much as a short run. `PlotWorker.start()` (at the start of
+`run`) launches `python -m mecanum_fmu.plot_worker`, which imports the plotting code and draws
+one throw-away figure (fonts, caches) while the parent simulates, then waits on its stdin.
+`finish()` sends it the results (pickled: parent to its own child, never user text) and returns
+the PNG paths it wrote; `cancel()` lets it go. On a machine with a free core the import is hidden.
+A worker that cannot start (no interpreter executable, e.g. embedded Python) falls back to
+drawing in this process.
+"""
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import subprocess
+import sys
+import weakref
+from pathlib import Path
+
+PACKAGE_PARENT = Path(__file__).resolve().parents[1]     # so the child finds this package
+
+
+class PlotFailed(RuntimeError):
+    """The worker could not write the plots; the message is the child's own error."""
+
+
+class PlotWorker:
+    def __init__(self, proc: subprocess.Popen | None):
+        self._proc = proc
+        if proc is not None:     # a run that raised before finish(): the worker goes with it
+            weakref.finalize(self, _stop, proc)
+
+    @classmethod
+    def start(cls) -> "PlotWorker":
+        if not sys.executable:
+            return cls(None)
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_PARENT),
+                                                          env.get("PYTHONPATH")]))
+        env.setdefault("MPLBACKEND", "Agg")
+        try:
+            proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                    stdout=subprocess.PIPE, env=env)
+        except OSError:
+            proc = None
+        return cls(proc)
+
+    def finish(self, results, roles, truth, out_dir: Path, title: str = "") -> list[Path]:
+        """Have the worker write the plots (or draw them here without one); the PNG paths."""
+        job = (results, roles, truth, str(out_dir), title)
+        if self._proc is None:
+            return _draw(*job)
+        proc, self._proc = self._proc, None
+        try:
+            out, _ = proc.communicate(pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL))
+        except BrokenPipeError:      # the worker died before reading: its exit says why
+            out = proc.stdout.read() if proc.stdout else b""
+            proc.wait()
+        try:
+            answer = json.loads(out.decode() or "{}")
+        except ValueError:
+            answer = {}
+        if proc.returncode != 0 or "paths" not in answer:
+            raise PlotFailed(answer.get("error") or
+                             f"the plotting process exited with code {proc.returncode}")
+        return [Path(p) for p in answer["paths"]]
+
+    def cancel(self) -> None:
+        """No plots after all (the run failed): stop the worker."""
+        proc, self._proc = self._proc, None
+        if proc is not None:
+            _stop(proc)
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    if proc.returncode is None:
+        proc.kill()
+        proc.communicate()
+
+
+def _draw(results, roles, truth, out_dir: str, title: str) -> list[Path]:
+    from .plots import write_plots
+    return write_plots(results, roles, truth, Path(out_dir), title=title)
+
+
+def _warm_up() -> None:
+    """Draw a small figure with the dashboard's kinds of artists once: the first draw loads
+    fonts and fills caches, which is then done before the results arrive."""
+    from .plots import _figure
+    fig = _figure((2.0, 1.5), layout=None)
+    ax = fig.add_subplot()
+    ax.plot([0, 1], [0, 1], "--", label="warm-up")
+    ax.plot([0.5], [0.5], "o")
+    ax.set_title("warm-up")
+    ax.set_xlabel("t [s]")
+    ax.legend()
+    ax.grid(True)
+    fig.suptitle("warm-up")
+    fig.canvas.draw()
+
+
+def main() -> int:
+    _warm_up()
+    data = sys.stdin.buffer.read()
+    if not data:                # cancelled: the parent closed our stdin
+        return 0
+    try:
+        paths = _draw(*pickle.loads(data))
+    except Exception as err:    # reported by the parent with the files it kept
+        answer, code = {"error": f"{type(err).__name__}: {err}"}, 1
+    else:
+        answer, code = {"paths": [str(p) for p in paths]}, 0
+    sys.stdout.write(json.dumps(answer))
+    sys.stdout.flush()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
