@@ -7,12 +7,15 @@ it is independent of the FMUs, the coupling and the step size.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .blocks.expression import compile_expression
 from .blocks.pose import pose_rate
-from .graph import Graph
+
+if TYPE_CHECKING:       # only for annotations: the plotting process needs Roles, not the graph
+    from .graph import Graph
 
 SOURCE_DEFAULTS = {"vx_expr": "sin(t)", "vy_expr": "cos(t)", "w_expr": "0"}
 

@@ -27,6 +27,8 @@ DASHBOARD_SIZE = (12.0, 10.0)     # up to three rows of panels; more rows make i
 ROW_HEIGHT = 3.4                  # inches per row beyond three
 DPI = 100
 MARGINS = dict(left=0.07, right=0.98, wspace=0.22)   # fixed: no layout engine on the run path
+TITLE_ROOM = 0.4                  # inches above a dashboard panel for its title
+LABEL_ROOM = 0.55                 # inches below it for tick labels and the x label
 PAD = 6                           # pixels kept around a panel cut from the dashboard
 TWIST = ("vx", "vy", "w")
 WHEELS = (("w1", "front-right"), ("w2", "front-left"), ("w3", "rear-left"), ("w4", "rear-right"))
@@ -212,9 +214,9 @@ def build_figures(results: Results, roles: Roles, truth: Truth | None,
 
 
 def _margins(height: float, rows: int) -> dict[str, float]:
-    """Fixed subplot margins for `rows` rows in a dashboard `height` inches tall: 0.8 in on top
-    for the title, 0.5 in below for the last x label, 0.8 in between rows (a title, an x label)."""
-    top, bottom, gap = 0.8, 0.5, 0.8
+    """Fixed subplot margins for `rows` rows in a dashboard `height` inches tall: room on top
+    for the title, below for the last row's labels, between rows for both."""
+    top, bottom, gap = 0.8, LABEL_ROOM, TITLE_ROOM + LABEL_ROOM
     axes_height = (height - top - bottom - (rows - 1) * gap) / rows
     return dict(MARGINS, top=1 - top / height, bottom=bottom / height, hspace=gap / axes_height)
 
@@ -230,33 +232,34 @@ def build_dashboard(results: Results, roles: Roles, truth: Truth | None,
     for i, key in enumerate(keys):
         ax = fig.add_subplot(rows, 2, i + 1)
         PANELS[key].draw(ax, results, roles, truth)
-        ax.set_title(PANELS[key].title)
+        ax.set_title(PANELS[key].title, y=1.0)      # a fixed y: no search for a free place
     head = f"{title} - " if title else ""
     fig.suptitle(f"{head}{results.master}, step {results.step_size:g} s"
                  + ("" if keys else " (nothing to plot)"))
     return fig
 
 
-def panel_boxes(fig: Figure) -> list[tuple[int, int, int, int]]:
-    """Pixel boxes (top, bottom, left, right; rows from the top) of each axes of a drawn
-    dashboard: its tight box (title, labels, legend) plus PAD, kept inside its grid cell so
-    neighbouring panels never share pixels."""
-    renderer = fig.canvas.get_renderer()
-    width, height = fig.canvas.get_width_height()
-    title_bottom = fig.get_suptitle() and fig._suptitle.get_window_extent(renderer).y0
+def panel_boxes(fig: Figure, pixels: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """Pixel boxes (top, bottom, left, right; rows from the top) of each panel of a drawn
+    dashboard: its grid cell (the axes plus the fixed room around it for its title, labels and
+    tick labels, so neighbours never share pixels) trimmed to what is drawn in it, plus PAD."""
+    height, width = pixels.shape[:2]
+    ink = (pixels[..., :3] != 255).any(axis=2)        # not the white background
     boxes = []
     for ax in fig.axes:
-        spec = ax.get_subplotspec()
-        rows, cols = spec.get_geometry()[:2]
-        row, col = divmod(spec.num1, cols)
-        top_px = title_bottom or height       # the cells share what lies below the title
-        cell_h = top_px / rows
-        cell = (col * width / cols, (col + 1) * width / cols,
-                top_px - (row + 1) * cell_h, top_px - row * cell_h)
-        tight = ax.get_tightbbox(renderer)
-        x0, x1 = max(tight.x0 - PAD, cell[0]), min(tight.x1 + PAD, cell[1])
-        y0, y1 = max(tight.y0 - PAD, cell[2]), min(tight.y1 + PAD, cell[3])
-        boxes.append((int(height - y1), int(math.ceil(height - y0)), int(x0), int(math.ceil(x1))))
+        pos = ax.get_position()                       # figure fraction, y up
+        top = int(height * (1 - pos.y1) - TITLE_ROOM * DPI)
+        bottom = int(height * (1 - pos.y0) + LABEL_ROOM * DPI)
+        left = 0 if pos.x0 < 0.5 else int(width / 2)
+        right = int(width / 2) if pos.x0 < 0.5 else width
+        top, bottom = max(top, 0), min(bottom, height)
+        cell = ink[top:bottom, left:right]
+        rows, cols = np.flatnonzero(cell.any(axis=1)), np.flatnonzero(cell.any(axis=0))
+        if len(rows) == 0:
+            boxes.append((top, bottom, left, right))
+            continue
+        boxes.append((max(top + rows[0] - PAD, top), min(top + rows[-1] + 1 + PAD, bottom),
+                      max(left + cols[0] - PAD, left), min(left + cols[-1] + 1 + PAD, right)))
     return boxes
 
 
@@ -278,7 +281,7 @@ def write_plots(results: Results, roles: Roles, truth: Truth | None, out_dir: Pa
     paths = [out_dir / "dashboard.png"]
     _save_png(pixels, paths[0])
     for key, (top, bottom, left, right) in zip(available_panels(results, roles),
-                                               panel_boxes(fig)):
+                                               panel_boxes(fig, pixels)):
         paths.append(out_dir / f"{key}.png")
         _save_png(pixels[top:bottom, left:right], paths[-1])
     fig.clear()            # not registered with pyplot: clearing frees it for the GC
