@@ -143,3 +143,22 @@ def test_validate_loads_neither_matplotlib_nor_scipy(built_fmus):
     ours = {m for m in modules if m.startswith("mecanum_fmu.")}
     assert {"mecanum_fmu.graph", "mecanum_fmu.scenario"} <= ours          # it did validate
     assert not ours & {"mecanum_fmu.plots", "mecanum_fmu.plot_worker", "mecanum_fmu.master"}
+
+
+def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
+    """The worker builds the dashboard's frame from the graph alone; for the seed circle it
+    has the run's six panels and title, and drawing into it gives the same bytes."""
+    from mecanum_fmu.plot_worker import _frame_hint
+    from mecanum_fmu.runner import prepare, run
+    graph = prepare(CIRCLE, fmu_dir=next(iter(built_fmus.values())).parent)
+    stand_in, roles, title = _frame_hint(graph)
+    outcome = run(graph, tmp_path / "run", plots=False, log=lambda line: None)
+    frame = plots.dashboard_frame(stand_in, roles, title)
+    assert frame.keys == plots.available_panels(outcome.results, roles) == PANEL_KEYS + ["icr"]
+    assert frame.figure.get_suptitle() == "circle - trapezoidal, step 0.05 s"
+    here = plots.write_plots(outcome.results, roles, outcome.truth, tmp_path / "here", title)
+    there = PlotWorker.start(graph).finish(outcome.results, roles, outcome.truth,
+                                           tmp_path / "there", title)
+    assert [p.name for p in there] == [p.name for p in here]
+    for a, b in zip(here, there):
+        assert a.read_bytes() == b.read_bytes(), a.name

@@ -1,8 +1,9 @@
 """Draw the plots in a second process that imports matplotlib while this one simulates.
 
 Importing matplotlib costs about as much as a short run. `PlotWorker.start()` (at the start of
-`run`) launches `python -m mecanum_fmu.plot_worker`, which imports the plotting code and draws
-one throw-away figure (fonts, caches) while the parent simulates, then waits on its stdin.
+`run`) launches `python -m mecanum_fmu.plot_worker` and sends it the run's column names and
+settings; the worker imports the plotting code and builds and draws the dashboard's frame (axes,
+titles: fonts, ticks, caches) while the parent simulates, then waits on its stdin.
 `finish()` sends it the results (pickled: parent to its own child, never user text) and returns
 the PNG paths it wrote; `cancel()` lets it go. On a machine with a free core the import is hidden.
 A worker that cannot start (no interpreter executable, e.g. embedded Python) falls back to
@@ -32,7 +33,8 @@ class PlotWorker:
             weakref.finalize(self, _stop, proc)
 
     @classmethod
-    def start(cls) -> "PlotWorker":
+    def start(cls, graph=None) -> "PlotWorker":
+        """Launch the worker; with the run's graph it prepares the dashboard's frame."""
         if not sys.executable:
             return cls(None)
         env = dict(os.environ)
@@ -42,8 +44,10 @@ class PlotWorker:
         try:
             proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
                                     stdout=subprocess.PIPE, env=env)
+            proc.stdin.write(pickle.dumps(_frame_hint(graph), protocol=pickle.HIGHEST_PROTOCOL))
+            proc.stdin.flush()
         except OSError:
-            proc = None
+            return cls(None)
         return cls(proc)
 
     def finish(self, results, roles, truth, out_dir: Path, title: str = "") -> list[Path]:
@@ -79,34 +83,54 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.communicate()
 
 
-def _draw(results, roles, truth, out_dir: str, title: str) -> list[Path]:
+def _frame_hint(graph) -> tuple | None:
+    """What the dashboard's frame needs before the run ends: a one-row stand-in for the
+    results (the recorded column names and the run's settings), the roles and the title."""
+    if graph is None:
+        return None
+    import numpy as np
+    from .ground_truth import find_roles
+    from .results import Results
+    names = tuple(str(port.ref) for port in graph.recorded)
+    exp = graph.scenario.experiment
+    stand_in = Results(names, np.zeros(1, dtype=[("time", "f8")] + [(n, "f8") for n in names]),
+                       exp.master, exp.start_time, exp.stop_time, exp.step_size, 0, 0.0)
+    return stand_in, find_roles(graph), graph.scenario.name
+
+
+def _draw(results, roles, truth, out_dir: str, title: str, frame=None) -> list[Path]:
     from .plots import write_plots
-    return write_plots(results, roles, truth, Path(out_dir), title=title)
+    return write_plots(results, roles, truth, Path(out_dir), title=title, frame=frame)
 
 
-def _warm_up() -> None:
-    """Draw a small figure with the dashboard's kinds of artists once: the first draw loads
-    fonts and fills caches, which is then done before the results arrive."""
-    from .plots import _figure
+def _prepare(hint: tuple | None):
+    """Draw the dashboard's frame once (or, without a hint, a small figure): the first draw
+    loads fonts and fills caches, and the frame's axes and ticks are then ready."""
+    from .plots import _figure, dashboard_frame
+    if hint is not None:
+        frame = dashboard_frame(*hint)
+        frame.figure.canvas.draw()
+        return frame
     fig = _figure((2.0, 1.5), layout=None)
     ax = fig.add_subplot()
     ax.plot([0, 1], [0, 1], "--", label="warm-up")
-    ax.plot([0.5], [0.5], "o")
     ax.set_title("warm-up")
-    ax.set_xlabel("t [s]")
     ax.legend()
-    ax.grid(True)
-    fig.suptitle("warm-up")
     fig.canvas.draw()
+    return None
 
 
 def main() -> int:
-    _warm_up()
+    try:
+        hint = pickle.load(sys.stdin.buffer)
+    except EOFError:            # cancelled before it began
+        return 0
+    frame = _prepare(hint)
     data = sys.stdin.buffer.read()
     if not data:                # cancelled: the parent closed our stdin
         return 0
     try:
-        paths = _draw(*pickle.loads(data))
+        paths = _draw(*pickle.loads(data), frame=frame)
     except Exception as err:    # reported by the parent with the files it kept
         answer, code = {"error": f"{type(err).__name__}: {err}"}, 1
     else:

@@ -221,9 +221,16 @@ def _margins(height: float, rows: int) -> dict[str, float]:
     return dict(MARGINS, top=1 - top / height, bottom=bottom / height, hspace=gap / axes_height)
 
 
-def build_dashboard(results: Results, roles: Roles, truth: Truth | None,
-                    title: str = "") -> Figure:
-    """All available panels in one figure, two columns, fixed margins."""
+@dataclass
+class Frame:
+    """A dashboard without data: the axes of `keys` with their titles, and the figure title."""
+    keys: list[str]
+    figure: Figure
+
+
+def dashboard_frame(results: Results, roles: Roles, title: str = "") -> Frame:
+    """The frame for `results`' panels. It needs only the column names and the run's settings,
+    so the plot worker can build (and draw once) the frame of a run before the run ends."""
     keys = available_panels(results, roles)
     rows = max(1, math.ceil(len(keys) / 2))
     height = max(DASHBOARD_SIZE[1], ROW_HEIGHT * rows)
@@ -231,12 +238,28 @@ def build_dashboard(results: Results, roles: Roles, truth: Truth | None,
     fig.subplots_adjust(**_margins(height, rows))
     for i, key in enumerate(keys):
         ax = fig.add_subplot(rows, 2, i + 1)
-        PANELS[key].draw(ax, results, roles, truth)
         ax.set_title(PANELS[key].title, y=1.0)      # a fixed y: no search for a free place
+    fig.suptitle(_suptitle(results, keys, title))
+    return Frame(keys, fig)
+
+
+def _suptitle(results: Results, keys: list[str], title: str) -> str:
     head = f"{title} - " if title else ""
-    fig.suptitle(f"{head}{results.master}, step {results.step_size:g} s"
-                 + ("" if keys else " (nothing to plot)"))
-    return fig
+    return (f"{head}{results.master}, step {results.step_size:g} s"
+            + ("" if keys else " (nothing to plot)"))
+
+
+def build_dashboard(results: Results, roles: Roles, truth: Truth | None,
+                    title: str = "", frame: Frame | None = None) -> Figure:
+    """All available panels in one figure, two columns, fixed margins; in `frame` when it was
+    made for the same panels and title."""
+    keys = available_panels(results, roles)
+    if frame is None or frame.keys != keys or frame.figure.get_suptitle() != _suptitle(
+            results, keys, title):
+        frame = dashboard_frame(results, roles, title)
+    for ax, key in zip(frame.figure.axes, frame.keys):
+        PANELS[key].draw(ax, results, roles, truth)
+    return frame.figure
 
 
 def panel_boxes(fig: Figure, pixels: np.ndarray) -> list[tuple[int, int, int, int]]:
@@ -274,13 +297,14 @@ def _save_png(pixels: np.ndarray, path: Path) -> None:
 
 
 def write_plots(results: Results, roles: Roles, truth: Truth | None, out_dir: Path | str,
-                title: str = "") -> list[Path]:
+                title: str = "", frame: Frame | None = None) -> list[Path]:
     """Write dashboard.png and <panel>.png for each available panel; return the paths.
 
-    The dashboard is drawn once; each panel's PNG is its part of the dashboard's pixels."""
+    The dashboard is drawn once (in `frame` if it fits); each panel's PNG is its part of the
+    dashboard's pixels."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    fig = build_dashboard(results, roles, truth, title)
+    fig = build_dashboard(results, roles, truth, title, frame)
     fig.canvas.draw()
     pixels = np.asarray(fig.canvas.buffer_rgba())
     rgb = pixels[..., :3].copy()           # the background is opaque: no alpha channel

@@ -66,7 +66,7 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     files: list[Path] = []
     from . import master    # here: `validate` needs neither the FMI runtime nor matplotlib
     from .plot_worker import PlotWorker
-    plotter = PlotWorker.start() if plots else None     # imports matplotlib while we simulate
+    plotter = PlotWorker.start(graph) if plots else None    # imports matplotlib as we simulate
     try:
         results = master.simulate(graph, scenario.experiment, progress=progress)
     except (SimulationError, Interrupted) as err:
