@@ -314,5 +314,4 @@ def write_plots(results: Results, roles: Roles, truth: Truth | None, out_dir: Pa
                                                panel_boxes(fig, pixels)):
         paths.append(out_dir / f"{key}.png")
         _save_png(rgb[top:bottom, left:right], paths[-1])
-    fig.clear()            # not registered with pyplot: clearing frees it for the GC
-    return paths
+    return paths           # the figure is not registered with pyplot: the GC frees it
