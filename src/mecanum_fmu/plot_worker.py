@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import signal
 import subprocess
 import sys
 import weakref
@@ -41,12 +42,17 @@ class PlotWorker:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_PARENT),
                                                           env.get("PYTHONPATH")]))
         env.setdefault("MPLBACKEND", "Agg")
+        hint = pickle.dumps(_frame_hint(graph), protocol=pickle.HIGHEST_PROTOCOL)
         try:
             proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
                                     stdout=subprocess.PIPE, env=env)
-            proc.stdin.write(pickle.dumps(_frame_hint(graph), protocol=pickle.HIGHEST_PROTOCOL))
-            proc.stdin.flush()
         except OSError:
+            return cls(None)
+        try:
+            proc.stdin.write(hint)
+            proc.stdin.flush()
+        except OSError:         # it died at once: draw here instead
+            _stop(proc)
             return cls(None)
         return cls(proc)
 
@@ -121,11 +127,16 @@ def _prepare(hint: tuple | None):
 
 
 def main() -> int:
+    # Ctrl-C reaches the whole process group: the parent reports it, we just stop.
+    signal.signal(signal.SIGINT, lambda *_: os._exit(130))
     try:
         hint = pickle.load(sys.stdin.buffer)
     except EOFError:            # cancelled before it began
         return 0
-    frame = _prepare(hint)
+    try:
+        frame = _prepare(hint)
+    except Exception:           # drawing will fail again below and say why
+        frame = None
     data = sys.stdin.buffer.read()
     if not data:                # cancelled: the parent closed our stdin
         return 0
