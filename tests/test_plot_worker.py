@@ -142,7 +142,7 @@ def test_validate_loads_neither_matplotlib_nor_scipy(built_fmus):
     assert heavy == []
     ours = {m for m in modules if m.startswith("mecanum_fmu.")}
     assert {"mecanum_fmu.graph", "mecanum_fmu.scenario"} <= ours          # it did validate
-    assert not ours & {"mecanum_fmu.plots", "mecanum_fmu.plot_worker", "mecanum_fmu.master"}
+    assert not ours & {"mecanum_fmu.plots", "mecanum_fmu.master", "mecanum_fmu.animation"}
 
 
 def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
@@ -157,8 +157,10 @@ def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
     assert frame.keys == plots.available_panels(outcome.results, roles) == PANEL_KEYS + ["icr"]
     assert frame.figure.get_suptitle() == "circle - trapezoidal, step 0.05 s"
     here = plots.write_plots(outcome.results, roles, outcome.truth, tmp_path / "here", title)
-    there = PlotWorker.start(graph).finish(outcome.results, roles, outcome.truth,
-                                           tmp_path / "there", title)
+    worker = PlotWorker.start()
+    worker.expect(graph)
+    there = worker.finish(outcome.results, roles, outcome.truth,
+                          tmp_path / "there", title)
     assert [p.name for p in there] == [p.name for p in here]
     for a, b in zip(here, there):
         assert a.read_bytes() == b.read_bytes(), a.name

@@ -136,9 +136,16 @@ def _progress(enabled: bool):
 
 
 def cmd_run(args) -> int:
+    from .plot_worker import PlotWorker
+    plotter = None if args.no_plots else PlotWorker.start()   # imports matplotlib meanwhile
     from .runner import prepare, run
-    graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
-                    master_name=args.master, fmu_dir=args.fmu_dir)
+    try:
+        graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
+                        master_name=args.master, fmu_dir=args.fmu_dir)
+    except BaseException:
+        if plotter is not None:
+            plotter.cancel()
+        raise
     if not args.quiet:
         for warning in graph.warnings:
             print(f"warning: {warning}", file=sys.stderr)
@@ -146,7 +153,7 @@ def cmd_run(args) -> int:
     log = (lambda line: None) if args.quiet else print
     try:
         outcome = run(graph, args.out, plots=not args.no_plots, progress=progress, log=log,
-                      animate=args.animate)
+                      animate=args.animate, plotter=plotter)
     finally:
         if progress is not None:
             print("\r" + " " * 12 + "\r", end="", file=sys.stderr)

@@ -1,9 +1,10 @@
 """Draw the plots in a second process that imports matplotlib while this one simulates.
 
-Importing matplotlib costs about as much as a short run. `PlotWorker.start()` (at the start of
-`run`) launches `python -m mecanum_fmu.plot_worker` and sends it the run's column names and
-settings; the worker imports the plotting code and builds and draws the dashboard's frame (axes,
-titles: fonts, ticks, caches) while the parent simulates, then waits on its stdin.
+Importing matplotlib costs about as much as a short run. `PlotWorker.start()` (the CLI calls it
+before loading the scenario) launches `python -m mecanum_fmu.plot_worker`, which imports the
+plotting code at once; `expect(graph)` sends it the run's column names and settings, and it
+builds and draws the dashboard's frame (axes, titles: fonts, ticks, caches) while the parent
+simulates, then waits on its stdin.
 `finish()` sends it the results (pickled: parent to its own child, never user text) and returns
 the PNG paths it wrote; `cancel()` lets it go. On a machine with a free core the import is hidden.
 A worker that cannot start (no interpreter executable, e.g. embedded Python) falls back to
@@ -30,35 +31,44 @@ class PlotFailed(RuntimeError):
 class PlotWorker:
     def __init__(self, proc: subprocess.Popen | None):
         self._proc = proc
+        self._sent_hint = False
         if proc is not None:     # a run that raised before finish(): the worker goes with it
             weakref.finalize(self, _stop, proc)
 
     @classmethod
-    def start(cls, graph=None) -> "PlotWorker":
-        """Launch the worker; with the run's graph it prepares the dashboard's frame."""
+    def start(cls) -> "PlotWorker":
+        """Launch the worker; it imports matplotlib at once. Call `expect` when the graph is
+        known, `finish` when the results are."""
         if not sys.executable:
             return cls(None)
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_PARENT),
                                                           env.get("PYTHONPATH")]))
         env.setdefault("MPLBACKEND", "Agg")
-        hint = pickle.dumps(_frame_hint(graph), protocol=pickle.HIGHEST_PROTOCOL)
         try:
-            proc = subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                                    stdout=subprocess.PIPE, env=env)
+            return cls(subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE, env=env))
         except OSError:
             return cls(None)
+
+    def expect(self, graph) -> None:
+        """Tell the worker what the run records, so it prepares the dashboard's frame."""
+        self._send(_frame_hint(graph))
+
+    def _send(self, obj) -> None:
+        if self._proc is None or self._sent_hint:
+            return
+        self._sent_hint = True
         try:
-            proc.stdin.write(hint)
-            proc.stdin.flush()
-        except OSError:         # it died at once: draw here instead
-            _stop(proc)
-            return cls(None)
-        return cls(proc)
+            self._proc.stdin.write(pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL))
+            self._proc.stdin.flush()
+        except OSError:         # it died: draw here instead
+            self.cancel()
 
     def finish(self, results, roles, truth, out_dir: Path, title: str = "") -> list[Path]:
         """Have the worker write the plots (or draw them here without one); the PNG paths."""
         job = (results, roles, truth, str(out_dir), title)
+        self._send(None)        # no frame was asked for: the worker only warms up
         if self._proc is None:
             return _draw(*job)
         proc, self._proc = self._proc, None
@@ -130,12 +140,16 @@ def main() -> int:
     # Ctrl-C reaches the whole process group: the parent reports it, we just stop.
     signal.signal(signal.SIGINT, lambda *_: os._exit(130))
     try:
+        from . import plots     # noqa: F401  (matplotlib: the slow part, while the parent works)
+    except Exception:           # drawing will fail again below and say why
+        pass
+    try:
         hint = pickle.load(sys.stdin.buffer)
     except EOFError:            # cancelled before it began
         return 0
     try:
         frame = _prepare(hint)
-    except Exception:           # drawing will fail again below and say why
+    except Exception:
         frame = None
     data = sys.stdin.buffer.read()
     if not data:                # cancelled: the parent closed our stdin

@@ -14,6 +14,7 @@ from typing import Callable
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
 from .ground_truth import Truth, find_roles, ground_truth
+from .plot_worker import PlotWorker
 from .results import Results, write_csv, write_json
 from .scenario import MASTERS, Scenario, check_experiment, load_scenario
 
@@ -58,15 +59,18 @@ def default_out_dir(scenario: Scenario) -> Path:
 
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
-        log: Callable[[str], None] = print, animate: bool = False) -> RunOutcome:
-    """Simulate, write results.csv, summary.json and the plots into out_dir."""
+        log: Callable[[str], None] = print, animate: bool = False,
+        plotter: PlotWorker | None = None) -> RunOutcome:
+    """Simulate, write results.csv, summary.json and the plots into out_dir. `plotter`: a
+    plot worker started earlier (the CLI starts it before loading, to hide matplotlib's import)."""
     scenario = graph.scenario
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
     out_dir.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
     from . import master    # here: `validate` needs neither the FMI runtime nor matplotlib
-    from .plot_worker import PlotWorker
-    plotter = PlotWorker.start(graph) if plots else None    # imports matplotlib as we simulate
+    plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
+    if plotter is not None:
+        plotter.expect(graph)
     try:
         results = master.simulate(graph, scenario.experiment, progress=progress)
     except (SimulationError, Interrupted) as err:
