@@ -164,3 +164,11 @@ def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
     assert [p.name for p in there] == [p.name for p in here]
     for a, b in zip(here, there):
         assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def test_without_a_worker_the_plots_are_drawn_here(tmp_path):
+    """No worker process (it could not start): finish() draws in this process instead."""
+    results, truth = make_run()
+    paths = PlotWorker(None).finish(results, ROLES, truth, tmp_path, title="circle")
+    assert sorted(p.name for p in paths) == sorted(f"{k}.png" for k in ["dashboard"] + PANEL_KEYS)
+    assert all(p.stat().st_size > 1000 for p in paths)

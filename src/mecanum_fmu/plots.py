@@ -23,8 +23,8 @@ from .results import Results
 
 MAX_POINTS = 5000                 # more rows than this are decimated before drawing
 PANEL_SIZE = (6.0, 4.5)           # inches
-DASHBOARD_SIZE = (12.0, 10.0)     # up to three rows of panels; more rows make it taller
-ROW_HEIGHT = 3.4                  # inches per row beyond three
+DASHBOARD_SIZE = (12.0, 10.0)     # the least size; more rows of panels make it taller
+ROW_HEIGHT = 3.4                  # inches per row of panels (two panels a row)
 DPI = 100
 MARGINS = dict(left=0.07, right=0.98, wspace=0.22)   # fixed: no layout engine on the run path
 TITLE_ROOM = 0.4                  # inches above a dashboard panel for its title
