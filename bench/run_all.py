@@ -6,6 +6,7 @@ import endurance
 import loop_overhead
 import other_hosts
 import sweep
+import turnaround
 from mecanum_fmu.process import exit_now
 
 if __name__ == "__main__":
@@ -19,5 +20,7 @@ if __name__ == "__main__":
     closed_loop_order.main()
     print("\n== sweeps on Dask (bench/sweep.py)")
     sweep.main([])
+    print("\n== command-line turnaround: plots and validate (bench/turnaround.py)")
+    turnaround.main()
     print("\n== 1,000 runs in one process (bench/endurance.py)")
     exit_now(endurance.main([]))    # no interpreter shutdown with pythonfmu FMUs loaded

@@ -188,9 +188,16 @@ def cmd_run(args) -> int:
     if len(args.scenario) > 1:
         return _run_several(args)
     args.scenario = args.scenario[0]
+    from .plot_worker import PlotWorker
+    plotter = None if args.no_plots else PlotWorker.start()   # imports matplotlib meanwhile
     from .runner import prepare, run
-    graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
-                    master_name=args.master, fmu_dir=args.fmu_dir)
+    try:
+        graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
+                        master_name=args.master, fmu_dir=args.fmu_dir)
+    except BaseException:
+        if plotter is not None:
+            plotter.cancel()
+        raise
     if not args.quiet:
         for warning in graph.warnings:
             print(f"warning: {warning}", file=sys.stderr)
@@ -198,7 +205,7 @@ def cmd_run(args) -> int:
     log = (lambda line: None) if args.quiet else print
     try:
         outcome = run(graph, args.out, plots=not args.no_plots, progress=progress, log=log,
-                      animate=args.animate)
+                      animate=args.animate, plotter=plotter)
     finally:
         if progress is not None:
             print("\r" + " " * 12 + "\r", end="", file=sys.stderr)

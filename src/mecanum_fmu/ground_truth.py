@@ -8,14 +8,16 @@ size.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .blocks.expression import compile_expression
 from .blocks.pose import pose_rate
 from .bundled import Roles, find_roles  # noqa: F401  (Roles: re-exported for the plots)
-from .graph import Graph
+
+if TYPE_CHECKING:       # only for annotations: the plotting process needs Roles, not the graph
+    from .graph import Graph
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,7 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
         return reference_truth(graph.instance(roles.follower), times)
     if roles.source is None:
         return None
+    from scipy.integrate import solve_ivp     # here: loading and validating need no scipy
     source = graph.instance(roles.source)
     funcs = [compile_expression(str(source.value(k))) for k in ("vx_expr", "vy_expr", "w_expr")]
     breaks = ()

@@ -11,11 +11,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from . import master
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
 from .bundled import MODELS, find_roles
 from .ground_truth import Truth, ground_truth
+from .plot_worker import PlotWorker
 from .results import Results, write_csv, write_json
 from .scenario import MASTERS, Scenario, check_experiment, load_scenario
 
@@ -80,15 +80,23 @@ def default_out_dir(scenario: Scenario) -> Path:
 
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
-        log: Callable[[str], None] = print, animate: bool = False) -> RunOutcome:
-    """Simulate, write results.csv, summary.json and the plots into out_dir."""
+        log: Callable[[str], None] = print, animate: bool = False,
+        plotter: PlotWorker | None = None) -> RunOutcome:
+    """Simulate, write results.csv, summary.json and the plots into out_dir. `plotter`: a
+    plot worker started earlier (the CLI starts it before loading, to hide matplotlib's import)."""
     scenario = graph.scenario
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
     out_dir.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
+    from . import master    # here: `validate` needs neither the FMI runtime nor matplotlib
+    plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
+    if plotter is not None:
+        plotter.expect(graph)
     try:
         results = master.simulate(graph, scenario.experiment, progress=progress)
     except (SimulationError, Interrupted) as err:
+        if plotter is not None:
+            plotter.cancel()
         if err.results is not None:
             summary = summarize(graph, err.results, None)
             summary["error_message"] = str(err)
@@ -102,9 +110,9 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         log(line)
     stage = "plots"
     try:
-        if plots:
-            from .plots import write_plots
-            files += write_plots(results, find_roles(graph), truth, out_dir, title=scenario.name)
+        if plotter is not None:
+            files += plotter.finish(results, find_roles(graph), truth, out_dir,
+                                    title=scenario.name)
         stage = "animation"
         if animate:
             from .animation import write_animation

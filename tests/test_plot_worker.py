@@ -1,0 +1,174 @@
+"""The fast plot path (issue 11, item 8): each panel's PNG is cut whole from the one drawn
+dashboard, the drawing runs in a worker process, a failing worker costs only the plots, and
+`validate` loads neither matplotlib nor scipy."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from helpers import ROOT, test_fmus, write_scenario
+from test_plots import PANEL_KEYS, ROLES, make_run
+from mecanum_fmu import plots
+from mecanum_fmu.plot_worker import PlotFailed, PlotWorker
+
+CIRCLE = ROOT / "scenarios" / "circle.yaml"
+
+
+def find_in(big: np.ndarray, small: np.ndarray) -> list[tuple[int, int]]:
+    """Every (row, column) where `small` appears pixel for pixel in `big` (RGBA uint8)."""
+    h, w = small.shape[:2]
+    mid = h // 2
+    needle = small[mid].tobytes()
+    found = []
+    for y in range(mid, big.shape[0] - (h - mid) + 1):
+        row, start = big[y].tobytes(), 0
+        while (at := row.find(needle, start)) >= 0:
+            if at % big.shape[2] == 0 and at // big.shape[2] <= big.shape[1] - w:
+                x = at // big.shape[2]
+                if np.array_equal(big[y - mid:y - mid + h, x:x + w], small):
+                    found.append((y - mid, x))
+            start = at + 1
+    return found
+
+
+def ink(pixels: np.ndarray) -> np.ndarray:
+    return (pixels[..., :3] < 255).any(axis=2)       # not the white background
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    results, truth = make_run()
+    out = tmp_path_factory.mktemp("plots")
+    paths = plots.write_plots(results, ROLES, truth, out, title="circle")
+    return {p.stem: np.round(imread(p) * 255).astype(np.uint8) for p in paths}
+
+
+def test_every_panel_is_a_whole_piece_of_the_dashboard(written):
+    dash = written["dashboard"]
+    assert sorted(written) == sorted(PANEL_KEYS + ["dashboard"])
+    places = []
+    for key, panel in written.items():
+        if key == "dashboard":
+            continue
+        h, w = panel.shape[:2]
+        # two columns, three rows: a panel is a bit less than a cell of the dashboard
+        assert 0.4 * dash.shape[1] < w <= dash.shape[1] / 2, key
+        assert 0.2 * dash.shape[0] < h <= dash.shape[0] / 3, key
+        assert ink(panel).mean() > 0.05, key                # drawn, not blank
+        found = find_in(dash, panel)
+        assert len(found) == 1, (key, found)                # cut from the dashboard, once
+        places.append((found[0], (h, w)))
+        # nothing cut off: the outermost rows and columns are background
+        edge = ink(panel)
+        assert not edge[0].any() and not edge[-1].any(), key
+        assert not edge[:, 0].any() and not edge[:, -1].any(), key
+    for i, ((y, x), (h, w)) in enumerate(places):           # no two panels share pixels
+        for (y2, x2), (h2, w2) in places[i + 1:]:
+            assert y + h <= y2 or y2 + h2 <= y or x + w <= x2 or x2 + w2 <= x
+
+
+def test_the_dashboard_is_not_blank_and_has_the_panels(written):
+    dash = written["dashboard"]
+    assert dash.shape[1] == plots.DASHBOARD_SIZE[0] * plots.DPI
+    assert ink(dash).mean() > 0.05
+
+
+def test_worker_writes_the_same_files_as_drawing_here(tmp_path):
+    results, truth = make_run()
+    here = plots.write_plots(results, ROLES, truth, tmp_path / "here", title="circle")
+    there = PlotWorker.start().finish(results, ROLES, truth, tmp_path / "there", title="circle")
+    assert [p.name for p in there] == [p.name for p in here]
+    for a, b in zip(here, there):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def test_worker_failure_is_reported_with_its_reason(tmp_path):
+    results, truth = make_run()
+    (tmp_path / "dashboard.png").mkdir()                    # cannot be written
+    with pytest.raises(PlotFailed, match="dashboard.png"):
+        PlotWorker.start().finish(results, ROLES, truth, tmp_path)
+
+
+def test_cancelled_worker_ends(tmp_path):
+    worker = PlotWorker.start()
+    proc = worker._proc
+    worker.cancel()
+    assert proc.returncode is not None
+    assert not any(tmp_path.iterdir())
+
+
+def test_failed_run_keeps_the_tables_and_writes_no_plots(tmp_path, tmp_path_factory):
+    """A run whose FMU fails mid-way (fresh process, plots on): exit 1, the rows up to the
+    failure are kept, the worker is stopped without drawing."""
+    breaker = test_fmus(tmp_path_factory)["mtest_failing"]
+    scenario = write_scenario(tmp_path, "fails", f"""\
+name: fails
+experiment: {{start_time: 0.0, stop_time: 10.0, step_size: 0.1, master: gauss-seidel}}
+components:
+  source: {{fmu: VelocitySource}}
+  breaker: {{fmu: {breaker}, parameters: {{mode: 0}}}}
+  pose: {{fmu: PoseIntegrator}}
+connections: [[source.vx, pose.vx], [source.vy, pose.vy], [source.w, pose.w]]
+""")
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "mecanum_fmu", "run", str(scenario), "--out",
+                           str(out)], capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, PYTHONPATH=str(ROOT / "src")))
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    assert "breaker" in proc.stderr and "Traceback" not in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["results.csv", "summary.json"]
+    assert len((out / "results.csv").read_text().splitlines()) > 40     # rows up to t = 5 s
+
+
+def test_validate_loads_neither_matplotlib_nor_scipy(built_fmus):
+    fmu_dir = next(iter(built_fmus.values())).parent
+    code = ("import json, sys\n"
+            "from mecanum_fmu.cli import main\n"
+            f"code = main(['validate', {str(CIRCLE)!r}, '--fmu-dir', {str(fmu_dir)!r}])\n"
+            "print(json.dumps([code, sorted(sys.modules)]))\n")
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    exit_code, modules = json.loads(proc.stdout.splitlines()[-1])
+    assert exit_code == 0 and ": ok - 4 components" in proc.stdout
+    heavy = [m for m in modules if m.split(".")[0] in ("matplotlib", "scipy", "PIL")]
+    assert heavy == []
+    ours = {m for m in modules if m.startswith("mecanum_fmu.")}
+    assert {"mecanum_fmu.graph", "mecanum_fmu.scenario"} <= ours          # it did validate
+    assert not ours & {"mecanum_fmu.plots", "mecanum_fmu.master", "mecanum_fmu.animation"}
+
+
+def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
+    """The worker builds the dashboard's frame from the graph alone; for the seed circle it
+    has the run's six panels and title, and drawing into it gives the same bytes."""
+    from mecanum_fmu.plot_worker import _frame_hint
+    from mecanum_fmu.runner import prepare, run
+    graph = prepare(CIRCLE, fmu_dir=next(iter(built_fmus.values())).parent)
+    stand_in, roles, title = _frame_hint(graph)
+    outcome = run(graph, tmp_path / "run", plots=False, log=lambda line: None)
+    frame = plots.dashboard_frame(stand_in, roles, title)
+    assert frame.keys == plots.available_panels(outcome.results, roles) == PANEL_KEYS + ["icr"]
+    assert frame.figure.get_suptitle() == "circle - trapezoidal, step 0.05 s"
+    here = plots.write_plots(outcome.results, roles, outcome.truth, tmp_path / "here", title)
+    worker = PlotWorker.start()
+    worker.expect(graph)
+    there = worker.finish(outcome.results, roles, outcome.truth,
+                          tmp_path / "there", title)
+    assert [p.name for p in there] == [p.name for p in here]
+    for a, b in zip(here, there):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def test_without_a_worker_the_plots_are_drawn_here(tmp_path):
+    """No worker process (it could not start): finish() draws in this process instead."""
+    results, truth = make_run()
+    paths = PlotWorker(None).finish(results, ROLES, truth, tmp_path, title="circle")
+    assert sorted(p.name for p in paths) == sorted(f"{k}.png" for k in ["dashboard"] + PANEL_KEYS)
+    assert all(p.stat().st_size > 1000 for p in paths)
