@@ -1,6 +1,6 @@
 """Command line: `python -m mecanum_fmu run|validate|fmus|info`. The one place that turns the
 package's exceptions into messages and exit codes (0 ok, 1 simulation failed, 2 bad input,
-130 interrupted)."""
+130 interrupted, 143 terminated by SIGTERM)."""
 from __future__ import annotations
 
 import argparse
@@ -94,8 +94,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    from .process import Terminated, sigterm_raises
     try:
-        return args.func(args) or 0
+        with sigterm_raises():
+            return args.func(args) or 0
     except ScenarioError as err:
         print(f"error: {len(err.problems)} problem(s) in the input:" if len(err.problems) > 1
               else "error:", file=sys.stderr)
@@ -113,7 +115,10 @@ def main(argv: list[str] | None = None) -> int:
         for path in err.files:      # e.g. the plots failed after the run
             print(f"  kept: {path}", file=sys.stderr)
         return err.exit_code
-    except KeyboardInterrupt:       # outside the stepping loop: loading, plotting
+    except KeyboardInterrupt as err:    # outside the stepping loop: loading, plotting
+        if isinstance(err, Terminated):     # SIGTERM
+            print("terminated (SIGTERM)", file=sys.stderr)
+            return 143
         print("interrupted", file=sys.stderr)
         return Interrupted.exit_code
 
@@ -121,8 +126,14 @@ def main(argv: list[str] | None = None) -> int:
 def exit_with(argv: list[str] | None = None) -> None:
     """The console entry point: run main() and leave without interpreter shutdown (see
     process.exit_now; with pythonfmu FMUs loaded CPython's finalization aborts now and then)."""
-    code = main(argv)      # SystemExit (--help, bad options) and bugs propagate as usual
     from .process import exit_now
+    try:
+        code = main(argv)      # SystemExit (--help, bad options) and bugs propagate as usual
+    except BaseException:
+        if "mecanum_fmu.runtime" in sys.modules:    # a bug: still no extraction left behind
+            from .runtime import RUNTIME
+            RUNTIME.remove_extractions()
+        raise
     exit_now(code)
 
 

@@ -18,6 +18,9 @@ from .bundled import Roles, find_roles  # noqa: F401  (Roles: re-exported for th
 from .graph import Graph
 
 
+MAX_POINTS = 20_001     # the ground truth is sampled on at most about this many times
+
+
 @dataclass(frozen=True)
 class Truth:
     time: np.ndarray
@@ -33,9 +36,18 @@ class Truth:
         return float(self.x[-1]), float(self.y[-1]), float(self.theta[-1])
 
 
+def bounded_grid(times: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
+    """`times`, or every k-th of them so that at most about max_points remain, the last kept."""
+    if len(times) <= max_points:
+        return times
+    picked = times[::-(-len(times) // max_points)]
+    return picked if picked[-1] == times[-1] else np.append(picked, times[-1])
+
+
 def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
                  atol: float = 1e-12) -> Truth | None:
-    """Integrate the commanded twist; None when the graph has no single VelocitySource."""
+    """Integrate the commanded twist; None when the graph has no single VelocitySource.
+    Sampled at `times`, thinned to a bounded grid (bounded_grid) for long runs."""
     roles = find_roles(graph)
     if roles.source is None:
         return None
@@ -49,7 +61,7 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
     def rhs(t, state):
         return pose_rate(state[2], funcs[0](t), funcs[1](t), funcs[2](t))
 
-    times = np.asarray(times, dtype=float)
+    times = bounded_grid(np.asarray(times, dtype=float))
     # max_step keeps the solver from stepping over short segments of piecewise profiles.
     span = float(times[-1] - times[0]) if len(times) > 1 else 1.0
     sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, rtol=rtol, atol=atol,

@@ -37,11 +37,22 @@ class Results:
 def write_csv(results: Results, path: Path) -> None:
     """One `time` column and one column per recorded variable, full precision (repr)."""
     with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(("time",) + results.names)
-        columns = [results.data[n] for n in ("time",) + results.names]
-        for row in zip(*(c.tolist() for c in columns)):
-            writer.writerow([_fmt(v) for v in row])
+        writer = csv_writer(fh, results.names)
+        write_rows(writer, results.data)
+
+
+def csv_writer(fh, names: tuple[str, ...]):
+    """A CSV writer on fh with the header written: `time`, then the recorded names."""
+    writer = csv.writer(fh, lineterminator="\n")
+    writer.writerow(("time",) + tuple(names))
+    return writer
+
+
+def write_rows(writer, data: np.ndarray) -> None:
+    """The rows of a structured array (fields: time, then the names), as write_csv does."""
+    columns = [data[n] for n in data.dtype.names]
+    for row in zip(*(c.tolist() for c in columns)):
+        writer.writerow([_fmt(v) for v in row])
 
 
 def _fmt(value) -> str:

@@ -11,12 +11,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from . import master
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
 from .bundled import MODELS, find_roles
 from .ground_truth import Truth, ground_truth
-from .results import Results, write_csv, write_json
+from .output import OutputFolder
+from .process import sigterm_raises, signals_deferred
+from .results import Results
 from .scenario import MASTERS, Scenario, check_experiment, load_scenario
 
 
@@ -78,26 +82,36 @@ def default_out_dir(scenario: Scenario) -> Path:
     return Path("results") / scenario.name
 
 
+# What runner.run keeps in memory for the ground truth and the plots: about this many evenly
+# spaced rows plus the exact last one (results.csv holds every row).
+KEEP_ROWS = 10_000
+
+
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
-        log: Callable[[str], None] = print, animate: bool = False) -> RunOutcome:
-    """Simulate, write results.csv, summary.json and the plots into out_dir."""
-    scenario = graph.scenario
-    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files: list[Path] = []
-    try:
-        results = master.simulate(graph, scenario.experiment, progress=progress)
-    except (SimulationError, Interrupted) as err:
-        if err.results is not None:
-            summary = summarize(graph, err.results, None)
-            summary["error_message"] = str(err)
-            files += _write_tables(err.results, summary, out_dir)
-        err.files.extend(files)
-        raise
-    truth = ground_truth(graph, results.time) if results.steps else None
+        log: Callable[[str], None] = print, animate: bool = False,
+        keep_rows: int | None = KEEP_ROWS) -> RunOutcome:
+    """Simulate, write results.csv, summary.json and the plots into out_dir.
+
+    results.csv is written during the run; the outcome's Results hold `keep_rows` rows (None:
+    every row). The folder is checked and locked first (ScenarioError). A failure after the
+    stepping loop (ground truth, plots) costs only itself: the tables are written first."""
+    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(graph.scenario)
+    with sigterm_raises(), OutputFolder(out_dir) as out:
+        return _run_in(graph, out, plots=plots, progress=progress, log=log, animate=animate,
+                       keep_rows=keep_rows)
+
+
+def _run_in(graph: Graph, out: OutputFolder, *, plots: bool, progress, log, animate: bool,
+            keep_rows: int | None) -> RunOutcome:
+    scenario, out_dir = graph.scenario, out.path
+    results, files = _simulate_into(graph, out, progress, keep_rows)
+    truth, truth_error = _ground_truth(graph, results)
     summary = summarize(graph, results, truth)
-    files += _write_tables(results, summary, out_dir)
+    if truth is not None or truth_error:
+        if truth_error:
+            summary["ground_truth_error"] = truth_error
+        _rewrite_summary(out, summary, files)
     for line in report_lines(summary):
         log(line)
     stage = "plots"
@@ -114,15 +128,60 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     except Exception as err:    # the results are written: report the figure, keep the rest
         raise MecanumError(f"writing the {stage} into {out_dir} failed: "
                            f"{type(err).__name__}: {err}", files=files) from err
+    if truth_error:
+        raise MecanumError(f"the ground truth could not be computed ({truth_error}); the "
+                           f"run itself is complete", files=files)
     return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
 
 
-def _write_tables(results: Results, summary: dict, out_dir: Path) -> list[Path]:
-    csv_path = out_dir / "results.csv"
-    write_csv(results, csv_path)
-    json_path = out_dir / "summary.json"
-    write_json(summary, json_path)
-    return [csv_path, json_path]
+def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> None:
+    """The summary again, now with the ground truth (or why it failed)."""
+    try:
+        with signals_deferred():
+            out.write_json(summary)
+    except OSError as err:
+        raise MecanumError(f"writing the summary into {out.path} failed: "
+                           f"{err.strerror or err}", files=files) from None
+
+
+def _simulate_into(graph: Graph, out: OutputFolder, progress,
+                   keep_rows: int | None) -> tuple[Results, list[Path]]:
+    """Run with results.csv streamed into `out`; write the summary (without the ground truth).
+    A failed or interrupted run still keeps its tables and raises; so does a write error."""
+    stream = None
+    try:
+        stream = out.csv_stream(tuple(str(p.ref) for p in graph.recorded))
+        try:
+            results = master.simulate(graph, graph.scenario.experiment, progress=progress,
+                                      sink=stream, keep_rows=keep_rows)
+        except (SimulationError, Interrupted) as err:
+            if err.results is not None:
+                with signals_deferred():
+                    summary = summarize(graph, err.results, None)
+                    summary["error_message"] = str(err)
+                    err.files.extend([stream.finish(), out.write_json(summary)])
+            raise
+        with signals_deferred():
+            return results, [stream.finish(), out.write_json(summarize(graph, results, None))]
+    except OSError as err:      # the disk is full, the folder vanished, ...
+        raise MecanumError(f"writing the results into {out.path} failed: "
+                           f"{err.strerror or err}") from None
+    finally:
+        if stream is not None and stream.temp.exists():
+            stream.abort()
+
+
+def _ground_truth(graph: Graph, results: Results) -> tuple[Truth | None, str | None]:
+    """The ground truth on the (bounded) times kept, or why it failed."""
+    if not results.steps:
+        return None, None
+    try:
+        truth = ground_truth(graph, results.time)
+    except Exception as err:    # e.g. an expression that fails between the recorded times
+        return None, f"{type(err).__name__}: {err}"
+    if truth is not None and not np.all(np.isfinite(truth.end)):
+        return None, f"its end pose {truth.end} is not finite"
+    return truth, None
 
 
 def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
