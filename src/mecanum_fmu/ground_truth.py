@@ -58,13 +58,19 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
         pose = graph.instance(roles.pose)
         start = tuple(float(pose.value(k)) for k in ("x0", "y0", "theta0"))
 
-    def rhs(t, state):
+    times = bounded_grid(np.asarray(times, dtype=float))
+    t0 = float(times[0])
+
+    def rhs(tau, state):     # in time since the start: the solver's steps stay resolvable
+        t = t0 + float(tau)  # (a start of 1e15 s has a float spacing of 0.125 s)
         return pose_rate(state[2], funcs[0](t), funcs[1](t), funcs[2](t))
 
-    times = bounded_grid(np.asarray(times, dtype=float))
     # max_step keeps the solver from stepping over short segments of piecewise profiles.
-    span = float(times[-1] - times[0]) if len(times) > 1 else 1.0
-    sol = solve_ivp(rhs, (times[0], times[-1]), start, t_eval=times, rtol=rtol, atol=atol,
+    taus = times - t0
+    span = float(taus[-1]) if len(times) > 1 else 1.0
+    sol = solve_ivp(rhs, (0.0, taus[-1]), start, t_eval=taus, rtol=rtol, atol=atol,
                     method="DOP853", max_step=max(span / 2000, 1e-6))
-    twist = np.array([[f(t) for f in funcs] for t in times]).reshape(len(times), 3)
+    if not sol.success:
+        raise ArithmeticError(f"the ODE solver stopped: {sol.message}")
+    twist = np.array([[f(t) for f in funcs] for t in times.tolist()]).reshape(len(times), 3)
     return Truth(times, sol.y[0], sol.y[1], sol.y[2], twist[:, 0], twist[:, 1], twist[:, 2])

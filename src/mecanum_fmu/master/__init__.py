@@ -97,7 +97,7 @@ def _not_finite(buffers: Buffers, when: float, recorder: Recorder) -> Simulation
     slot = int(np.flatnonzero(~np.isfinite(buffers.real))[0])
     port = next(p for p, s in buffers.real_slots.items() if s == slot)
     return SimulationError(
-        f"output {port.ref.variable} = {buffers.real[slot]!r} is not a finite number (an "
+        f"output {port.ref.variable} = {float(buffers.real[slot])!r} is not a finite number (an "
         f"overflow or an invalid operation; check the parameters and inputs of this "
         f"component); the run stops at the step that produced it",
         component=port.ref.instance, time=when, status="not finite",
