@@ -75,9 +75,15 @@ def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress) -
     freeze = buffers.freeze if recorder.experiment.master == "jacobi" else None
     tick = _time.perf_counter()
     try:
-        step_all(running, recorder, ctrl_c, freeze, progress)
+        with np.errstate(all="ignore"):     # an overflow is reported as a non-finite value
+            step_all(running, recorder, ctrl_c, freeze, progress)
     except StepFailure as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
+        if not np.isfinite(buffers.real).all():   # the cause: a value that went non-finite
+            err.running.mark_failed(err.status)
+            raise _not_finite(buffers, err.end, recorder, then=(
+                f"; then {err.running.name}'s {err.function} returned "
+                f"{STATUS.get(err.status, err.status)}")) from None
         raise _failure(err.running, err.function, err.status, err.time, recorder) from None
     except NonFinite as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
@@ -91,7 +97,8 @@ def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress) -
     recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
 
 
-def _not_finite(buffers: Buffers, when: float, recorder: Recorder) -> SimulationError:
+def _not_finite(buffers: Buffers, when: float, recorder: Recorder,
+                then: str = "") -> SimulationError:
     """Name the first value that is not finite, in the stepping order (the slots of each
     instance are contiguous, in order): the one that produced it, the others got it."""
     slot = int(np.flatnonzero(~np.isfinite(buffers.real))[0])
@@ -99,7 +106,7 @@ def _not_finite(buffers: Buffers, when: float, recorder: Recorder) -> Simulation
     return SimulationError(
         f"output {port.ref.variable} = {float(buffers.real[slot])!r} is not a finite number (an "
         f"overflow or an invalid operation; check the parameters and inputs of this "
-        f"component); the run stops at the step that produced it",
+        f"component); the run stops at the step that produced it{then}",
         component=port.ref.instance, time=when, status="not finite",
         results=recorder.results(False))
 

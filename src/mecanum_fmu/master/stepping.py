@@ -96,8 +96,10 @@ def check_finite(real, time: float) -> None:
 class StepFailure(Exception):
     """A call in the stepping loop returned Discard or worse."""
 
-    def __init__(self, running: RunningInstance, function: str, status: int, time: float):
+    def __init__(self, running: RunningInstance, function: str, status: int, time: float,
+                 end: float):
         self.running, self.function, self.status, self.time = running, function, status, time
+        self.end = end      # the end of the step under way
 
 
 def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bool],
@@ -126,14 +128,14 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
                     fill()
                 st = c_set(comp, vrs, n, pointer)
                 if st > 1:
-                    raise StepFailure(r, "set", st, t)
+                    raise StepFailure(r, "set", st, t, t + h_k)
             st = do_step(comp, t, h_k, 1)
             if st > 1:
-                raise StepFailure(r, r.step_failure(), st, t)
+                raise StepFailure(r, r.step_failure(), st, t, t + h_k)
             for c_get, vrs, n, pointer in reads:
                 st = c_get(comp, vrs, n, pointer)
                 if st > 1:
-                    raise StepFailure(r, "get", st, t + h_k)
+                    raise StepFailure(r, "get", st, t + h_k, t + h_k)
         if real_dot(zeros) != 0.0:
             raise NonFinite(t + h_k)
         record()
