@@ -60,11 +60,11 @@ class OutputFolder:
         self._unlock()
 
     def _make(self) -> None:
-        if self.path.exists() and not self.path.is_dir():
-            raise _bad(self.path, "is a file, not a folder; give a folder (it is created "
-                                  "when missing)")
         try:
             self.path.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:
+            raise _bad(self.path, "is a file, not a folder; give a folder (it is created "
+                                  "when missing)") from None
         except OSError as err:
             raise _bad(self.path, f"cannot create it: {err.strerror}; choose another "
                                   f"--out") from None
