@@ -3,6 +3,7 @@ asserts a time; it prints ratios measured side by side."""
 import accuracy
 import endurance
 import loop_overhead
+import memory
 import other_hosts
 from mecanum_fmu.process import exit_now
 
@@ -11,6 +12,8 @@ if __name__ == "__main__":
     accuracy.main()
     print("\n== stepping-loop overhead (bench/loop_overhead.py)")
     loop_overhead.main()
+    print("\n== peak memory against run length (bench/memory.py)")
+    memory.main()
     print("\n== the same run in other FMI hosts (bench/other_hosts.py)")
     other_hosts.main()
     print("\n== 1,000 runs in one process (bench/endurance.py)")
