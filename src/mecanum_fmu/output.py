@@ -18,13 +18,20 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import Problem, ScenarioError
+from .errors import MecanumError, Problem, ScenarioError
 from .results import csv_writer, write_rows
 
 # as long as the longest name a run writes here (".summary.json.part" and the plots are
 # shorter): when the lock can be created, every other file name fits too
 LOCK_NAME = ".mecanum_fmu_run.lock"
 TABLES = ("results.csv", "summary.json")
+
+
+class WriteError(MecanumError):
+    """A result file could not be written (a full disk, the folder removed): exit code 1."""
+
+    def __init__(self, folder: Path, err: OSError):
+        super().__init__(f"writing the results into {folder} failed: {err.strerror or err}")
 
 
 def _bad(folder: Path, message: str) -> ScenarioError:
@@ -108,9 +115,25 @@ class OutputFolder:
     def write_json(self, data: dict, name: str = "summary.json") -> Path:
         """Written whole under a temporary name, then renamed."""
         temp, final = self.temporary(name), self.path / name
-        temp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
-        os.replace(temp, final)
+        try:
+            temp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
+            os.replace(temp, final)
+        except OSError as err:
+            raise WriteError(self.path, err) from None
         return final
+
+    def write_tables(self, stream: "CsvStream", summary: dict) -> list[Path]:
+        """results.csv (renamed) and summary.json together, or neither: a results.csv
+        without the summary that says how far it got would look complete."""
+        try:
+            return [stream.finish(), self.write_json(summary)]
+        except WriteError:
+            for name in TABLES:
+                try:
+                    (self.path / name).unlink(missing_ok=True)
+                except OSError:
+                    pass
+            raise
 
     def csv_stream(self, names: tuple[str, ...]) -> "CsvStream":
         return CsvStream(self.temporary("results.csv"), self.path / "results.csv", names)
@@ -122,15 +145,24 @@ class CsvStream:
 
     def __init__(self, temp: Path, final: Path, names: tuple[str, ...]):
         self.temp, self.final = temp, final
-        self._fh = open(temp, "w", newline="")
-        self._writer = csv_writer(self._fh, names)
+        try:
+            self._fh = open(temp, "w", newline="")
+            self._writer = csv_writer(self._fh, names)
+        except OSError as err:
+            raise WriteError(final.parent, err) from None
 
     def __call__(self, chunk: np.ndarray) -> None:
-        write_rows(self._writer, chunk)
+        try:
+            write_rows(self._writer, chunk)
+        except OSError as err:
+            raise WriteError(self.final.parent, err) from None
 
     def finish(self) -> Path:
-        self._fh.close()
-        os.replace(self.temp, self.final)
+        try:
+            self._fh.close()
+            os.replace(self.temp, self.final)
+        except OSError as err:
+            raise WriteError(self.final.parent, err) from None
         return self.final
 
     def abort(self) -> None:

@@ -139,15 +139,16 @@ def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> Non
     try:
         with signals_deferred():
             out.write_json(summary)
-    except OSError as err:
-        raise MecanumError(f"writing the summary into {out.path} failed: "
-                           f"{err.strerror or err}", files=files) from None
+    except MecanumError as err:     # output.WriteError: the tables written before are kept
+        err.files.extend(files)
+        raise
 
 
 def _simulate_into(graph: Graph, out: OutputFolder, progress,
                    keep_rows: int | None) -> tuple[Results, list[Path]]:
     """Run with results.csv streamed into `out`; write the summary (without the ground truth).
-    A failed or interrupted run still keeps its tables and raises; so does a write error."""
+    A failed or interrupted run still keeps its tables and raises; a write error
+    (output.WriteError) leaves no results.csv."""
     stream = None
     try:
         stream = out.csv_stream(tuple(str(p.ref) for p in graph.recorded))
@@ -159,14 +160,11 @@ def _simulate_into(graph: Graph, out: OutputFolder, progress,
                 with signals_deferred():
                     summary = summarize(graph, err.results, None)
                     summary["error_message"] = str(err)
-                    err.files.extend([stream.finish(), out.write_json(summary)])
+                    err.files.extend(out.write_tables(stream, summary))
             raise
         with signals_deferred():
-            return results, [stream.finish(), out.write_json(summarize(graph, results, None))]
-    except OSError as err:      # the disk is full, the folder vanished, ...
-        raise MecanumError(f"writing the results into {out.path} failed: "
-                           f"{err.strerror or err}") from None
-    finally:
+            return results, out.write_tables(stream, summarize(graph, results, None))
+    finally:                    # a write failed (output.WriteError) or a bug: no half file
         if stream is not None and stream.temp.exists():
             stream.abort()
 
