@@ -126,8 +126,11 @@ def _run_in(graph: Graph, out: OutputFolder, *, plots: bool, progress, log, anim
             files.append(write_animation(results, find_roles(graph), truth,
                                          graph_geometry(graph), out_dir / "animation.gif"))
     except Exception as err:    # the results are written: report the figure, keep the rest
-        raise MecanumError(f"writing the {stage} into {out_dir} failed: "
-                           f"{type(err).__name__}: {err}", files=files) from err
+        failed = MecanumError(f"writing the {stage} into {out_dir} failed: "
+                              f"{type(err).__name__}: {err}", files=files)
+        summary[f"{stage}_error"] = str(failed)
+        _rewrite_summary(out, summary, [])
+        raise failed from err
     if truth_error:
         raise MecanumError(f"the ground truth could not be computed ({truth_error}); the "
                            f"run itself is complete", files=files)
