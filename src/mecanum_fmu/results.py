@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,10 +36,19 @@ class Results:
 
 
 def write_csv(results: Results, path: Path) -> None:
-    """One `time` column and one column per recorded variable, full precision (repr)."""
-    with open(path, "w", newline="") as fh:
-        writer = csv_writer(fh, results.names)
-        write_rows(writer, results.data)
+    """One `time` column and one column per recorded variable, full precision (repr).
+    Written under a temporary name beside `path` and renamed when complete: an interrupted
+    or failed write leaves no file that looks complete."""
+    path = Path(path)
+    temp = path.with_name(f".{path.name}.part")
+    try:
+        with open(temp, "w", newline="") as fh:
+            writer = csv_writer(fh, results.names)
+            write_rows(writer, results.data)
+        os.replace(temp, path)
+    except BaseException:
+        temp.unlink(missing_ok=True)
+        raise
 
 
 def csv_writer(fh, names: tuple[str, ...]):
