@@ -3,7 +3,7 @@
 The seed circle (gauss-seidel, no plots) over 0-10 s with 10^5, 10^6 and 10^7 steps, each in a
 fresh child process (`python -m mecanum_fmu run ...`); the peak RSS of each child is read with
 resource.getrusage(RUSAGE_CHILDREN) in a wrapper process of its own. 10^7 steps take a few
-minutes. results.csv of 10^7 rows is about 1.7 GB: written into a temporary folder, removed.
+minutes. results.csv of 10^7 rows is about 2.5 GB: written into a temporary folder, removed.
 Run: make bench   (or: .venv/bin/python bench/memory.py [steps ...])
 """
 from __future__ import annotations
