@@ -12,6 +12,7 @@ import dataclasses
 import time
 from pathlib import Path
 
+import numpy as np
 from fmpy.fmi2 import FMU2Slave
 
 from mecanum_fmu import master
@@ -105,6 +106,19 @@ def ours(graph, name: str) -> float:
     return master.simulate(graph, exp).wall_time
 
 
+def finite_check(graph, n: int) -> float:
+    """The stepping loop's once-per-step check for NaN/inf (master.stepping.step_all) alone:
+    the same dot product on a Real buffer of this graph's size, n times."""
+    from mecanum_fmu.master.plan import Buffers
+    real = Buffers(graph, jacobi=False).real
+    real_dot, zeros = real.dot, np.zeros_like(real)
+    tick = time.perf_counter()
+    for _ in range(n):
+        if real_dot(zeros) != 0.0:
+            raise AssertionError("the buffer is finite")
+    return time.perf_counter() - tick
+
+
 def main() -> dict:
     graph = prepare(ROOT / "scenarios" / "circle.yaml")
     n = int(round(STOP / H))
@@ -113,7 +127,8 @@ def main() -> dict:
         for label, fn in (("bare loop, fmpy wrappers", lambda: bare_fmpy(graph, n)),
                           ("bare loop, ctypes", lambda: bare_ctypes(graph, n)),
                           ("master gauss-seidel", lambda: ours(graph, "gauss-seidel")),
-                          ("master trapezoidal", lambda: ours(graph, "trapezoidal"))):
+                          ("master trapezoidal", lambda: ours(graph, "trapezoidal")),
+                          ("  of which NaN/inf check", lambda: finite_check(graph, n))):
             wall = fn()
             results[label] = min(wall, results.get(label, wall))
     base = results["bare loop, ctypes"]

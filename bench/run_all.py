@@ -4,6 +4,7 @@ import accuracy
 import closed_loop_order
 import endurance
 import loop_overhead
+import memory
 import other_hosts
 import sweep
 import turnaround
@@ -14,6 +15,8 @@ if __name__ == "__main__":
     accuracy.main()
     print("\n== stepping-loop overhead (bench/loop_overhead.py)")
     loop_overhead.main()
+    print("\n== peak memory against run length (bench/memory.py)")
+    memory.main()
     print("\n== the same run in other FMI hosts (bench/other_hosts.py)")
     other_hosts.main()
     print("\n== closed-loop convergence (bench/closed_loop_order.py)")

@@ -159,6 +159,7 @@ def test_plot_failure_keeps_the_complete_results_and_reports_cleanly(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["complete"] is True and summary["end_time"] == 10.0
     assert summary["steps"] == 200 and summary["match"] is True
+    assert "dashboard.png" in summary["plots_error"]        # the summary says what failed
 
 
 # --- 3. --out is the only place written -----------------------------------------------------

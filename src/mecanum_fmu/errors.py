@@ -57,9 +57,13 @@ class SimulationError(MecanumError):
 
 
 class Interrupted(MecanumError):
-    """The user interrupted the run (Ctrl-C); `results` holds what was recorded."""
+    """The user interrupted the run (Ctrl-C, exit code 130) or the process was asked to end
+    (SIGTERM, `terminated`, exit code 143); `results` holds what was recorded."""
     exit_code = 130
 
-    def __init__(self, time: float, results=None):
-        self.time, self.results = time, results
-        super().__init__(f"interrupted at t = {time:.6g} s")
+    def __init__(self, time: float, results=None, terminated: bool = False):
+        self.time, self.results, self.terminated = time, results, terminated
+        if terminated:
+            self.exit_code = 143
+        super().__init__(f"{'terminated (SIGTERM)' if terminated else 'interrupted'} "
+                         f"at t = {time:.6g} s")

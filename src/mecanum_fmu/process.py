@@ -3,8 +3,11 @@ children) uses."""
 from __future__ import annotations
 
 import os
+import signal
 import sys
-from typing import NoReturn
+import threading
+from contextlib import contextmanager
+from typing import Iterator, NoReturn
 
 
 def exit_now(code: int) -> NoReturn:
@@ -18,3 +21,43 @@ def exit_now(code: int) -> NoReturn:
         from .runtime import RUNTIME
         RUNTIME.remove_extractions()
     os._exit(code)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C's KeyboardInterrupt wherever the run does not latch it
+    (master.stepping.ctrl_c_latched does, while the FMUs run): the same clean-up runs, and the
+    CLI exits with 143."""
+
+
+def raise_terminated(signum, frame) -> NoReturn:
+    raise Terminated()
+
+
+@contextmanager
+def sigterm_raises() -> Iterator[None]:
+    """SIGTERM raises Terminated instead of ending the process at once (so that temporary
+    files are removed and what was recorded is kept). Only on the main thread and when the
+    default handler is installed; restored afterwards."""
+    install = (threading.current_thread() is threading.main_thread()
+               and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL)
+    if install:
+        signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        yield
+    finally:
+        if install:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Ctrl-C and SIGTERM wait until the block has finished (a few result files being
+    completed), then raise KeyboardInterrupt or Terminated. Main thread only; elsewhere the
+    block runs as it is."""
+    from .master.stepping import ctrl_c_latched
+    with ctrl_c_latched() as flag:
+        yield
+    if flag[0] == signal.SIGTERM:
+        raise Terminated()
+    if flag[0]:
+        raise KeyboardInterrupt()

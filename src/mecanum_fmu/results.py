@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,13 +36,33 @@ class Results:
 
 
 def write_csv(results: Results, path: Path) -> None:
-    """One `time` column and one column per recorded variable, full precision (repr)."""
-    with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(("time",) + results.names)
-        columns = [results.data[n] for n in ("time",) + results.names]
-        for row in zip(*(c.tolist() for c in columns)):
-            writer.writerow([_fmt(v) for v in row])
+    """One `time` column and one column per recorded variable, full precision (repr).
+    Written under a temporary name beside `path` and renamed when complete: an interrupted
+    or failed write leaves no file that looks complete."""
+    path = Path(path)
+    temp = path.with_name(f".{path.name}.part")
+    try:
+        with open(temp, "w", newline="") as fh:
+            writer = csv_writer(fh, results.names)
+            write_rows(writer, results.data)
+        os.replace(temp, path)
+    except BaseException:
+        temp.unlink(missing_ok=True)
+        raise
+
+
+def csv_writer(fh, names: tuple[str, ...]):
+    """A CSV writer on fh with the header written: `time`, then the recorded names."""
+    writer = csv.writer(fh, lineterminator="\n")
+    writer.writerow(("time",) + tuple(names))
+    return writer
+
+
+def write_rows(writer, data: np.ndarray) -> None:
+    """The rows of a structured array (fields: time, then the names), as write_csv does."""
+    columns = [data[n] for n in data.dtype.names]
+    for row in zip(*(c.tolist() for c in columns)):
+        writer.writerow([_fmt(v) for v in row])
 
 
 def _fmt(value) -> str:

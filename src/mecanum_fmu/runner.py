@@ -11,12 +11,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
 from .bundled import MODELS, find_roles
 from .ground_truth import Truth, ground_truth
+from .output import OutputFolder
 from .plot_worker import PlotWorker
-from .results import Results, write_csv, write_json
+from .process import sigterm_raises, signals_deferred
+from .results import Results
 from .scenario import MASTERS, Scenario, check_experiment, load_scenario
 
 
@@ -78,34 +82,45 @@ def default_out_dir(scenario: Scenario) -> Path:
     return Path("results") / scenario.name
 
 
+# What runner.run keeps in memory for the ground truth and the plots: about this many evenly
+# spaced rows plus the exact last one (results.csv holds every row).
+KEEP_ROWS = 10_000
+
+
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
         log: Callable[[str], None] = print, animate: bool = False,
-        plotter: PlotWorker | None = None) -> RunOutcome:
-    """Simulate, write results.csv, summary.json and the plots into out_dir. `plotter`: a
-    plot worker started earlier (the CLI starts it before loading, to hide matplotlib's import)."""
-    scenario = graph.scenario
-    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files: list[Path] = []
-    from . import master    # here: `validate` needs neither the FMI runtime nor matplotlib
+        keep_rows: int | None = KEEP_ROWS, plotter: PlotWorker | None = None) -> RunOutcome:
+    """Simulate, write results.csv, summary.json and the plots into out_dir.
+
+    results.csv is written during the run; the outcome's Results hold `keep_rows` rows (None:
+    every row). The folder is checked and locked first (ScenarioError). A failure after the
+    stepping loop (ground truth, plots) costs only itself: the tables are written first.
+    `plotter`: a plot worker started earlier (the CLI starts it before loading, to hide
+    matplotlib's import); without one, one is started here when plots are wanted."""
+    out_dir = Path(out_dir) if out_dir is not None else default_out_dir(graph.scenario)
     plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
-    if plotter is not None:
-        plotter.expect(graph)
     try:
-        results = master.simulate(graph, scenario.experiment, progress=progress)
-    except (SimulationError, Interrupted) as err:
+        with sigterm_raises(), OutputFolder(out_dir) as out:
+            if plotter is not None:
+                plotter.expect(graph)
+            return _run_in(graph, out, plotter=plotter, progress=progress, log=log,
+                           animate=animate, keep_rows=keep_rows)
+    finally:
         if plotter is not None:
-            plotter.cancel()
-        if err.results is not None:
-            summary = summarize(graph, err.results, None)
-            summary["error_message"] = str(err)
-            files += _write_tables(err.results, summary, out_dir)
-        err.files.extend(files)
-        raise
-    truth = ground_truth(graph, results.time) if results.steps else None
+            plotter.cancel()        # stops the worker if the plots were not drawn
+
+
+def _run_in(graph: Graph, out: OutputFolder, *, plotter: PlotWorker | None, progress, log,
+            animate: bool, keep_rows: int | None) -> RunOutcome:
+    scenario, out_dir = graph.scenario, out.path
+    results, files = _simulate_into(graph, out, progress, keep_rows)
+    truth, truth_error = _ground_truth(graph, results)
     summary = summarize(graph, results, truth)
-    files += _write_tables(results, summary, out_dir)
+    if truth is not None or truth_error:
+        if truth_error:
+            summary["ground_truth_error"] = truth_error
+        _rewrite_summary(out, summary, files)
     for line in report_lines(summary):
         log(line)
     stage = "plots"
@@ -120,17 +135,64 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
             files.append(write_animation(results, find_roles(graph), truth,
                                          graph_geometry(graph), out_dir / "animation.gif"))
     except Exception as err:    # the results are written: report the figure, keep the rest
-        raise MecanumError(f"writing the {stage} into {out_dir} failed: "
-                           f"{type(err).__name__}: {err}", files=files) from err
+        failed = MecanumError(f"writing the {stage} into {out_dir} failed: "
+                              f"{type(err).__name__}: {err}", files=files)
+        summary[f"{stage}_error"] = str(failed)
+        _rewrite_summary(out, summary, [])
+        raise failed from err
+    if truth_error:
+        raise MecanumError(f"the ground truth could not be computed ({truth_error}); the "
+                           f"run itself is complete", files=files)
     return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
 
 
-def _write_tables(results: Results, summary: dict, out_dir: Path) -> list[Path]:
-    csv_path = out_dir / "results.csv"
-    write_csv(results, csv_path)
-    json_path = out_dir / "summary.json"
-    write_json(summary, json_path)
-    return [csv_path, json_path]
+def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> None:
+    """The summary again, now with the ground truth (or why it failed)."""
+    try:
+        with signals_deferred():
+            out.write_json(summary)
+    except MecanumError as err:     # output.WriteError: the tables written before are kept
+        err.files.extend(files)
+        raise
+
+
+def _simulate_into(graph: Graph, out: OutputFolder, progress,
+                   keep_rows: int | None) -> tuple[Results, list[Path]]:
+    """Run with results.csv streamed into `out`; write the summary (without the ground truth).
+    A failed or interrupted run still keeps its tables and raises; a write error
+    (output.WriteError) leaves no results.csv."""
+    from . import master    # here: `validate` needs neither the FMI runtime nor matplotlib
+    stream = None
+    try:
+        stream = out.csv_stream(tuple(str(p.ref) for p in graph.recorded))
+        try:
+            results = master.simulate(graph, graph.scenario.experiment, progress=progress,
+                                      sink=stream, keep_rows=keep_rows)
+        except (SimulationError, Interrupted) as err:
+            if err.results is not None:
+                with signals_deferred():
+                    summary = summarize(graph, err.results, None)
+                    summary["error_message"] = str(err)
+                    err.files.extend(out.write_tables(stream, summary))
+            raise
+        with signals_deferred():
+            return results, out.write_tables(stream, summarize(graph, results, None))
+    finally:                    # a write failed (output.WriteError) or a bug: no half file
+        if stream is not None and stream.temp.exists():
+            stream.abort()
+
+
+def _ground_truth(graph: Graph, results: Results) -> tuple[Truth | None, str | None]:
+    """The ground truth on the (bounded) times kept, or why it failed."""
+    if not results.steps:
+        return None, None
+    try:
+        truth = ground_truth(graph, results.time)
+    except Exception as err:    # e.g. an expression that fails between the recorded times
+        return None, f"{type(err).__name__}: {err}"
+    if truth is not None and not np.all(np.isfinite(truth.end)):
+        return None, f"its end pose {truth.end} is not finite"
+    return truth, None
 
 
 def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
@@ -164,9 +226,6 @@ def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
             summary["error"] = err
             summary["match"] = (round(end["x"], 3) == round(ref["x"], 3)
                                 and round(end["y"], 3) == round(ref["y"], 3))
-    from .chassis_compare import pose_summaries
-    if pose is None and (poses := pose_summaries(graph, results)):
-        summary["poses"] = poses          # several chassis in one run, each with its truth
     from .modes import constant_twist_signs
     if (signs := constant_twist_signs(graph, results)) is not None:
         summary["wheel_signs"] = signs    # only for a constant commanded twist
@@ -186,9 +245,6 @@ def report_lines(summary: dict) -> list[str]:
                          f"|e| = {err['position']:.3e} m")
             lines.append("match!" if summary["match"] else
                          "no match (the end points differ at 3 decimals; try a smaller step)")
-    if "poses" in summary:
-        from .chassis_compare import pose_report_lines
-        lines += pose_report_lines(summary["poses"])
     if "wheel_signs" in summary:
         lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
     return lines

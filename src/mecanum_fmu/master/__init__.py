@@ -6,9 +6,12 @@ and freed (or kept for reuse, see runtime) in all cases.
 """
 from __future__ import annotations
 
+import signal
 import time as _time
 from contextlib import ExitStack
 from typing import Callable
+
+import numpy as np
 
 from ..errors import Interrupted, SimulationError
 from ..graph import Graph
@@ -18,17 +21,26 @@ from ..scenario import Experiment
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, plan_transfers
 from .recorder import Recorder, step_count
-from .stepping import StepFailure, ctrl_c_latched, initialise, step_all
+from .stepping import (NonFinite, StepFailure, check_finite, ctrl_c_latched, initialise,
+                       step_all)
 
 __all__ = ["simulate", "release_instances", "RUNTIME"]
 
 
 def simulate(graph: Graph, experiment: Experiment,
-             progress: Callable[[float], None] | None = None) -> Results:
-    """Run the graph. Raises SimulationError (with the partial Results) when an FMU fails,
-    Interrupted on Ctrl-C; every instance is terminated and freed in all cases."""
+             progress: Callable[[float], None] | None = None, *,
+             sink: Callable[[np.ndarray], None] | None = None,
+             keep_rows: int | None = None) -> Results:
+    """Run the graph. Raises SimulationError (with the partial Results) when an FMU fails or
+    a Real value stops being finite, Interrupted on Ctrl-C or SIGTERM; every instance is
+    terminated and freed in all cases.
+
+    `sink` gets the recorded rows as they come, in chunks (structured arrays; every row has
+    reached it when simulate returns or raises, except when the sink itself raises, which
+    ends the run with that exception). `keep_rows`: the returned Results hold every row
+    (None, the default) or about that many evenly spaced rows plus the exact last one."""
     buffers = Buffers(graph, jacobi=experiment.master == "jacobi")
-    recorder = Recorder(graph, experiment, buffers, step_count(experiment))
+    recorder = Recorder(graph, experiment, buffers, step_count(experiment), sink, keep_rows)
     with ExitStack() as stack:
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
@@ -36,14 +48,17 @@ def simulate(graph: Graph, experiment: Experiment,
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)
+            check_finite(buffers.real, experiment.start_time)
         except FmuCallError as err:
             raise _failure(err.running, err.function, err.status, experiment.start_time,
                            recorder) from None
+        except NonFinite as err:
+            raise _not_finite(buffers, err.time, recorder) from None
         recorder.record()
         for prime in primes:
             prime()
         _run_loop(running, recorder, ctrl_c, buffers, progress)
-    return recorder.results(True)
+        return recorder.results(True)
 
 
 def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
@@ -60,16 +75,40 @@ def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress) -
     freeze = buffers.freeze if recorder.experiment.master == "jacobi" else None
     tick = _time.perf_counter()
     try:
-        step_all(running, recorder, ctrl_c, freeze, progress)
+        with np.errstate(all="ignore"):     # an overflow is reported as a non-finite value
+            step_all(running, recorder, ctrl_c, freeze, progress)
     except StepFailure as err:
-        recorder.wall = _time.perf_counter() - tick
+        recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
+        if not np.isfinite(buffers.real).all():   # the cause: a value that went non-finite
+            err.running.mark_failed(err.status)
+            raise _not_finite(buffers, err.end, recorder, then=(
+                f"; then {err.running.name}'s {err.function} returned "
+                f"{STATUS.get(err.status, err.status)}")) from None
         raise _failure(err.running, err.function, err.status, err.time, recorder) from None
+    except NonFinite as err:
+        recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
+        raise _not_finite(buffers, err.time, recorder) from None
     except KeyboardInterrupt:
-        recorder.wall = _time.perf_counter() - tick
+        recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
         partial = recorder.results(False)
         # the time of the last row kept (a step may have been recorded after `t` was set)
-        raise Interrupted(float(partial.time[-1]), results=partial) from None
-    recorder.wall = _time.perf_counter() - tick
+        raise Interrupted(float(partial.time[-1]), results=partial,
+                          terminated=ctrl_c[0] == signal.SIGTERM) from None
+    recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
+
+
+def _not_finite(buffers: Buffers, when: float, recorder: Recorder,
+                then: str = "") -> SimulationError:
+    """Name the first value that is not finite, in the stepping order (the slots of each
+    instance are contiguous, in order): the one that produced it, the others got it."""
+    slot = int(np.flatnonzero(~np.isfinite(buffers.real))[0])
+    port = next(p for p, s in buffers.real_slots.items() if s == slot)
+    return SimulationError(
+        f"output {port.ref.variable} = {float(buffers.real[slot])!r} is not a finite number (an "
+        f"overflow or an invalid operation; check the parameters and inputs of this "
+        f"component); the run stops at the step that produced it{then}",
+        component=port.ref.instance, time=when, status="not finite",
+        results=recorder.results(False))
 
 
 def _failure(r: RunningInstance, function: str, status: int, when: float,

@@ -1,5 +1,15 @@
-"""The recording of a run: one row of the value buffers per communication point."""
+"""The recording of a run: one row of the value buffers per communication point.
+
+Rows are copied into a small chunk (CHUNK_ROWS rows); a full chunk becomes a structured array
+that goes to the sink (e.g. the results.csv being written) and to what is kept in memory:
+every row by default, or with `keep_rows` about that many evenly spaced rows plus the exact
+last row, so that memory stays bounded for any run length.
+"""
 from __future__ import annotations
+
+import math
+import time as _time
+from typing import Callable
 
 import numpy as np
 
@@ -7,6 +17,8 @@ from ..graph import Graph
 from ..results import Results
 from ..scenario import Experiment
 from .plan import Buffers
+
+CHUNK_ROWS = 4096
 
 
 def step_count(experiment: Experiment) -> int:
@@ -19,36 +31,72 @@ def step_count(experiment: Experiment) -> int:
 
 
 class Recorder:
-    """Copies the whole buffers each row (one contiguous copy each); the recorded columns are
-    picked out when Results are made."""
+    """Copies the whole buffers each row (one contiguous copy each) into the current chunk;
+    the recorded columns are picked out when a chunk is full (flush)."""
 
-    def __init__(self, graph: Graph, experiment: Experiment, buffers: Buffers, n_steps: int):
+    def __init__(self, graph: Graph, experiment: Experiment, buffers: Buffers, n_steps: int,
+                 sink: Callable[[np.ndarray], None] | None = None,
+                 keep_rows: int | None = None):
         self.graph, self.experiment, self.buffers = graph, experiment, buffers
         self.n_steps = n_steps
-        self.real = np.empty((n_steps + 1, len(buffers.real)), dtype=np.float64)
-        self.int = np.empty((n_steps + 1, len(buffers.int)), dtype=np.int32)
-        self.rows = 0
+        chunk = min(CHUNK_ROWS, n_steps + 1)
+        self.real = np.empty((chunk, len(buffers.real)), dtype=np.float64)
+        self.int = np.empty((chunk, len(buffers.int)), dtype=np.int32)
+        self.fill = 0           # rows in the current chunk
+        self.flushed = 0        # rows handed on by flush()
+        self.names = tuple(str(p.ref) for p in graph.recorded)
+        self.dtype = [("time", "f8")] + [(name, {"Real": "f8", "Integer": "i4"}.get(p.type, "?"))
+                                         for name, p in zip(self.names, graph.recorded)]
+        self.sink = sink
+        self.stride = 1 if keep_rows is None else max(1, math.ceil((n_steps + 1) / keep_rows))
+        self.kept: list[np.ndarray] = []
+        self.last: np.ndarray | None = None
+        self.sink_seconds = 0.0  # time spent in flush (formatting, writing): not the loop's
         self.wall = 0.0
 
-    def record(self) -> None:
-        self.real[self.rows] = self.buffers.real
-        self.int[self.rows] = self.buffers.int
-        self.rows += 1
+    @property
+    def rows(self) -> int:
+        return self.flushed + self.fill
 
-    def results(self, complete: bool) -> Results:
-        """The structured array of the rows recorded so far (t0 row included)."""
-        exp, rows = self.experiment, self.rows
-        names = tuple(str(p.ref) for p in self.graph.recorded)
-        dtype = [("time", "f8")] + [(name, {"Real": "f8", "Integer": "i4"}.get(p.type, "?"))
-                                    for name, p in zip(names, self.graph.recorded)]
-        data = np.empty(rows, dtype=dtype)
+    def record(self) -> None:
+        i = self.fill
+        self.real[i] = self.buffers.real
+        self.int[i] = self.buffers.int
+        self.fill = i + 1
+        if i + 1 == len(self.real):
+            self.flush()
+
+    def flush(self) -> None:
+        """The rows of the current chunk as a structured array, to the sink and the memory."""
+        if not self.fill:
+            return
+        tick = _time.perf_counter()
+        exp, first, n = self.experiment, self.flushed, self.fill
+        index = np.arange(first, first + n)
+        data = np.empty(n, dtype=self.dtype)
         # t_k = start + k*h, computed, not accumulated; the last point is stop_time itself.
-        times = exp.start_time + np.arange(rows) * exp.step_size
-        if rows == self.n_steps + 1:
+        times = exp.start_time + index * exp.step_size
+        if first + n == self.n_steps + 1:
             times[-1] = exp.stop_time
         data["time"] = times
-        for name, port in zip(names, self.graph.recorded):
+        for name, port in zip(self.names, self.graph.recorded):
             source = self.real if port.type == "Real" else self.int
-            data[name] = source[:rows, self.buffers.slot(port)]
-        return Results(names, data, exp.master, exp.start_time, exp.stop_time,
-                       exp.step_size, max(rows - 1, 0), self.wall, complete)
+            data[name] = source[:n, self.buffers.slot(port)]
+        self.flushed, self.fill = first + n, 0
+        self.kept.append(data if self.stride == 1 else data[index % self.stride == 0])
+        self.last = data[-1:].copy()
+        if self.sink is not None:
+            self.sink(data)
+        self.sink_seconds += _time.perf_counter() - tick
+
+    def results(self, complete: bool) -> Results:
+        """The rows recorded so far (t0 row included): every row, or the decimated ones plus
+        the exact last row."""
+        self.flush()
+        parts = [k for k in self.kept if len(k)]
+        if self.last is not None and (self.flushed - 1) % self.stride:
+            parts.append(self.last)
+        data = np.concatenate(parts) if parts else np.empty(0, dtype=self.dtype)
+        exp = self.experiment
+        return Results(self.names, data, exp.master, exp.start_time, exp.stop_time,
+                       exp.step_size, max(self.rows - 1, 0), self.wall, complete)

@@ -7,32 +7,39 @@ import time as _time
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
+import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from ..graph import Graph, port_type
+from ..process import raise_terminated
 from .instance import FmuCallError, RunningInstance
 from .recorder import Recorder
 
 
 @contextmanager
-def ctrl_c_latched() -> Iterator[list[bool]]:
-    """While the FMUs run, Ctrl-C only sets a flag that the stepping loop checks once per step.
+def ctrl_c_latched() -> Iterator[list[int]]:
+    """While the FMUs run, Ctrl-C (and SIGTERM) only set a flag that the stepping loop checks
+    once per step: flag[0] is the signal number, 0 while none came.
 
     The bundled FMUs run Python code on this thread, so Python's default SIGINT handler would
     raise KeyboardInterrupt inside an FMU call about 2 times in 3, and pythonfmu turns that
-    into fmi2Fatal (the run fails instead of stopping, the instance cannot even be freed).
-    Only on the main thread with the default handler installed; elsewhere the flag stays
-    False and Ctrl-C behaves as usual."""
-    flag = [False]
-    install = (threading.current_thread() is threading.main_thread()
-               and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
-    if install:
-        signal.signal(signal.SIGINT, lambda signum, frame: flag.__setitem__(0, True))
+    into fmi2Fatal (the run fails instead of stopping, the instance cannot even be freed);
+    SIGTERM would end the process with nothing kept. Only on the main thread and for a signal
+    whose handler is the default one (or process.sigterm_raises'); elsewhere the flag stays 0
+    and the signals behave as usual."""
+    flag = [0]
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum, defaults in ((signal.SIGINT, (signal.default_int_handler,)),
+                                 (signal.SIGTERM, (signal.SIG_DFL, raise_terminated))):
+            if signal.getsignal(signum) in defaults:
+                previous[signum] = signal.signal(
+                    signum, lambda number, frame: flag.__setitem__(0, flag[0] or number))
     try:
         yield flag
     finally:
-        if install:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def _guarded(r: RunningInstance, action: Callable[[], None]) -> None:
@@ -73,21 +80,40 @@ def initialise(running: list[RunningInstance], graph: Graph, start: float, stop:
             r.call("get", c_get(r.component, vrs, n, pointer))
 
 
+class NonFinite(Exception):
+    """The Real buffer holds NaN or an infinity after the step that ended at `time`."""
+
+    def __init__(self, time: float):
+        self.time = time
+
+
+def check_finite(real, time: float) -> None:
+    """Raise NonFinite when a Real value is NaN or infinite (initialisation, tests)."""
+    if not np.isfinite(real).all():
+        raise NonFinite(time)
+
+
 class StepFailure(Exception):
     """A call in the stepping loop returned Discard or worse."""
 
-    def __init__(self, running: RunningInstance, function: str, status: int, time: float):
+    def __init__(self, running: RunningInstance, function: str, status: int, time: float,
+                 end: float):
         self.running, self.function, self.status, self.time = running, function, status, time
+        self.end = end      # the end of the step under way
 
 
 def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bool],
              freeze: Callable[[], None] | None,
              progress: Callable[[float], None] | None) -> None:
-    """The hot loop: everything it touches was prepared. Raises StepFailure, KeyboardInterrupt."""
+    """The hot loop: everything it touches was prepared. Raises StepFailure, NonFinite,
+    KeyboardInterrupt."""
     exp = recorder.experiment
     start, stop, h, n_steps = exp.start_time, exp.stop_time, exp.step_size, recorder.n_steps
     program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
     record = recorder.record
+    # One dot product per step finds any NaN or infinity in the Real values (0 * inf is NaN,
+    # 0 * finite is 0, and a sum of zeros cannot overflow).
+    real_dot, zeros = recorder.buffers.real.dot, np.zeros_like(recorder.buffers.real)
     next_report = _time.perf_counter() + 1.0
     for k in range(n_steps):
         if ctrl_c[0]:
@@ -102,14 +128,16 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
                     fill()
                 st = c_set(comp, vrs, n, pointer)
                 if st > 1:
-                    raise StepFailure(r, "set", st, t)
+                    raise StepFailure(r, "set", st, t, t + h_k)
             st = do_step(comp, t, h_k, 1)
             if st > 1:
-                raise StepFailure(r, r.step_failure(), st, t)
+                raise StepFailure(r, r.step_failure(), st, t, t + h_k)
             for c_get, vrs, n, pointer in reads:
                 st = c_get(comp, vrs, n, pointer)
                 if st > 1:
-                    raise StepFailure(r, "get", st, t + h_k)
+                    raise StepFailure(r, "get", st, t + h_k, t + h_k)
+        if real_dot(zeros) != 0.0:
+            raise NonFinite(t + h_k)
         record()
         if progress is not None and not k & 255:
             now = _time.perf_counter()

@@ -1,0 +1,173 @@
+"""The results folder of one run: checked and locked before simulating, written so that no
+file ever looks complete when it is not.
+
+- The folder is made (or found) and probed before the run: a file in its place, a folder that
+  cannot be written, a name that is too long are bad input (ScenarioError, exit code 2).
+- One run at a time per folder: an exclusive lock (fcntl.flock) on LOCK_NAME inside it, removed
+  when the run ends; a second run is refused.
+- results.csv and summary.json are written under a temporary name in the folder and renamed
+  when complete; the copies of an earlier run are removed first, so that a run that ends
+  half-way never leaves an old file that looks like its own.
+"""
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MecanumError, Problem, ScenarioError
+from .results import csv_writer, write_rows
+
+# as long as the longest name a run writes here (".summary.json.part" and the plots are
+# shorter): when the lock can be created, every other file name fits too
+LOCK_NAME = ".mecanum_fmu_run.lock"
+TABLES = ("results.csv", "summary.json")
+
+
+class WriteError(MecanumError):
+    """A result file could not be written (a full disk, the folder removed): exit code 1."""
+
+    def __init__(self, folder: Path, err: OSError):
+        super().__init__(f"writing the results into {folder} failed: {err.strerror or err}")
+
+
+def _bad(folder: Path, message: str) -> ScenarioError:
+    return ScenarioError([Problem(str(folder), "output folder (--out)", message)])
+
+
+class OutputFolder:
+    """`with OutputFolder(path) as out:` checks, creates and locks the folder."""
+
+    def __init__(self, path: Path | str):
+        self.path = Path(path)
+        self._fd: int | None = None
+        self._temps: set[Path] = set()
+
+    def __enter__(self) -> "OutputFolder":
+        self._make()
+        self._lock()
+        try:
+            for name in TABLES:
+                (self.path / name).unlink(missing_ok=True)
+        except OSError as err:
+            self._unlock()
+            raise _bad(self.path / name, f"cannot replace it ({err.strerror}); remove it "
+                                         f"or choose another --out") from None
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for temp in self._temps:
+            try:
+                temp.unlink(missing_ok=True)
+            except OSError:
+                pass
+        self._unlock()
+
+    def _make(self) -> None:
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:
+            raise _bad(self.path, "is a file, not a folder; give a folder (it is created "
+                                  "when missing)") from None
+        except OSError as err:
+            raise _bad(self.path, f"cannot create it: {err.strerror}; choose another "
+                                  f"--out") from None
+
+    def _lock(self) -> None:
+        lock = self.path / LOCK_NAME
+        while True:
+            try:
+                fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            except OSError as err:
+                raise _bad(self.path, f"cannot write into it: {err.strerror}; choose "
+                                      f"another --out") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                raise _bad(self.path, f"another run is writing into {self.path}; wait for "
+                                      f"it to end or choose another --out") from None
+            try:        # the run that held it may have removed it meanwhile: lock anew
+                if os.stat(lock).st_ino == os.fstat(fd).st_ino:
+                    self._fd = fd
+                    return
+            except FileNotFoundError:
+                pass
+            os.close(fd)
+
+    def _unlock(self) -> None:
+        if self._fd is not None:       # removed while still held: see _lock
+            try:
+                (self.path / LOCK_NAME).unlink(missing_ok=True)
+            except OSError:
+                pass
+            os.close(self._fd)
+            self._fd = None
+
+    def temporary(self, name: str) -> Path:
+        temp = self.path / f".{name}.part"
+        self._temps.add(temp)
+        return temp
+
+    def write_json(self, data: dict, name: str = "summary.json") -> Path:
+        """Written whole under a temporary name, then renamed."""
+        temp, final = self.temporary(name), self.path / name
+        try:
+            temp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
+            os.replace(temp, final)
+        except OSError as err:
+            raise WriteError(self.path, err) from None
+        return final
+
+    def write_tables(self, stream: "CsvStream", summary: dict) -> list[Path]:
+        """results.csv (renamed) and summary.json together, or neither: a results.csv
+        without the summary that says how far it got would look complete."""
+        try:
+            return [stream.finish(), self.write_json(summary)]
+        except WriteError:
+            for name in TABLES:
+                try:
+                    (self.path / name).unlink(missing_ok=True)
+                except OSError:
+                    pass
+            raise
+
+    def csv_stream(self, names: tuple[str, ...]) -> "CsvStream":
+        return CsvStream(self.temporary("results.csv"), self.path / "results.csv", names)
+
+
+class CsvStream:
+    """results.csv written chunk by chunk during the run (a sink for master.simulate) under a
+    temporary name; finish() renames it, abort() removes it."""
+
+    def __init__(self, temp: Path, final: Path, names: tuple[str, ...]):
+        self.temp, self.final = temp, final
+        try:
+            self._fh = open(temp, "w", newline="")
+            self._writer = csv_writer(self._fh, names)
+        except OSError as err:
+            raise WriteError(final.parent, err) from None
+
+    def __call__(self, chunk: np.ndarray) -> None:
+        try:
+            write_rows(self._writer, chunk)
+        except OSError as err:
+            raise WriteError(self.final.parent, err) from None
+
+    def finish(self) -> Path:
+        try:
+            self._fh.close()
+            os.replace(self.temp, self.final)
+        except OSError as err:
+            raise WriteError(self.final.parent, err) from None
+        return self.final
+
+    def abort(self) -> None:
+        try:
+            self._fh.close()
+        except OSError:     # the disk is full: what is buffered cannot be written
+            pass
+        self.temp.unlink(missing_ok=True)
