@@ -14,7 +14,7 @@ import fmpy
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
-from .archive import ZIP_ERRORS, ArchiveError, checked_members
+from .archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
 from .bundled import MODELS
 from .storage import cache_root
 
@@ -162,9 +162,10 @@ def _check_numbers(path: Path, md: ModelDescription) -> None:
                                  f"{str(var.start)[:40]!r}; fmi2Integer is -2**31 to 2**31-1")
 
 
-def binary_problem(path: Path, md: ModelDescription) -> str | None:
-    """Why the FMU cannot be loaded on this platform (no binary for it), or None. Cheap: reads
-    the archive's member list only."""
+def loading_problem(path: Path, md: ModelDescription) -> str | None:
+    """Why the FMU cannot be loaded here, or None: no binary for this platform, or (a pythonfmu
+    FMU) its slave script missing - pythonfmu's fmi2Instantiate then crashes the process.
+    Cheap: reads the member list and resources/slavemodule.txt only."""
     ident = md.coSimulation.modelIdentifier
     member = f"binaries/{fmpy.platform}/{ident}{fmpy.sharedLibraryExtension}"
     try:
@@ -173,7 +174,7 @@ def binary_problem(path: Path, md: ModelDescription) -> str | None:
     except ZIP_ERRORS as err:
         return f"{path.name} is a damaged zip archive: {err}"
     if member in names:
-        return None
+        return _slave_script_problem(path, names)
     platforms = sorted({n.split("/")[1] for n in names
                         if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[2]})
     return (f"{path.name} has no binary for this platform ({member}); it has "
@@ -189,4 +190,18 @@ def _fmi_version(path: Path) -> str | None:
                 return elem.get("fmiVersion")
     except Exception:       # a broken file is reported by the full read below
         return None
+    return None
+
+
+def _slave_script_problem(path: Path, names: set[str]) -> str | None:
+    if "resources/slavemodule.txt" not in names:
+        return None
+    try:
+        with zipfile.ZipFile(path) as zf:
+            module = read_member(zf, "resources/slavemodule.txt", 1000).decode().strip()
+    except (ArchiveError, UnicodeDecodeError) as err:
+        return f"{path.name}: resources/slavemodule.txt cannot be read: {err}"
+    if f"resources/{module}.py" not in names:
+        return (f"{path.name} is a pythonfmu FMU whose slave script resources/{module[:80]}.py "
+                "is missing; export the FMU again")
     return None

@@ -110,7 +110,7 @@ class _Checker:
                 path = fmu_library.resolve_fmu(comp.fmu, scenario.path.parent, fmu_dir)
                 if path not in cache:
                     cache[path] = fmu_library.read_description(path)
-                    problem = fmu_library.binary_problem(path, cache[path])
+                    problem = fmu_library.loading_problem(path, cache[path])
                     if problem:
                         self.bad(f"{comp.place}.fmu", problem)
                 self.models[comp.name] = (path, cache[path])

@@ -26,8 +26,9 @@ def load_error(inst: Instance, what: str, err: BaseException, folder: str = "") 
     if folder:      # name the member, not our temporary folder
         reason = reason.replace(folder.rstrip("/") + "/", "")
     reason = " ".join(reason.split())[:300]
-    fix = ("export it again for this platform" if what == "cannot be loaded"
-           else "the archive is damaged or unsafe; export the FMU again")
+    fix = {"cannot be loaded": "export it again for this platform",
+           "cannot be extracted": "the archive is damaged or unsafe; export the FMU again"
+           }.get(what, "export the FMU again")
     return ScenarioError([Problem(str(inst.fmu_path), inst.declared_at,
                                   f"the FMU of component '{inst.name}' {what}: {reason}; {fix}")])
 
@@ -85,7 +86,12 @@ class RunningInstance:
             self.component = None
         # loggingOn: pythonfmu drops every message otherwise, errors included; the log keeps
         # the last few so that a failure can quote the FMU's own reason.
-        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+        try:
+            self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+        except Exception as err:     # fmi2Instantiate returned NULL: a broken FMU
+            why = self.log.last() or str(err)
+            raise load_error(self.inst, "cannot be instantiated", Exception(why),
+                             self.key[0]) from None
         self.component = self.fmu.component
 
     def terminate(self) -> None:
