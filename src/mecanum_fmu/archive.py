@@ -49,9 +49,12 @@ def name_problem(name: str) -> str | None:
     return None
 
 
-def checked_members(zf: zipfile.ZipFile, max_member: int = MAX_MEMBER_BYTES,
-                    max_total: int = MAX_TOTAL_BYTES) -> list[zipfile.ZipInfo]:
-    """Every member, after checking names and declared sizes. Raises ArchiveError."""
+def checked_members(zf: zipfile.ZipFile, max_member: int | None = None,
+                    max_total: int | None = None) -> list[zipfile.ZipInfo]:
+    """Every member, after checking names and declared sizes (limits: the module's
+    MAX_MEMBER_BYTES and MAX_TOTAL_BYTES by default). Raises ArchiveError."""
+    max_member = MAX_MEMBER_BYTES if max_member is None else max_member
+    max_total = MAX_TOTAL_BYTES if max_total is None else max_total
     infos = zf.infolist()
     if len(infos) > MAX_MEMBERS:
         raise ArchiveError(f"has {len(infos)} members (limit {MAX_MEMBERS})")
@@ -83,9 +86,11 @@ def checked_members(zf: zipfile.ZipFile, max_member: int = MAX_MEMBER_BYTES,
 
 
 def copy_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, out: BinaryIO,
-                limit: int = MAX_MEMBER_BYTES) -> int:
-    """Inflate one member into out, counting bytes: never more than limit or than its
-    declared size. Returns the bytes written. Raises ArchiveError."""
+                limit: int | None = None) -> int:
+    """Inflate one member into out, counting bytes: never more than limit (default
+    MAX_MEMBER_BYTES) or than its declared size. Returns the bytes written. Raises
+    ArchiveError."""
+    limit = MAX_MEMBER_BYTES if limit is None else limit
     allowed, written = min(limit, info.file_size), 0
 
     def damaged(err: BaseException) -> ArchiveError:
@@ -124,7 +129,7 @@ def read_member(zf: zipfile.ZipFile, name: str, limit: int) -> bytes:
 
 
 def extract_file(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path,
-                 limit: int = MAX_MEMBER_BYTES) -> Path:
+                 limit: int | None = None) -> Path:
     """Inflate one member to target atomically (a hidden partial file, renamed when
     complete; removed on any failure)."""
     target.parent.mkdir(parents=True, exist_ok=True)
