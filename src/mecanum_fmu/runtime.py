@@ -62,7 +62,11 @@ class Runtime:
         """The folder where this FMU's content is unpacked (once per content and process).
         Raises archive.ArchiveError (unsafe or damaged archive; nothing is left behind) or
         OSError (the FMU cannot be read)."""
-        digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        sha = hashlib.sha256()
+        with open(path, "rb") as f:          # streamed: an FMU may be large
+            while chunk := f.read(1 << 20):
+                sha.update(chunk)
+        digest = sha.hexdigest()
         if digest not in self._extracted:
             self._extracted[digest] = extract_all(path, f"mecanum_{Path(path).stem[:40]}_")
         return self._extracted[digest]
