@@ -150,7 +150,7 @@ def _check_numbers(path: Path, md: ModelDescription) -> None:
     for var in md.modelVariables:
         if not 0 <= var.valueReference < 2**32:
             raise ValueError(f"{path.name}: variable {var.name!r:.80} has valueReference "
-                             f"{var.valueReference:.6g}; FMI 2.0 value references are "
+                             f"{str(var.valueReference)[:24]}; FMI 2.0 value references are "
                              "0 to 2**32-1 (fix the modelDescription.xml)")
         if var.type in ("Integer", "Enumeration") and var.start is not None:
             try:
