@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import struct
 import subprocess
 import sys
 import time
@@ -85,6 +86,30 @@ def make_helper_fmus(folder: Path) -> None:
   </ModelVariables>
   <ModelStructure><Outputs><Unknown index="1" dependencies=""/></Outputs></ModelStructure>""",
         "badinput_counter")})
+    counter = (folder / "counter.fmu")
+    with zipfile.ZipFile(counter) as zf:
+        md = zf.read("modelDescription.xml").decode()
+    # unsafe archives (issue 13): a member that leaves the folder, a zip bomb, a wrapping vr
+    _zip(folder / "escape.fmu", {"modelDescription.xml": md, "../../escaped.txt": "x"})
+    _zip(folder / "vr32.fmu", {"modelDescription.xml": md.replace('valueReference="0"',
+                                                                  'valueReference="4294967296"')})
+    _zip(folder / "bomb.fmu", {"modelDescription.xml": md, "resources/bomb.bin": "\0" * 1000})
+    _declare_size(folder / "bomb.fmu", "resources/bomb.bin", 0xFFFF_FFF0)
+
+
+def _declare_size(path: Path, member: str, size: int) -> None:
+    """Make member claim to inflate to size bytes (local and central headers)."""
+    data = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as zf:
+        local, central = zf.getinfo(member).header_offset, zf.start_dir
+        for info in zf.infolist():
+            if info.filename == member:
+                break
+            n, m, k = struct.unpack_from("<HHH", data, central + 28)
+            central += 46 + n + m + k
+    struct.pack_into("<I", data, local + 22, size)
+    struct.pack_into("<I", data, central + 24, size)
+    path.write_bytes(bytes(data))
 
 
 @pytest.fixture

@@ -1,7 +1,17 @@
 """The project's exceptions. Only the CLI turns them into messages and exit codes."""
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+
+# C0/C1 controls, line/paragraph separators and bidirectional overrides: printed raw they can
+# rewrite the terminal or hide text; messages show them escaped (\x1b, \n, \u202e).
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
+
+
+def printable(text: str) -> str:
+    """text with every control or direction-changing character escaped."""
+    return _UNPRINTABLE.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
 
 
 class MecanumError(Exception):
@@ -23,7 +33,8 @@ class Problem:
     message: str
 
     def __str__(self) -> str:
-        return f"{self.file}: {self.place}: {self.message}" if self.place else f"{self.file}: {self.message}"
+        text = f"{self.file}: {self.place}: {self.message}" if self.place else f"{self.file}: {self.message}"
+        return printable(text)
 
 
 class ScenarioError(MecanumError):

@@ -10,13 +10,16 @@ from importlib.metadata import version
 from pathlib import Path
 from xml.etree import ElementTree
 
+import fmpy
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
+from .archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
 from .bundled import MODELS
 from .storage import cache_root
 
 PACKAGE_DIR = Path(__file__).resolve().parent
+MAX_DESCRIPTION_BYTES = 50_000_000      # modelDescription.xml, inflated
 _INLINE = re.compile(r"^from mecanum_fmu\.blocks\.(\w+) import [\w, ]+# inline$", re.MULTILINE)
 
 
@@ -117,10 +120,18 @@ def read_description(path: Path) -> ModelDescription:
         raise ValueError(f"{path.name} is not an FMU (an FMU is a zip archive)")
     try:
         with zipfile.ZipFile(path) as zf:
-            if "modelDescription.xml" not in zf.namelist():
-                raise ValueError(f"{path.name} has no modelDescription.xml; it is not an FMU")
-    except zipfile.BadZipFile as err:
+            infos = {i.filename: i for i in checked_members(zf)}
+    except ArchiveError as err:
+        raise ValueError(f"{path.name} cannot be used safely: {err}; export the FMU "
+                         "again") from None
+    except ZIP_ERRORS as err:
         raise ValueError(f"{path.name} is a damaged zip archive: {err}") from None
+    if "modelDescription.xml" not in infos:
+        raise ValueError(f"{path.name} has no modelDescription.xml; it is not an FMU")
+    if infos["modelDescription.xml"].file_size > MAX_DESCRIPTION_BYTES:
+        raise ValueError(f"{path.name}: modelDescription.xml inflates to "
+                         f"{infos['modelDescription.xml'].file_size} bytes (limit "
+                         f"{MAX_DESCRIPTION_BYTES}); is this a real FMU?")
     version = _fmi_version(path)        # before fmpy: its FMI 1.0 reader fails on a bare file
     if version is not None and version != "2.0":
         raise ValueError(f"{path.name} is an FMI {version} FMU; this master runs FMI 2.0 "
@@ -137,7 +148,46 @@ def read_description(path: Path) -> ModelDescription:
     if md.coSimulation is None:
         raise ValueError(f"{path.name} supports model exchange only; this master needs "
                          "a co-simulation FMU (export it for co-simulation)")
+    _check_numbers(path, md)
     return md
+
+
+def _check_numbers(path: Path, md: ModelDescription) -> None:
+    """fmi2ValueReference is an unsigned 32-bit and fmi2Integer a signed 32-bit number:
+    ctypes would silently wrap anything outside (2**32 becomes 0)."""
+    for var in md.modelVariables:
+        if not 0 <= var.valueReference < 2**32:
+            raise ValueError(f"{path.name}: variable {var.name!r:.80} has valueReference "
+                             f"{str(var.valueReference)[:24]}; FMI 2.0 value references are "
+                             "0 to 2**32-1 (fix the modelDescription.xml)")
+        if var.type in ("Integer", "Enumeration") and var.start is not None:
+            try:
+                ok = -2**31 <= int(var.start) < 2**31
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(f"{path.name}: {var.type} variable {var.name!r:.80} has start "
+                                 f"{str(var.start)[:40]!r}; fmi2Integer is -2**31 to 2**31-1")
+
+
+def loading_problem(path: Path, md: ModelDescription) -> str | None:
+    """Why the FMU cannot be loaded here, or None: no binary for this platform, or (a pythonfmu
+    FMU) its slave script missing - pythonfmu's fmi2Instantiate then crashes the process.
+    Cheap: reads the member list and resources/slavemodule.txt only."""
+    ident = md.coSimulation.modelIdentifier
+    member = f"binaries/{fmpy.platform}/{ident}{fmpy.sharedLibraryExtension}"
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = set(zf.namelist())
+    except ZIP_ERRORS as err:
+        return f"{path.name} is a damaged zip archive: {err}"
+    if member in names:
+        return _slave_script_problem(path, names)
+    platforms = sorted({n.split("/")[1] for n in names
+                        if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[2]})
+    return (f"{path.name} has no binary for this platform ({member}); it has "
+            f"{', '.join(platforms) if platforms else 'no binaries at all'}; export the FMU "
+            f"for {fmpy.platform}")
 
 
 def _fmi_version(path: Path) -> str | None:
@@ -148,4 +198,18 @@ def _fmi_version(path: Path) -> str | None:
                 return elem.get("fmiVersion")
     except Exception:       # a broken file is reported by the full read below
         return None
+    return None
+
+
+def _slave_script_problem(path: Path, names: set[str]) -> str | None:
+    if "resources/slavemodule.txt" not in names:
+        return None
+    try:
+        with zipfile.ZipFile(path) as zf:
+            module = read_member(zf, "resources/slavemodule.txt", 1000).decode().strip()
+    except (ArchiveError, UnicodeDecodeError) as err:
+        return f"{path.name}: resources/slavemodule.txt cannot be read: {err}"
+    if f"resources/{module}.py" not in names:
+        return (f"{path.name} is a pythonfmu FMU whose slave script resources/{module[:80]}.py "
+                "is missing; export the FMU again")
     return None

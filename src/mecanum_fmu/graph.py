@@ -113,6 +113,9 @@ class _Checker:
                     self.warnings.append(stale)
                 if path not in cache:
                     cache[path] = fmu_library.read_description(path)
+                    problem = fmu_library.loading_problem(path, cache[path])
+                    if problem:
+                        self.bad(f"{comp.place}.fmu", problem)
                 self.models[comp.name] = (path, cache[path])
             except ValueError as err:
                 self.bad(f"{comp.place}.fmu", str(err))

@@ -16,12 +16,12 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fmpy import extract
 from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
+
+from .archive import extract_all
 
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 POOL_MAX = 4          # instances kept per (extraction, GUID, instance name)
@@ -59,11 +59,16 @@ class Runtime:
 
     # -- extraction ---------------------------------------------------------------------------
     def extracted(self, path: Path | str) -> str:
-        """The folder where this FMU's content is unpacked (once per content and process)."""
-        digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        """The folder where this FMU's content is unpacked (once per content and process).
+        Raises archive.ArchiveError (unsafe or damaged archive; nothing is left behind) or
+        OSError (the FMU cannot be read)."""
+        sha = hashlib.sha256()
+        with open(path, "rb") as f:          # streamed: an FMU may be large
+            while chunk := f.read(1 << 20):
+                sha.update(chunk)
+        digest = sha.hexdigest()
         if digest not in self._extracted:
-            folder = tempfile.mkdtemp(prefix=f"mecanum_{Path(path).stem}_")
-            self._extracted[digest] = extract(str(path), folder)
+            self._extracted[digest] = extract_all(path, f"mecanum_{Path(path).stem[:40]}_")
         return self._extracted[digest]
 
     def remove_extractions(self) -> None:

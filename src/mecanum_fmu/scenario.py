@@ -16,9 +16,11 @@ from typing import Any, Union
 import yaml
 
 from .errors import Problem, ScenarioError
+from .storage import NotARegularFile, read_regular
 
 MASTERS = ("trapezoidal", "gauss-seidel", "jacobi")
 MAX_FILE_BYTES = 1_000_000
+MAX_NAME = 100          # characters of a scenario name (it names the results folder)
 DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
                       "master": "trapezoidal"}
 
@@ -104,8 +106,9 @@ def is_identifier(name: Any) -> bool:
 
 def usable_name(text: str) -> str | None:
     """text made safe to name a results folder (letters, digits, _ . -; runs of anything else
-    become _), or None when nothing usable is left (empty, or only dots such as '..')."""
-    name = re.sub(r"[^\w.-]+", "_", text).strip("_")
+    become _; at most MAX_NAME characters), or None when nothing usable is left (empty, or
+    only dots such as '..': results/<name> must stay inside results/)."""
+    name = re.sub(r"[^\w.-]+", "_", text).strip("_")[:MAX_NAME]
     return name if name.strip(".") else None
 
 
@@ -139,10 +142,10 @@ def load_scenario(path: str | Path) -> Scenario:
             f"expected a mapping with keys {', '.join(_TOP_KEYS)}, got {_type_name(doc)}"))])
 
     _unknown_keys(doc, _TOP_KEYS, "top level", bad)
-    name = doc.get("name", path.stem)
+    name = doc.get("name", usable_name(path.stem) or "scenario")
     if not isinstance(name, str) or usable_name(name) != name:
         bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only, not "
-                    "only dots; it names the results folder)")
+                    f"only dots, at most {MAX_NAME} characters; it names the results folder)")
         name = usable_name(path.stem) or "scenario"
     description = doc.get("description", "")
     if not isinstance(description, str):
@@ -168,11 +171,9 @@ def _read_yaml(path: Path, label: str) -> Any:
         return ScenarioError([Problem(label, place, message)])
 
     try:
-        size = path.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise fail("file", f"{size} bytes is too large for a scenario (limit "
-                               f"{MAX_FILE_BYTES}); is this the right file?")
-        text = path.read_text(encoding="utf-8")
+        text = read_regular(path, MAX_FILE_BYTES, "a scenario file").decode("utf-8")
+    except NotARegularFile as err:
+        raise fail("file", str(err)) from None
     except FileNotFoundError:
         raise fail("file", "not found; check the path") from None
     except IsADirectoryError:
@@ -182,13 +183,37 @@ def _read_yaml(path: Path, label: str) -> Any:
     except OSError as err:
         raise fail("file", f"cannot be read: {err.strerror}") from None
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=UniqueKeyLoader)     # safe_load, duplicate keys refused
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark
         place = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "YAML"
         raise fail(place, f"YAML syntax error: {err.problem or err}") from None
     except (yaml.YAMLError, RecursionError) as err:
         raise fail("YAML", f"cannot be parsed: {type(err).__name__}") from None
+
+
+class UniqueKeyLoader(yaml.SafeLoader):
+    """yaml.SafeLoader (safe_load's loader) that refuses a key given twice in one mapping:
+    plain YAML silently keeps the last value. Merge keys (<<) may still be overridden."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            seen: dict = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    first = seen.get(key)
+                except TypeError:       # unhashable: the base class reports it
+                    continue
+                if first is not None:
+                    raise yaml.constructor.ConstructorError(
+                        "while constructing a mapping", node.start_mark,
+                        f"duplicate key {show(key)} (first given on line {first}); keep one",
+                        key_node.start_mark)
+                seen[key] = key_node.start_mark.line + 1
+        return super().construct_mapping(node, deep=deep)
 
 
 def _type_name(value: Any) -> str:

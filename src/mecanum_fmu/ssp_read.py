@@ -10,23 +10,22 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import posixpath
 import re
-import shutil
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Callable
 from xml.etree import ElementTree as ET
 
 from .errors import Problem, ScenarioError
-from .scenario import (Component, Connection, Scenario, Scalar, VarRef, is_identifier,
-                       parse_experiment, parse_ref, show, usable_name)
+from .scenario import (Component, Connection, Scenario, Scalar, VarRef, is_finite,
+                       is_identifier, parse_experiment, parse_ref, show, usable_name)
 from .ssp import ANNOTATION_TYPE, FMU_MIME, NS, SSD_NAME, local, namespace, q
-from .storage import cache_root
+from .archive import ZIP_ERRORS, ArchiveError, checked_members, extract_file, read_member
+from .storage import NotARegularFile, cache_root, open_regular, read_regular
 
-_MAX_SSD_BYTES = 10_000_000
+_MAX_SSD_BYTES = 10_000_000          # the SSD and each parameter file
+_MAX_SSP_BYTES = 4 << 30             # the .ssp archive itself
 
 
 def load_ssp(path: str | Path) -> Scenario:
@@ -40,7 +39,7 @@ def load_ssp(path: str | Path) -> Scenario:
     experiment, outputs = reader.experiment(root)
     if reader.problems:
         raise ScenarioError(reader.problems)
-    name = usable_name(root.get("name") or "") or path.stem
+    name = usable_name(root.get("name") or "") or usable_name(path.stem) or "scenario"
     return Scenario(path, name, root.get("description", ""), experiment, tuple(components),
                     tuple(connections), outputs, {})
 
@@ -146,7 +145,11 @@ class _SsdReader:
             self.bad(place, "implementation='ModelExchange' is not supported; this master runs "
                             "co-simulation FMUs")
         else:
-            fmu = self.source.fmu_path(member)
+            try:
+                fmu = self.source.fmu_path(member)
+            except ArchiveError as err:
+                self.bad(f"{place}/@source", f"{uri!r}: {err}; export the SSP again")
+                return None
             if fmu is None:
                 self.bad(f"{place}/@source", f"{uri!r} not found in the {where}")
             return fmu
@@ -231,37 +234,47 @@ class _Source:
         self.path, self.label = path, label
         self.zip: zipfile.ZipFile | None = None
         self.digest: str | None = None
+        self._file = None         # the open archive file (kept open for the zip reader)
 
     def fail(self, place: str, message: str) -> ScenarioError:
         return ScenarioError([Problem(self.label, place, message)])
 
     def open(self) -> bytes:
+        """The SSD's bytes; for an archive, after checking every member's name and declared
+        size (archive.checked_members)."""
         path = self.path
         try:
-            if not path.exists():
-                raise self.fail("file", "not found; check the path")
-            if path.is_dir():
-                raise self.fail("file", "is a folder; give an .ssp archive or an .ssd file")
             if path.suffix.lower() == ".ssd":
-                if path.stat().st_size > _MAX_SSD_BYTES:
-                    raise self.fail("file", "is too large for a system structure description")
-                return path.read_bytes()
-            data = path.read_bytes()
+                return read_regular(path, _MAX_SSD_BYTES, "a system structure description")
+            file = open_regular(path, _MAX_SSP_BYTES, "an .ssp archive")
+        except FileNotFoundError:
+            raise self.fail("file", "not found; check the path") from None
+        except IsADirectoryError:
+            raise self.fail("file", "is a folder; give an .ssp archive or an .ssd file") from None
+        except NotARegularFile as err:
+            raise self.fail("file", str(err)) from None
         except OSError as err:
-            raise self.fail("file", f"cannot be read: {err.strerror}") from None
-        self.digest = hashlib.sha256(data).hexdigest()
+            raise self.fail("file", f"cannot be read: {err.strerror or err}") from None
+        self._file = file
+        digest = hashlib.sha256()
+        while chunk := file.read(1 << 20):
+            digest.update(chunk)
+        self.digest = digest.hexdigest()
         try:
-            self.zip = zipfile.ZipFile(path)
-            names = self.zip.namelist()
-        except zipfile.BadZipFile as err:
-            raise self.fail("file", f"is not an SSP archive (an .ssp is a zip archive): {err}") from None
+            self.zip = zipfile.ZipFile(file)
+            names = {i.filename for i in checked_members(self.zip)}
+        except ArchiveError as err:
+            raise self.fail("file", f"cannot be used safely: {err}") from None
+        except ZIP_ERRORS as err:
+            raise self.fail("file", f"is not an SSP archive (an .ssp is a zip archive): "
+                                    f"{err}") from None
         if SSD_NAME not in names:
             raise self.fail("file", f"has no {SSD_NAME} at its top level (has: "
                                     f"{show(sorted(names)[:6])})")
-        info = self.zip.getinfo(SSD_NAME)
-        if info.file_size > _MAX_SSD_BYTES:
-            raise self.fail(SSD_NAME, "is too large for a system structure description")
-        return self.zip.read(SSD_NAME)
+        try:
+            return read_member(self.zip, SSD_NAME, _MAX_SSD_BYTES)
+        except ArchiveError as err:
+            raise self.fail(SSD_NAME, f"{err}; is this the right file?") from None
 
     def member(self, uri: str) -> str | None:
         """Archive-relative normalized name of a relative URI, or None when it leaves the root."""
@@ -273,17 +286,23 @@ class _Source:
         return name
 
     def read(self, name: str) -> bytes | None:
+        """A parameter file's bytes (at most _MAX_SSD_BYTES); None when absent. Raises
+        ArchiveError (too large, damaged) or NotARegularFile."""
         if self.zip is not None:
             try:
-                return self.zip.read(name)
+                return read_member(self.zip, name, _MAX_SSD_BYTES)
             except KeyError:
                 return None
         file = self.path.parent / name
-        return file.read_bytes() if file.is_file() else None
+        try:
+            return read_regular(file, _MAX_SSD_BYTES, "a parameter file")
+        except OSError:
+            return None
 
     def fmu_path(self, name: str) -> Path | None:
         """A usable path of the FMU at name: the file itself next to a bare .ssd, or a copy
-        extracted once into the cache folder of this archive."""
+        extracted once into the cache folder of this archive (written under a partial name
+        and renamed; never more than archive.MAX_MEMBER_BYTES). Raises ArchiveError."""
         if self.zip is None:
             file = (self.path.parent / name).resolve()
             return file if file.is_file() else None
@@ -291,20 +310,16 @@ class _Source:
             info = self.zip.getinfo(name)
         except KeyError:
             return None
-        folder = cache_root() / "ssp" / self.digest
-        target = folder / name
-        if target.is_file() and target.stat().st_size == info.file_size:
-            return target
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".part-")
+        if info.is_dir():
+            return None
+        target = cache_root() / "ssp" / self.digest / name
         try:
-            with os.fdopen(fd, "wb") as out, self.zip.open(info) as src:
-                shutil.copyfileobj(src, out)
-            os.replace(tmp, target)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        return target
+            if target.is_file() and target.stat().st_size == info.file_size:
+                return target
+            return extract_file(self.zip, info, target)
+        except OSError as err:
+            raise ArchiveError(f"cannot be copied into the cache ({target.parent}): "
+                               f"{err.strerror or err}") from None
 
 
 def _bindings(owner, place: str, source: _Source, bad: Callable) -> dict[str, Scalar]:
@@ -329,7 +344,11 @@ def _bindings(owner, place: str, source: _Source, bad: Callable) -> dict[str, Sc
                 bad(bplace, "sourceBase='component' is not supported; use a path from the SSD")
                 continue
             member = source.member(uri)
-            data = source.read(member) if member else None
+            try:
+                data = source.read(member) if member else None
+            except (ArchiveError, NotARegularFile) as err:
+                bad(f"{bplace}/@source", f"{uri}: {err}")
+                continue
             if data is None:
                 bad(f"{bplace}/@source", f"{uri!r} not found "
                     f"{'in the archive' if source.zip else 'next to the SSD'}")
@@ -386,7 +405,11 @@ def _value(param, place: str, bad: Callable) -> Scalar | None:
                     raise ValueError
                 return value
             if tag == "Integer":
-                return int(text.strip())
+                value = int(text.strip())
+                if not is_finite(value):    # the scenario's rule for numbers
+                    bad(place, f"ssv:Integer value {show(text)} is too large")
+                    return None
+                return value
             if tag == "Boolean":
                 if text.strip() in ("true", "1"):
                     return True

@@ -2,13 +2,18 @@
 
 - cache_root(): one rule for every cache (built FMUs of a plain install, SSP extractions):
   $XDG_CACHE_HOME/mecanum_fmu, else ~/.cache/mecanum_fmu.
+- open_regular() / read_regular(): the one way a user's input file is opened: only a regular
+  file is accepted (a FIFO, /dev/zero or a socket would hang or never end), checked on the
+  open descriptor before anything is read, and read up to a size limit.
 - write_zip(): the one deterministic archive writer (FMUs and SSPs): sorted members, a fixed
   date, fixed permissions, deflated; written under a temporary name and renamed, so a reader
   never sees a half-written archive and two writes of the same content are byte-identical.
 """
 from __future__ import annotations
 
+import errno
 import os
+import stat
 import zipfile
 from pathlib import Path
 from typing import Mapping
@@ -19,6 +24,43 @@ FIXED_DATE = (1980, 1, 1, 0, 0, 0)
 def cache_root() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "mecanum_fmu"
+
+
+class NotARegularFile(ValueError):
+    """An input path that is a special file or too large; the message is the reason."""
+
+
+def open_regular(path: Path | str, limit: int, what: str = "an input file"):
+    """The regular file at path opened for binary reading, after checking (on the descriptor,
+    so nothing can be swapped in between) that it is a regular file of at most limit bytes.
+    Raises OSError (missing, a folder, unreadable) or NotARegularFile."""
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    try:
+        info = os.fstat(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+        if not stat.S_ISREG(info.st_mode):
+            raise NotARegularFile(f"is not a regular file (a pipe, device or socket); give "
+                                  f"{what}")
+        if info.st_size > limit:
+            raise NotARegularFile(f"{info.st_size} bytes is too large for {what} (limit "
+                                  f"{limit}); is this the right file?")
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_regular(path: Path | str, limit: int, what: str = "an input file") -> bytes:
+    """The bytes of the regular file at path (see open_regular); a file that grows past limit
+    while being read is refused too."""
+    with open_regular(path, limit, what) as f:
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise NotARegularFile(f"is larger than {limit} bytes, the limit for {what}")
+    return data
 
 
 def write_zip(path: Path, members: Mapping[str, bytes], compresslevel: int | None = None) -> Path:

@@ -5,6 +5,7 @@ import ctypes
 
 from fmpy.fmi2 import FMU2Slave
 
+from ..errors import Problem, ScenarioError
 from ..graph import Instance, Port
 from ..runtime import RUNTIME, STATUS, Kept
 
@@ -19,6 +20,19 @@ class FmuCallError(Exception):
         super().__init__(f"{function} returned {STATUS.get(status, status)}")
 
 
+def load_error(inst: Instance, what: str, err: BaseException, folder: str = "") -> ScenarioError:
+    """The FMU of inst cannot be used: bad input (exit 2), naming the FMU and the component."""
+    reason = str(getattr(err, "strerror", None) or err)
+    if folder:      # name the member, not our temporary folder
+        reason = reason.replace(folder.rstrip("/") + "/", "")
+    reason = " ".join(reason.split())[:300]
+    fix = {"cannot be loaded": "export it again for this platform",
+           "cannot be extracted": "the archive is damaged or unsafe; export the FMU again"
+           }.get(what, "export the FMU again")
+    return ScenarioError([Problem(str(inst.fmu_path), inst.declared_at,
+                                  f"the FMU of component '{inst.name}' {what}: {reason}; {fix}")])
+
+
 class RunningInstance:
     """An instance taken from the runtime's pool (reset) or instantiated afresh, and handed
     back (or freed) by free(). Transfers are filled in by the plan."""
@@ -27,13 +41,19 @@ class RunningInstance:
         self.inst = inst
         self.name = inst.name
         md = inst.model
-        unzipped = RUNTIME.extracted(inst.fmu_path)
+        try:
+            unzipped = RUNTIME.extracted(inst.fmu_path)
+        except (ValueError, OSError) as err:   # archive.ArchiveError is a ValueError
+            raise load_error(inst, "cannot be extracted", err) from None
         self.key = (unzipped, md.guid, inst.name)
         kept = RUNTIME.take(self.key)
         if kept is None:
-            self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
-                                 modelIdentifier=md.coSimulation.modelIdentifier,
-                                 instanceName=inst.name)
+            try:
+                self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                                     modelIdentifier=md.coSimulation.modelIdentifier,
+                                     instanceName=inst.name)
+            except Exception as err:     # no or a broken binary, missing FMI functions
+                raise load_error(inst, "cannot be loaded", err, unzipped) from None
             self.component, self.log = None, RUNTIME.new_log()
         else:
             self.fmu, self.component, self.log = kept.fmu, kept.component, kept.log
@@ -66,7 +86,12 @@ class RunningInstance:
             self.component = None
         # loggingOn: pythonfmu drops every message otherwise, errors included; the log keeps
         # the last few so that a failure can quote the FMU's own reason.
-        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+        try:
+            self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+        except Exception as err:     # fmi2Instantiate returned NULL: a broken FMU
+            why = self.log.last() or str(err)
+            raise load_error(self.inst, "cannot be instantiated", Exception(why),
+                             self.key[0]) from None
         self.component = self.fmu.component
 
     def terminate(self) -> None:
