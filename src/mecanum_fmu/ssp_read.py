@@ -323,11 +323,12 @@ class _Source:
 
 
 def _bindings(owner, place: str, source: _Source, bad: Callable) -> dict[str, Scalar]:
+    """The values of an element's (or the system's) parameter bindings, inline or from a
+    parameter file; every unsupported form is reported at its place."""
     out: dict[str, Scalar] = {}
     node = owner.find(q("ssd", "ParameterBindings"))
-    if node is None:
-        return out
-    for i, binding in enumerate(node.findall(q("ssd", "ParameterBinding"))):
+    for i, binding in enumerate(node.findall(q("ssd", "ParameterBinding"))
+                                if node is not None else []):
         bplace = f"{place}/ParameterBinding[{i + 1}]"
         if binding.find(q("ssd", "ParameterMapping")) is not None:
             bad(bplace, "ParameterMapping is not supported; give the parameters their FMU names")
@@ -336,55 +337,59 @@ def _bindings(owner, place: str, source: _Source, bad: Callable) -> dict[str, Sc
         if kind != "application/x-ssp-parameter-set":
             bad(bplace, f"type {kind!r} is not supported (only application/x-ssp-parameter-set)")
             continue
-        prefix = binding.get("prefix", "")
-        uri = binding.get("source")
-        inline = binding.find(q("ssd", "ParameterValues"))
-        if uri:
-            if binding.get("sourceBase", "SSD") != "SSD":
-                bad(bplace, "sourceBase='component' is not supported; use a path from the SSD")
-                continue
-            member = source.member(uri)
-            try:
-                data = source.read(member) if member else None
-            except (ArchiveError, NotARegularFile) as err:
-                bad(f"{bplace}/@source", f"{uri}: {err}")
-                continue
-            if data is None:
-                bad(f"{bplace}/@source", f"{uri!r} not found "
-                    f"{'in the archive' if source.zip else 'next to the SSD'}")
-                continue
-            try:
-                pset = ET.fromstring(data)
-            except ET.ParseError as err:
-                bad(f"{bplace}/@source", f"{uri}: XML syntax error: {err}")
-                continue
-            pplace = f"{bplace} ({uri})"
-        elif inline is not None:
-            sets = [c for c in inline if isinstance(c.tag, str)]
-            if len(sets) != 1 or sets[0].tag != q("ssv", "ParameterSet"):
-                bad(f"{bplace}/ParameterValues", "expected one ssv:ParameterSet")
-                continue
-            pset, pplace = sets[0], f"{bplace}/ParameterValues"
-        else:
+        found = _parameter_set(binding, bplace, source, bad)
+        if found is not None:
+            out.update(_parameters(*found, binding.get("prefix", ""), bad))
+    return out
+
+
+def _parameter_set(binding, bplace: str, source: _Source, bad: Callable):
+    """(ssv:ParameterSet element, its place) of a binding, or None (reported when wrong)."""
+    uri = binding.get("source")
+    inline = binding.find(q("ssd", "ParameterValues"))
+    if uri:
+        if binding.get("sourceBase", "SSD") != "SSD":
+            return bad(bplace, "sourceBase='component' is not supported; use a path from the SSD")
+        member = source.member(uri)
+        try:
+            data = source.read(member) if member else None
+        except (ArchiveError, NotARegularFile) as err:
+            return bad(f"{bplace}/@source", f"{uri}: {err}")
+        if data is None:
+            return bad(f"{bplace}/@source", f"{uri!r} not found "
+                       f"{'in the archive' if source.zip else 'next to the SSD'}")
+        try:
+            pset, pplace = ET.fromstring(data), f"{bplace} ({uri})"
+        except ET.ParseError as err:
+            return bad(f"{bplace}/@source", f"{uri}: XML syntax error: {err}")
+    elif inline is not None:
+        sets = [c for c in inline if isinstance(c.tag, str)]
+        if len(sets) != 1 or sets[0].tag != q("ssv", "ParameterSet"):
+            return bad(f"{bplace}/ParameterValues", "expected one ssv:ParameterSet")
+        pset, pplace = sets[0], f"{bplace}/ParameterValues"
+    else:
+        return None
+    if pset.tag != q("ssv", "ParameterSet"):
+        return bad(pplace, f"expected an ssv:ParameterSet ({NS['ssv']}), got {local(pset.tag)!r}")
+    return pset, pplace
+
+
+def _parameters(pset, pplace: str, prefix: str, bad: Callable) -> dict[str, Scalar]:
+    out: dict[str, Scalar] = {}
+    params = pset.find(q("ssv", "Parameters"))
+    for j, param in enumerate(params.findall(q("ssv", "Parameter")) if params is not None else []):
+        name = param.get("name")
+        ppl = f"{pplace}/Parameter[{j + 1}]" + (f"[@name='{name}']" if name else "")
+        if not name:
+            bad(ppl, "has no name")
             continue
-        if pset.tag != q("ssv", "ParameterSet"):
-            bad(pplace, f"expected an ssv:ParameterSet ({NS['ssv']}), got {local(pset.tag)!r}")
-            continue
-        params = pset.find(q("ssv", "Parameters"))
-        for j, param in enumerate(params.findall(q("ssv", "Parameter"))
-                                  if params is not None else []):
-            name = param.get("name")
-            ppl = f"{pplace}/Parameter[{j + 1}]" + (f"[@name='{name}']" if name else "")
-            if not name:
-                bad(ppl, "has no name")
+        if prefix:
+            if not name.startswith(prefix):
                 continue
-            if prefix:
-                if not name.startswith(prefix):
-                    continue
-                name = name[len(prefix):]
-            value = _value(param, ppl, bad)
-            if value is not None:
-                out[name] = value
+            name = name[len(prefix):]
+        value = _value(param, ppl, bad)
+        if value is not None:
+            out[name] = value
     return out
 
 
