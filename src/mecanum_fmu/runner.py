@@ -226,6 +226,9 @@ def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
             summary["error"] = err
             summary["match"] = (round(end["x"], 3) == round(ref["x"], 3)
                                 and round(end["y"], 3) == round(ref["y"], 3))
+    from .chassis_compare import pose_summaries
+    if pose is None and (poses := pose_summaries(graph, results)):
+        summary["poses"] = poses          # several chassis in one run, each with its truth
     from .modes import constant_twist_signs
     if (signs := constant_twist_signs(graph, results)) is not None:
         summary["wheel_signs"] = signs    # only for a constant commanded twist
@@ -245,6 +248,9 @@ def report_lines(summary: dict) -> list[str]:
                          f"|e| = {err['position']:.3e} m")
             lines.append("match!" if summary["match"] else
                          "no match (the end points differ at 3 decimals; try a smaller step)")
+    if "poses" in summary:
+        from .chassis_compare import pose_report_lines
+        lines += pose_report_lines(summary["poses"])
     if "wheel_signs" in summary:
         lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
     return lines
