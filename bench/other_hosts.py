@@ -17,10 +17,10 @@ from pathlib import Path
 
 from mecanum_fmu import master
 from mecanum_fmu.process import exit_now
-from mecanum_fmu.cross_check import compared_outputs, difference, ours_jacobi
-from mecanum_fmu.other_hosts import HOSTS, HostUnavailable, run_host
+from mecanum_fmu.interop.cross_check import compared_outputs, difference, ours_jacobi
+from mecanum_fmu.interop.other_hosts import HOSTS, HostUnavailable, run_host
 from mecanum_fmu.runner import prepare
-from mecanum_fmu.ssp_write import export_ssp
+from mecanum_fmu.interop.ssp_write import export_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
 H, STOP, ROUNDS = 0.001, 10.0, 3

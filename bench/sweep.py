@@ -15,7 +15,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from mecanum_fmu.sweep import cluster, prepare_sweep, run_on, run_sweep
+from mecanum_fmu.sweep.cluster import cluster, prepare_sweep, run_on, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "scenarios" / "sweeps" / "wheel_tolerance.yaml"

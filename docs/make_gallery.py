@@ -19,9 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mecanum_fmu import runner  # noqa: E402
-from mecanum_fmu.animation import write_animation  # noqa: E402
-from mecanum_fmu.modes import graph_geometry  # noqa: E402
-from mecanum_fmu.bundled import find_roles  # noqa: E402
+from mecanum_fmu.report.animation import write_animation  # noqa: E402
+from mecanum_fmu.models.modes import graph_geometry  # noqa: E402
+from mecanum_fmu.models.catalog import find_roles  # noqa: E402
 
 MODES = ("forward", "backward", "left", "right", "diagonal", "spin_ccw", "spin_cw",
          "showcase", "figure_eight")

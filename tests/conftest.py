@@ -24,7 +24,7 @@ def built_fmus(tmp_path_factory):
     Build before any FMU is loaded into this process: the build imports each slave script
     under its FMU module name and must not meet an already loaded copy.
     """
-    from mecanum_fmu.fmu_build import build_all
+    from mecanum_fmu.models.build import build_all
 
     dest = tmp_path_factory.mktemp("built_fmus")
     paths = [Path(p) for p in build_all(dest)]

@@ -15,10 +15,11 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from mecanum_fmu import modes, runner
-from mecanum_fmu.blocks.bicycle import bicycle_twist
-from mecanum_fmu.blocks.omni import omni_center_to_wheel, omni_wheel_to_center
-from mecanum_fmu.blocks.pose import world_to_body
+from mecanum_fmu.models import modes
+from mecanum_fmu import runner
+from mecanum_fmu.models.blocks.bicycle import bicycle_twist
+from mecanum_fmu.models.blocks.omni import omni_center_to_wheel, omni_wheel_to_center
+from mecanum_fmu.models.blocks.pose import world_to_body
 
 ROOT = Path(__file__).resolve().parents[1]
 CHASSIS = ROOT / "scenarios" / "chassis"
@@ -177,7 +178,7 @@ def test_bicycle_circle(name, reference, fmu_dir, tmp_path):
     np.testing.assert_allclose(res["pose.y"], ey, atol=1e-9)
     np.testing.assert_allclose(res["pose.theta"], th, atol=1e-9)
     # the ICR, drawn by the icr panel: on the rear-axle line, at the circle's centre
-    from mecanum_fmu.plots import _icr_world, available_panels
+    from mecanum_fmu.report.plots import _icr_world, available_panels
     roles = runner.find_roles(out.graph)
     assert "icr" in available_panels(res, roles)
     wx, wy = _icr_world(res, roles)
@@ -205,7 +206,7 @@ def test_compare_three_chassis(fmu_dir, tmp_path):
     np.testing.assert_allclose(res["car_pose.y"], v / w * np.sin(w * t), atol=1e-9)
     gap = np.hypot(res["car_pose.x"] - res["omni_pose.x"], res["car_pose.y"] - res["omni_pose.y"])
     assert gap[-1] > 0.05                 # it cannot follow the sway
-    from mecanum_fmu.chassis_compare import compare_figure
+    from mecanum_fmu.report.chassis_compare import compare_figure
     fig = compare_figure(out.graph, res)
     fig.savefig(tmp_path / "cmp.png")
     assert len(fig.axes[0].lines) == 3 and (tmp_path / "cmp.png").stat().st_size > 10_000

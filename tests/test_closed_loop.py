@@ -13,8 +13,8 @@ from scipy.integrate import solve_ivp
 
 from helpers import ROOT, write_scenario
 from mecanum_fmu import master
-from mecanum_fmu.bundled import find_roles
-from mecanum_fmu.plots import available_panels
+from mecanum_fmu.models.catalog import find_roles
+from mecanum_fmu.report.plots import available_panels
 from mecanum_fmu.runner import prepare, run
 
 CIRCLE = ROOT / "scenarios" / "closed_loop" / "track_circle.yaml"

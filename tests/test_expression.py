@@ -8,8 +8,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-MODULE_PATH = Path(__file__).resolve().parents[1] / "src" / "mecanum_fmu" / "blocks" / "expression.py"
-from mecanum_fmu.blocks.expression import (ALLOWED_CONSTANTS, ALLOWED_FUNCTIONS,
+MODULE_PATH = Path(__file__).resolve().parents[1] / "src" / "mecanum_fmu" / "models" / "blocks" / "expression.py"
+from mecanum_fmu.models.blocks.expression import (ALLOWED_CONSTANTS, ALLOWED_FUNCTIONS,
                                            ExpressionError, compile_expression, evaluate)
 
 

@@ -252,7 +252,7 @@ def test_build_is_reproducible(built_fmus, tmp_path):
     src = Path(mecanum_fmu.__file__).resolve().parents[1]
     dest = tmp_path / "again"
     env = dict(os.environ, PYTHONPATH=str(src), PYTHONHASHSEED="12345")
-    code = ("import sys; from mecanum_fmu.fmu_build import build_all; "
+    code = ("import sys; from mecanum_fmu.models.build import build_all; "
             "build_all(sys.argv[1])")
     subprocess.run([sys.executable, "-c", code, str(dest)], check=True, env=env, timeout=120)
     again = sorted(p.name for p in dest.iterdir())

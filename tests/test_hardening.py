@@ -22,12 +22,13 @@ from helpers import child_env, run_main
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mecanum_fmu import archive, ssp_read
+from mecanum_fmu import archive
+from mecanum_fmu.interop import ssp_read
 from mecanum_fmu.archive import ArchiveError, extract_all
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.runtime import RUNTIME
 from mecanum_fmu.scenario import load_scenario, usable_name
-from mecanum_fmu.ssp_read import load_ssp
+from mecanum_fmu.interop.ssp_read import load_ssp
 
 POSE_ALONE = """\
 experiment: {{start_time: 0.0, stop_time: 0.1, step_size: 0.05, master: gauss-seidel}}

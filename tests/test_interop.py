@@ -1,6 +1,6 @@
 """The seed system in other FMI hosts - libcosim, Ecos, and Ecos' command-line program (a
 non-Python host that needs LD_PRELOAD=<libpython>) - loaded from our exported SSP and compared
-with our Jacobi master at the same step (mecanum_fmu.cross_check explains the tolerance).
+with our Jacobi master at the same step (mecanum_fmu.interop.cross_check explains the tolerance).
 
 A host that cannot be loaded skips with what to install; with MECANUM_FMU_REQUIRE_TOOLS=1 (CI)
 it fails instead.
@@ -14,12 +14,11 @@ from pathlib import Path
 import pytest
 
 from helpers import CHAIN_CONNECTIONS, ROOT, SPEC_END, write_scenario
-from mecanum_fmu import master
-from mecanum_fmu.cross_check import HOST_TOLERANCE, TOLERANCE, compared_outputs, cross_check, \
+from mecanum_fmu.interop.cross_check import HOST_TOLERANCE, TOLERANCE, compared_outputs, cross_check, \
     difference, ours_jacobi
-from mecanum_fmu.other_hosts import HOSTS, HostUnavailable, run_host
+from mecanum_fmu.interop.other_hosts import HOSTS, HostUnavailable, run_host
 from mecanum_fmu.runner import prepare
-from mecanum_fmu.ssp_write import export_ssp
+from mecanum_fmu.interop.ssp_write import export_ssp
 
 REQUIRE = os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1"
 

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mecanum_fmu.blocks.kinematics import check_geometry, center_to_wheel, wheel_to_center
+from mecanum_fmu.models.blocks.kinematics import check_geometry, center_to_wheel, wheel_to_center
 
 # The seed's geometry (docs/spec.md, Parameters).
 ALPHA, L0, W0, R0 = math.radians(45.0), 0.16, 0.12, 0.06

@@ -1,7 +1,7 @@
 """The basic motions (scenarios/modes/), their wheel-sign patterns, the ICR and the animation.
 
 The expected wheel signs are derived here from the matrix of docs/spec.md, Inverse kinematics,
-independently of mecanum_fmu.modes; the closed forms come from docs/spec.md, Pose integration.
+independently of mecanum_fmu.models.modes; the closed forms come from docs/spec.md, Pose integration.
 """
 import math
 from pathlib import Path
@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mecanum_fmu import modes, runner
+from mecanum_fmu.models import modes
+from mecanum_fmu import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 MODES_DIR = ROOT / "scenarios" / "modes"
@@ -151,14 +152,14 @@ def test_constant_twist_arc(v, w, stop, step, fmu_dir, tmp_path):
     assert np.all(res["w2c.has_icr"])
     np.testing.assert_allclose(res["w2c.icr_x"], -v / w, atol=1e-12)
     np.testing.assert_allclose(res["w2c.icr_y"], 0.0, atol=1e-12)
-    from mecanum_fmu.plots import _icr_world
+    from mecanum_fmu.report.plots import _icr_world
     wx, wy = _icr_world(res, runner.find_roles(outcome.graph))
     np.testing.assert_allclose(wx, cx, atol=1e-9)
     np.testing.assert_allclose(wy, cy, atol=1e-9)
 
 
 def test_instantaneous_center_function():
-    from mecanum_fmu.blocks.kinematics import instantaneous_center
+    from mecanum_fmu.models.blocks.kinematics import instantaneous_center
     assert instantaneous_center(0.3, 0.4, 0.5) == (-0.8, 0.6, True)
     assert instantaneous_center(0.3, 0.4, 0.0) == (0.0, 0.0, False)
     assert instantaneous_center(0.3, 0.4, 1e-10) == (0.0, 0.0, False)
@@ -203,15 +204,15 @@ def test_showcase_matches(fmu_dir, tmp_path):
 def test_modes_doc_is_generated():
     text = (ROOT / "docs" / "modes.md").read_text()
     assert modes.markdown_table() in text
-    assert "python -m mecanum_fmu.modes" in text
+    assert "python -m mecanum_fmu.models.modes" in text
 
 
 @pytest.mark.parametrize("max_frames", [100, 17])
 def test_animation(max_frames, fmu_dir, tmp_path):
     from PIL import Image
 
-    from mecanum_fmu.animation import write_animation
-    from mecanum_fmu.modes import graph_geometry
+    from mecanum_fmu.report.animation import write_animation
+    from mecanum_fmu.models.modes import graph_geometry
     outcome = run_scenario(ROOT / "scenarios" / "circle.yaml", tmp_path, fmu_dir)
     roles = runner.find_roles(outcome.graph)
     geometry = graph_geometry(outcome.graph)
@@ -232,7 +233,7 @@ def test_run_animate_flag(fmu_dir, tmp_path):
 
 
 def test_icr_panel(mode_runs, fmu_dir, tmp_path):
-    from mecanum_fmu import plots
+    from mecanum_fmu.report import plots
     outcome = mode_runs["spin_ccw"]
     roles = runner.find_roles(outcome.graph)
     figures = plots.build_figures(outcome.results, roles, outcome.truth)

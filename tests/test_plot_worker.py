@@ -14,8 +14,8 @@ from matplotlib.image import imread
 
 from helpers import ROOT, test_fmus, write_scenario
 from test_plots import PANEL_KEYS, ROLES, make_run
-from mecanum_fmu import plots
-from mecanum_fmu.plot_worker import PlotFailed, PlotWorker
+from mecanum_fmu.report import plots
+from mecanum_fmu.report.plot_worker import PlotFailed, PlotWorker
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
 
@@ -142,13 +142,13 @@ def test_validate_loads_neither_matplotlib_nor_scipy(built_fmus):
     assert heavy == []
     ours = {m for m in modules if m.startswith("mecanum_fmu.")}
     assert {"mecanum_fmu.graph", "mecanum_fmu.scenario"} <= ours          # it did validate
-    assert not ours & {"mecanum_fmu.plots", "mecanum_fmu.master", "mecanum_fmu.animation"}
+    assert not ours & {"mecanum_fmu.report.plots", "mecanum_fmu.master", "mecanum_fmu.report.animation"}
 
 
 def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
     """The worker builds the dashboard's frame from the graph alone; for the seed circle it
     has the run's six panels and title, and drawing into it gives the same bytes."""
-    from mecanum_fmu.plot_worker import _frame_hint
+    from mecanum_fmu.report.plot_worker import _frame_hint
     from mecanum_fmu.runner import prepare, run
     graph = prepare(CIRCLE, fmu_dir=next(iter(built_fmus.values())).parent)
     stand_in, roles, title = _frame_hint(graph)

@@ -11,9 +11,9 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-from mecanum_fmu import plots  # noqa: E402
-from mecanum_fmu.bundled import Roles  # noqa: E402
-from mecanum_fmu.ground_truth import Truth  # noqa: E402
+from mecanum_fmu.report import plots  # noqa: E402
+from mecanum_fmu.models.catalog import Roles  # noqa: E402
+from mecanum_fmu.report.ground_truth import Truth  # noqa: E402
 from mecanum_fmu.results import Results  # noqa: E402
 
 R, C, K = 0.06, 1.0, 0.16 + 0.12 * 1.0     # alpha = 45 deg: c = cot(alpha) = 1, k = L + W*c

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from mecanum_fmu.blocks.pose import pose_rate, pose_step
+from mecanum_fmu.models.blocks.pose import pose_rate, pose_step
 
 START = (0.4, -0.7, 0.9)
 

@@ -14,7 +14,7 @@ import pytest
 
 from helpers import ROOT, write_scenario
 from mecanum_fmu import master
-from mecanum_fmu.blocks.profile_table import TableError, parse_table, table_sampler
+from mecanum_fmu.models.blocks.profile_table import TableError, parse_table, table_sampler
 from mecanum_fmu.runner import prepare, run
 
 REQUIRE = os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1"
@@ -238,9 +238,9 @@ def test_recorded_joystick_table_against_its_expressions(fmu_dir):
 
 
 def test_the_table_travels_in_the_ssp_and_runs_in_libcosim(fmu_dir, tmp_path):
-    from mecanum_fmu.cross_check import TOLERANCE, compared_outputs, difference, ours_jacobi
-    from mecanum_fmu.other_hosts import HostUnavailable, run_host
-    from mecanum_fmu.ssp_write import export_ssp
+    from mecanum_fmu.interop.cross_check import TOLERANCE, compared_outputs, difference, ours_jacobi
+    from mecanum_fmu.interop.other_hosts import HostUnavailable, run_host
+    from mecanum_fmu.interop.ssp_write import export_ssp
     scenario = table_scenario(tmp_path, "linear", stop=4.0, step=0.05)
     graph = prepare(scenario, fmu_dir=fmu_dir)
     ssp = export_ssp(graph, tmp_path / "table.ssp")

@@ -9,11 +9,11 @@ from xml.etree import ElementTree as ET
 import pytest
 
 from helpers import child_env, run_child
-from mecanum_fmu.fmu_library import read_description
+from mecanum_fmu.models.library import read_description
 from mecanum_fmu.graph import compile_graph, port_type
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.scenario import load_scenario
-from mecanum_fmu import ssp, ssp_read, ssp_write
+from mecanum_fmu.interop import ssp, ssp_read, ssp_write
 
 REPO = Path(__file__).resolve().parents[1]
 CIRCLE = REPO / "scenarios" / "circle.yaml"

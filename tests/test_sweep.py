@@ -83,7 +83,7 @@ def test_missing_scenario_names_the_sweep_file(tmp_path, capsys):
 
 # ---------------------------------------------------------------------------------------------
 def test_plan_counts_grid_points_first_and_draws_reproducibly(tmp_path, built_fmus):
-    from mecanum_fmu.sweep import prepare_sweep
+    from mecanum_fmu.sweep.cluster import prepare_sweep
     path = write_sweep(tmp_path, "grid:\n  source.w_expr: ['0', '0.1']\n  pose.theta0: [0.0, 0.3]\n"
                        + DRAWS)
     _, _, runs = prepare_sweep(path, built_fmus["Wheel2Center"].parent)
@@ -99,7 +99,7 @@ def test_plan_counts_grid_points_first_and_draws_reproducibly(tmp_path, built_fm
 
 
 def test_a_draw_that_breaks_the_rules_is_a_failed_row(tmp_path, built_fmus):
-    from mecanum_fmu.sweep import prepare_sweep
+    from mecanum_fmu.sweep.cluster import prepare_sweep
     path = write_sweep(tmp_path, "random:\n  samples: 50\n  w2c.dR2: {uniform: [-0.1, 0.1]}\n")
     _, _, runs = prepare_sweep(path, built_fmus["Wheel2Center"].parent)
     bad = [r for r in runs if r.problem]
@@ -111,10 +111,10 @@ def test_wheel_radius_deviations_follow_the_rolling_radius(built_fmus):
     """Equal deviations d on all four wheels scale the twist by (R + d)/R: the circle's end
     point moves to (R + d)/R times the ground truth's (w = 0, so theta stays 0)."""
     from mecanum_fmu import master
-    from mecanum_fmu.ground_truth import ground_truth
+    from mecanum_fmu.report.ground_truth import ground_truth
     from mecanum_fmu.runner import prepare
     from mecanum_fmu.scenario import VarRef
-    from mecanum_fmu.sweep_worker import with_values
+    from mecanum_fmu.sweep.worker import with_values
     graph = prepare(CIRCLE, fmu_dir=built_fmus["Wheel2Center"].parent)
     d = 0.0006
     variant = with_values(graph, {VarRef("w2c", f"dR{i}"): d for i in range(1, 5)})
@@ -129,7 +129,7 @@ def test_wheel_radius_deviations_follow_the_rolling_radius(built_fmus):
 
 def test_forward_kinematics_with_radius_deviations_is_least_squares():
     """An independent reference: least squares on the wheel rolling speeds (R + dRi) wi."""
-    from mecanum_fmu.blocks.kinematics import wheel_to_center
+    from mecanum_fmu.models.blocks.kinematics import wheel_to_center
     alpha, L, W, R = 0.7, 0.16, 0.12, 0.06
     c, k = 1 / np.tan(alpha), 0.16 + 0.12 / np.tan(alpha)
     J = np.array([[-c, 1, k], [c, 1, -k], [-c, 1, -k], [c, 1, k]])
@@ -223,7 +223,7 @@ def test_scheduler_sweep_gives_the_same_bytes(twenty_runs, dask_cluster, tmp_pat
 
 
 def test_killed_worker_loses_no_run(twenty_runs, dask_cluster, built_fmus):
-    from mecanum_fmu.sweep import execute, prepare_sweep
+    from mecanum_fmu.sweep.cluster import execute, prepare_sweep
     path, local = twenty_runs
     address, workers = dask_cluster
     _, graph, runs = prepare_sweep(path, built_fmus["Wheel2Center"].parent)
@@ -251,7 +251,7 @@ def test_one_worn_wheel_turns_the_car_by_the_integrated_wheel_speed(built_fmus):
     from mecanum_fmu import master
     from mecanum_fmu.runner import prepare
     from mecanum_fmu.scenario import VarRef
-    from mecanum_fmu.sweep_worker import with_values
+    from mecanum_fmu.sweep.worker import with_values
     import math
     graph = prepare(CIRCLE, fmu_dir=built_fmus["Wheel2Center"].parent)
     R, k, d = 0.06, 0.16 + 0.12, 0.0003

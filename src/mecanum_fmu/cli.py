@@ -199,7 +199,7 @@ def cmd_run(args) -> int:
     if len(args.scenario) > 1:
         return _run_several(args)
     args.scenario = args.scenario[0]
-    from .plot_worker import PlotWorker
+    from .report.plot_worker import PlotWorker
     plotter = None if args.no_plots else PlotWorker.start()   # imports matplotlib meanwhile
     from .runner import prepare, run
     try:
@@ -239,12 +239,12 @@ def cmd_validate(args) -> int:
 
 
 def cmd_fmus(args) -> int:
-    from .fmu_build import build_all
-    from .fmu_library import default_fmu_dir
+    from .models.build import build_all
+    from .models.library import default_fmu_dir
     build_all(args.dest or default_fmu_dir(), only_stale=not args.force,
               report=lambda path, state: print(f"{path}  ({path.stat().st_size // 1024} KiB, "
                                                f"{state})"))
-    from .doctor import find_libpython
+    from .interop.doctor import find_libpython
     lib = find_libpython()
     print("other FMI tools: FMPy loads them as they are; a non-Python host (OMSimulator, "
           "cosim, ...) needs " + (f"LD_PRELOAD={lib}" if lib else "a shared libpython")
@@ -253,7 +253,7 @@ def cmd_fmus(args) -> int:
 
 
 def cmd_info(args) -> int:
-    from .fmu_library import default_fmu_dir, read_description, resolve_fmu
+    from .models.library import default_fmu_dir, read_description, resolve_fmu
     try:
         path = resolve_fmu(args.fmu, Path.cwd(), default_fmu_dir())
         md = read_description(path)
@@ -281,7 +281,7 @@ def cmd_info(args) -> int:
 
 def cmd_export_ssp(args) -> int:
     from .runner import prepare
-    from .ssp_write import export_ssp
+    from .interop.ssp_write import export_ssp
     graph = prepare(args.scenario, fmu_dir=args.fmu_dir)
     path = export_ssp(graph, args.output)
     print(f"wrote {path} ({len(graph.instances)} components, {len(graph.links)} connections)")
@@ -289,9 +289,9 @@ def cmd_export_ssp(args) -> int:
 
 
 def cmd_cross_check(args) -> int:
-    from .cross_check import cross_check, report_lines
-    from .ground_truth import ground_truth
-    from .other_hosts import HOSTS
+    from .interop.cross_check import cross_check, report_lines
+    from .report.ground_truth import ground_truth
+    from .interop.other_hosts import HOSTS
     from .runner import prepare
     hosts = [h.strip() for h in args.hosts.split(",") if h.strip()]
     unknown = [h for h in hosts if h not in HOSTS]
@@ -315,27 +315,30 @@ def cmd_cross_check(args) -> int:
 
 
 def cmd_doctor(args) -> int:
-    from .doctor import doctor_lines
+    from .interop.doctor import doctor_lines
     for line in doctor_lines(args.fmu_dir):
         print(line)
     return 0
 
 
+def _sweep_progress():
+    def show(done: int, total: int) -> None:
+        bar = "#" * (30 * done // total)
+        print(f"\r  [{bar:<30}] {done}/{total} runs", end="", file=sys.stderr, flush=True)
+        if done == total:
+            print("\r" + " " * 60 + "\r", end="", file=sys.stderr, flush=True)
+    return show
+
+
 def cmd_sweep(args) -> int:
-    from .sweep import run_sweep
+    from .sweep.cluster import run_sweep
     if args.workers is not None and args.workers < 1:
         raise ScenarioError([Problem("command line", "--workers", f"{args.workers} is not a "
                                      "worker count; give 1 or more")])
     if args.workers is not None and args.scheduler:
         raise ScenarioError([Problem("command line", "--workers", "the workers of --scheduler "
                                      "are started with `dask worker`; give one of the two")])
-    show = None
-    if sys.stderr.isatty():
-        def show(done: int, total: int) -> None:
-            bar = "#" * (30 * done // total)
-            print(f"\r  [{bar:<30}] {done}/{total} runs", end="", file=sys.stderr, flush=True)
-            if done == total:
-                print("\r" + " " * 60 + "\r", end="", file=sys.stderr, flush=True)
+    show = _sweep_progress() if sys.stderr.isatty() else None
     try:
         summary = run_sweep(args.sweep, args.out, workers=args.workers, scheduler=args.scheduler,
                             plots=not args.no_plots, fmu_dir=args.fmu_dir, progress=show)

@@ -12,8 +12,8 @@ from pathlib import Path
 
 from fmpy.model_description import ModelDescription, ScalarVariable
 
-from . import fmu_library
-from .bundled import bundled_model
+from .models import library as fmu_library
+from .models.catalog import bundled_model
 from .errors import Problem, ScenarioError
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 

@@ -22,7 +22,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, parse_table, \
+from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, parse_table, \
     table_sampler
 from .errors import Problem
 

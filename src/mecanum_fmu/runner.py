@@ -15,10 +15,10 @@ import numpy as np
 
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
-from .bundled import MODELS, find_roles
-from .ground_truth import Truth, ground_truth
+from .models.catalog import MODELS, find_roles
+from .report.ground_truth import Truth, ground_truth
 from .output import OutputFolder
-from .plot_worker import PlotWorker
+from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
 from .results import Results
 from .scenario import MASTERS, Scenario, check_experiment, load_scenario
@@ -42,7 +42,7 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
     build (the default), the bundled FMUs it uses are built first when missing or stale;
     without (validate), such an FMU is reported as a problem with the command that builds it."""
     if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
-        from .ssp_read import load_ssp
+        from .interop.ssp_read import load_ssp
         scenario = load_ssp(path)
     else:
         scenario = load_scenario(path)
@@ -65,8 +65,8 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
 
 def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:
     """Build the bundled FMUs the scenario names that are missing or stale."""
-    from .fmu_build import build_fmu
-    from .fmu_library import bundled_fmu_path, default_fmu_dir, is_current
+    from .models.build import build_fmu
+    from .models.library import bundled_fmu_path, default_fmu_dir, is_current
     fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
     for comp in scenario.components:
         if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):
@@ -130,8 +130,8 @@ def _run_in(graph: Graph, out: OutputFolder, *, plotter: PlotWorker | None, prog
                                     title=scenario.name)
         stage = "animation"
         if animate:
-            from .animation import write_animation
-            from .modes import graph_geometry
+            from .report.animation import write_animation
+            from .models.modes import graph_geometry
             files.append(write_animation(results, find_roles(graph), truth,
                                          graph_geometry(graph), out_dir / "animation.gif"))
     except Exception as err:    # the results are written: report the figure, keep the rest
@@ -161,7 +161,7 @@ def _simulate_into(graph: Graph, out: OutputFolder, progress,
     """Run with results.csv streamed into `out`; write the summary (without the ground truth).
     A failed or interrupted run still keeps its tables and raises; a write error
     (output.WriteError) leaves no results.csv."""
-    from . import master    # here: `validate` needs neither the FMI runtime nor matplotlib
+    from . import master  # here: `validate` needs neither the FMI runtime nor matplotlib
     stream = None
     try:
         stream = out.csv_stream(tuple(str(p.ref) for p in graph.recorded))
@@ -226,10 +226,10 @@ def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
             summary["error"] = err
             summary["match"] = (round(end["x"], 3) == round(ref["x"], 3)
                                 and round(end["y"], 3) == round(ref["y"], 3))
-    from .chassis_compare import pose_summaries
+    from .report.chassis_compare import pose_summaries
     if pose is None and (poses := pose_summaries(graph, results)):
         summary["poses"] = poses          # several chassis in one run, each with its truth
-    from .modes import constant_twist_signs
+    from .models.modes import constant_twist_signs
     if (signs := constant_twist_signs(graph, results)) is not None:
         summary["wheel_signs"] = signs    # only for a constant commanded twist
     return summary
@@ -249,7 +249,7 @@ def report_lines(summary: dict) -> list[str]:
             lines.append("match!" if summary["match"] else
                          "no match (the end points differ at 3 decimals; try a smaller step)")
     if "poses" in summary:
-        from .chassis_compare import pose_report_lines
+        from .report.chassis_compare import pose_report_lines
         lines += pose_report_lines(summary["poses"])
     if "wheel_signs" in summary:
         lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")

@@ -1,0 +1,193 @@
+"""Run an SSP archive in another FMI host - libcosim, Ecos, or Ecos' command-line program.
+
+Used by `cross-check`, the tests and the benchmark to show that the FMUs and the wired system
+behave the same outside our master. Each host runs in a child process
+(`python -m mecanum_fmu.interop.other_hosts HOST SSP ...`, which prints one JSON line): a native crash
+in a host cannot take the caller with it, each process loads each FMU once, and the wall time
+is the host's own.
+
+  libcosim  Open Simulation Platform, PyPI `libcosimpy`, `CosimExecution.from_ssp_file`
+            (fixed-step algorithm; time is an integer count of nanoseconds).
+  ecos      PyPI `ecospy`, `EcosSimulation(ssp_path=...)` (needs Debian's libtbb12). Ecos
+            applies an SSP's parameter bindings only when their set is named at init, so we
+            name it (ssp.PARAMETER_SET); without that it silently runs the FMUs' defaults.
+  ecos-cli  the `ecos` program shipped inside the ecospy wheel: a non-Python host, so it loads
+            the pythonfmu FMUs only with LD_PRELOAD=<libpython> (what `doctor` prints). Its CSV
+            has 6 decimals.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from .doctor import find_libpython
+from .ssp import PARAMETER_SET
+
+HOSTS = ("libcosim", "ecos", "ecos-cli")
+INSTALL = {
+    "libcosim": "pip install libcosimpy",
+    "ecos": "pip install ecospy; on Debian/Ubuntu also: apt-get install libtbb12",
+    "ecos-cli": "pip install ecospy; on Debian/Ubuntu also: apt-get install libtbb12; "
+                "and a Python built with --enable-shared (see `python -m mecanum_fmu doctor`)",
+}
+UNAVAILABLE = 3          # the child's exit code when the host cannot be loaded
+
+
+@dataclass(frozen=True)
+class HostRun:
+    host: str
+    version: str
+    end_time: float
+    values: dict[str, float]     # `instance.variable` -> value at the end time
+    setup_s: float | None        # load the SSP, unpack, instantiate and initialize
+    simulate_s: float            # the stepping loop
+
+
+class HostUnavailable(Exception):
+    """The host's package or a library it needs is missing; the message says what to install."""
+
+
+class HostFailed(Exception):
+    """The host loaded but the run failed."""
+
+
+def run_host(host: str, ssp: Path, *, start: float, stop: float, step: float,
+             variables: list[str], timeout: float = 600) -> HostRun:
+    """Run `ssp` in `host` from `start` to `stop` with a fixed communication `step` and return
+    the end values of `variables` (Real, `instance.variable`)."""
+    if host not in HOSTS:
+        raise ValueError(f"unknown host {host!r} (choose one of {', '.join(HOSTS)})")
+    cmd = [sys.executable, "-m", "mecanum_fmu.interop.other_hosts", host, str(Path(ssp).resolve()),
+           repr(start), repr(stop), repr(step), *variables]
+    # the child imports this package from where the caller has it (installed or not)
+    package_root = str(Path(__file__).resolve().parents[2])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        p for p in (package_root, os.environ.get("PYTHONPATH")) if p))
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+    if proc.returncode == UNAVAILABLE:
+        raise HostUnavailable(f"{host}: {proc.stdout.strip() or proc.stderr.strip()} "
+                              f"(install: {INSTALL[host]})")
+    lines = proc.stdout.strip().splitlines()
+    if proc.returncode != 0 or not lines:
+        tail = "\n".join((proc.stderr.strip() or proc.stdout.strip()).splitlines()[-8:])
+        raise HostFailed(f"{host} exited with code {proc.returncode}:\n{tail}")
+    data = json.loads(lines[-1])
+    return HostRun(host=host, version=data["version"], end_time=data["end_time"],
+                   values=data["values"], setup_s=data["setup_s"], simulate_s=data["simulate_s"])
+
+
+# --- the child side ---------------------------------------------------------------------------
+
+def _steps(start: float, stop: float, step: float) -> int:
+    return int(round((stop - start) / step))
+
+
+def _libcosim(ssp: str, start: float, stop: float, step: float, names: list[str]) -> dict:
+    from importlib.metadata import version
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    log_output_level(CosimLogLevel.WARNING)     # by default it logs every FMI call
+    ns = 1_000_000_000
+    t0 = time.perf_counter()
+    execution = CosimExecution.from_ssp_file(ssp, step_size=int(round(step * ns)))
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    refs = {}
+    for name in names:
+        instance, variable = name.split(".", 1)
+        index = execution.slave_index_from_instance_name(instance)
+        by_name = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
+        refs[name] = (index, by_name[variable])
+    t1 = time.perf_counter()
+    if not execution.simulate_until(int(round(stop * ns))):
+        raise RuntimeError("libcosim: simulate_until failed")
+    t2 = time.perf_counter()
+    values = {name: observer.last_real_values(index, [ref])[0]
+              for name, (index, ref) in refs.items()}
+    end_time = execution.status().current_time / ns
+    return dict(version=version("libcosimpy"), end_time=end_time, values=values,
+                setup_s=t1 - t0, simulate_s=t2 - t1)
+
+
+def _ecos(ssp: str, start: float, stop: float, step: float, names: list[str]) -> dict:
+    from importlib.metadata import version
+    from ecospy import EcosSimulation
+
+    t0 = time.perf_counter()
+    sim = EcosSimulation(ssp_path=ssp, step_size=step)
+    sim.init(start_time=start, parameter_set=PARAMETER_SET)   # else Ecos ignores the bindings
+    t1 = time.perf_counter()
+    # a step count, not step_until(stop): Ecos adds h to its clock each step, and after 200
+    # steps of 0.05 the clock reads 9.95000000000001, so step_until(10) stops one step short
+    sim.step(_steps(start, stop, step))
+    t2 = time.perf_counter()
+    values = {name: sim.get_real(name.replace(".", "::", 1)) for name in names}
+    end_time = sim.get_time()
+    sim.terminate()
+    return dict(version=version("ecospy"), end_time=end_time, values=values,
+                setup_s=t1 - t0, simulate_s=t2 - t1)
+
+
+def _ecos_cli(ssp: str, start: float, stop: float, step: float, names: list[str]) -> dict:
+    from importlib.metadata import version
+    from importlib.util import find_spec
+
+    binaries = Path(find_spec("ecospy").origin).parent / "binaries"
+    libpython = find_libpython()
+    with tempfile.TemporaryDirectory(prefix="mecanum-ecos-") as tmp:
+        program = Path(tmp) / "ecos"       # the wheel ships it without the executable bit
+        shutil.copy(binaries / "ecos", program)
+        program.chmod(0o755)
+        env = dict(os.environ, LD_PRELOAD=str(libpython),
+                   LD_LIBRARY_PATH=os.pathsep.join(
+                       p for p in (str(binaries), os.environ.get("LD_LIBRARY_PATH")) if p))
+        # stop half a step late: Ecos' clock drifts by adding h each step (see _ecos)
+        cmd = [str(program), "simulate", "--path", ssp, "--startTime", repr(start),
+               "--stopTime", repr(stop + step / 2), "--stepSize", repr(step),
+               "--parameterSet", PARAMETER_SET, "-l", "warn"]
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        if proc.returncode != 0:
+            raise RuntimeError(f"ecos exited with code {proc.returncode}: {proc.stderr[-2000:]}")
+        table = next(Path(tmp).glob("*.csv"))
+        with open(table, newline="") as fh:
+            rows = list(csv.reader(fh, skipinitialspace=True))
+    header = {h.split("[", 1)[0].replace("::", ".", 1): i for i, h in enumerate(rows[0])}
+    last = rows[-1]
+    values = {name: float(last[header[name]]) for name in names}
+    return dict(version=version("ecospy"), end_time=float(last[header["time"]]), values=values,
+                setup_s=None, simulate_s=wall)
+
+
+def _child(argv: list[str]) -> int:
+    host, ssp, start, stop, step, *names = argv
+    runner = {"libcosim": _libcosim, "ecos": _ecos, "ecos-cli": _ecos_cli}[host]
+    try:
+        if host == "libcosim":
+            import libcosimpy.CosimExecution  # noqa: F401
+        else:
+            import ecospy  # noqa: F401  (loads libecosc.so, which needs libtbb.so.12)
+        if host == "ecos-cli" and find_libpython() is None:
+            raise ImportError("this Python has no shared libpython to preload")
+    except (ImportError, OSError) as err:
+        print(f"cannot load {host}: {err}")
+        return UNAVAILABLE
+    data = runner(ssp, float(start), float(stop), float(step), names)
+    print(json.dumps(data))
+    return 0
+
+
+if __name__ == "__main__":
+    from mecanum_fmu.process import exit_now
+    exit_now(_child(sys.argv[1:]))

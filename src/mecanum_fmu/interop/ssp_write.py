@@ -1,0 +1,101 @@
+"""SSP 1.0 export: a compiled scenario as an .ssp archive (SystemStructure.ssd plus each
+distinct FMU once under resources/), byte-identical for the same scenario and FMUs."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from ..graph import port_type
+from ..scenario import Scalar
+from .ssp import (ANNOTATION_TYPE, FMU_MIME, PARAMETER_SET, SSD_NAME, VALUE_TAGS, q)
+from ..storage import write_zip
+
+
+
+def _format(value: Scalar) -> tuple[str, str]:
+    """(SSV/SSC type tag, value text) for a start value; repr keeps floats bit-exact."""
+    if isinstance(value, bool):
+        return "Boolean", "true" if value else "false"
+    if isinstance(value, int):
+        return "Integer", str(value)
+    if isinstance(value, float):
+        return "Real", repr(value)
+    return "String", str(value)
+
+
+def build_ssd(graph, sources: dict[str, str]) -> bytes:
+    """The SystemStructure.ssd text of a compiled graph; sources: instance -> FMU source URI."""
+    scenario = graph.scenario
+    exp = scenario.experiment
+    root = ET.Element(q("ssd", "SystemStructureDescription"),
+                      {"version": "1.0", "name": scenario.name})
+    if scenario.description:
+        root.set("description", scenario.description)
+    system = ET.SubElement(root, q("ssd", "System"), {"name": scenario.name})
+    elements = ET.SubElement(system, q("ssd", "Elements"))
+    for comp in scenario.components:          # declared order: it fixes ties in step order
+        inst = graph.instance(comp.name)
+        node = ET.SubElement(elements, q("ssd", "Component"), {
+            "name": inst.name, "type": FMU_MIME, "source": sources[inst.name]})
+        connectors = ET.SubElement(node, q("ssd", "Connectors"))
+        for var in inst.model.modelVariables:
+            if var.causality not in ("input", "output", "parameter"):
+                continue
+            conn = ET.SubElement(connectors, q("ssd", "Connector"),
+                                 {"name": var.name, "kind": var.causality})
+            kind = port_type(var)
+            if kind in VALUE_TAGS:
+                ET.SubElement(conn, q("ssc", kind))   # units left out: no ssd:Units table
+        if inst.start_values:
+            bindings = ET.SubElement(node, q("ssd", "ParameterBindings"))
+            binding = ET.SubElement(bindings, q("ssd", "ParameterBinding"))
+            values = ET.SubElement(binding, q("ssd", "ParameterValues"))
+            pset = ET.SubElement(values, q("ssv", "ParameterSet"),
+                                 {"version": "1.0", "name": PARAMETER_SET})
+            params = ET.SubElement(pset, q("ssv", "Parameters"))
+            for key in sorted(inst.start_values):
+                tag, text = _format(inst.start_values[key])
+                param = ET.SubElement(params, q("ssv", "Parameter"), {"name": key})
+                ET.SubElement(param, q("ssv", tag), {"value": text})
+    connections = ET.SubElement(system, q("ssd", "Connections"))
+    for conn in scenario.connections:         # declared order, like the YAML
+        ET.SubElement(connections, q("ssd", "Connection"), {
+            "startElement": conn.source.instance, "startConnector": conn.source.variable,
+            "endElement": conn.target.instance, "endConnector": conn.target.variable})
+    if not len(connections):
+        system.remove(connections)
+    default = ET.SubElement(root, q("ssd", "DefaultExperiment"),
+                            {"startTime": repr(exp.start_time), "stopTime": repr(exp.stop_time)})
+    annotations = ET.SubElement(default, q("ssd", "Annotations"))
+    annotation = ET.SubElement(annotations, q("ssc", "Annotation"), {"type": ANNOTATION_TYPE})
+    ours = ET.SubElement(annotation, q("mf", "Experiment"),
+                         {"stepSize": repr(exp.step_size), "master": exp.master})
+    if scenario.outputs is not None:
+        for ref, _place in scenario.outputs:
+            ET.SubElement(ours, q("mf", "Output"), {"name": str(ref)})
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+
+
+def export_ssp(graph, path: str | Path) -> Path:
+    """Write the compiled graph as an SSP 1.0 archive (deterministic bytes). Returns the path."""
+    path = Path(path)
+    sources: dict[str, str] = {}
+    files: dict[str, Path] = {}          # archive name -> FMU file
+    by_file: dict[Path, str] = {}
+    for inst in graph.instances:
+        fmu = Path(inst.fmu_path).resolve()
+        if fmu not in by_file:
+            base = re.sub(r"[^\w.-]", "_", inst.model_name) or "model"
+            name, n = f"resources/{base}.fmu", 1
+            while name in files:
+                n += 1
+                name = f"resources/{base}_{n}.fmu"
+            files[name] = fmu
+            by_file[fmu] = name
+        sources[inst.name] = by_file[fmu]
+    ssd = build_ssd(graph, sources)
+    members = {SSD_NAME: ssd}
+    members.update((name, file.read_bytes()) for name, file in files.items())
+    return write_zip(path, members)

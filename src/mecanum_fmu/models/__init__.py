@@ -1,0 +1,1 @@
+"""The bundled models: their maths (blocks/), pythonfmu slaves (slaves/), catalog, build and lookup."""

@@ -1,0 +1,138 @@
+"""What the project knows about its bundled models, in one place.
+
+Each bundled model has a pythonfmu slave in slaves/ (its variables, units, defaults and
+dependencies live there and reach the model description), a role in the original diagram,
+and value rules that are checked before a run so that a bad value is an input error (exit 2),
+not an FMU failure. Facts the model description already states (defaults, units) are read from
+it, not repeated here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Mapping
+
+from .blocks.expression import ExpressionError, compile_expression
+from .blocks.bicycle import bicycle_problem
+from .blocks.kinematics import GEOMETRY, geometry_problem, radius_deviation_problem
+from .blocks.omni import omni_geometry_problem
+
+AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
+
+
+@dataclass(frozen=True)
+class Model:
+    name: str            # modelName and FMU file name
+    module: str          # slave module in mecanum_fmu.models.slaves
+    role: str            # its part in the original diagram (see Roles)
+    # (values, start time) -> [(parameter, message)]: the model's own rules on its values
+    check: Callable[[Mapping[str, object], float], list[tuple[str, str]]]
+
+
+def _numbers_rule(names: tuple[str, ...], problem: Callable):
+    """A rule over numeric parameters: problem(*values) -> (parameter, message) or None."""
+    def check(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+        numbers = [values.get(k) for k in names]
+        if any(v is None or isinstance(v, (bool, str)) for v in numbers):
+            return []            # a missing or mistyped value is reported by the type check
+        found = problem(*numbers)
+        return [found] if found else []
+    return check
+
+
+_check_geometry = _numbers_rule(GEOMETRY, geometry_problem)
+
+
+def _check_expressions(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    problems = []
+    for key, text in values.items():
+        if key.endswith("_expr") and isinstance(text, str):
+            try:
+                # evaluate once at the start: a constant part like 1/0 only fails then
+                compile_expression(text)(start_time)
+            except ExpressionError as err:
+                problems.append((key, str(err)))
+    return problems
+
+
+def _check_forward(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """Wheel2Center: the geometry, and every effective wheel radius R + dRi > 0."""
+    problems = _check_geometry(values, start_time)
+    if not problems and "dR1" in values:
+        problems += _numbers_rule(("R", "dR1", "dR2", "dR3", "dR4"),
+                                  radius_deviation_problem)(values, start_time)
+    return problems
+
+
+def _check_inverse(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """Center2Wheel: the geometry, and w_max >= 0 (0: no wheel speed limit)."""
+    problems = _check_geometry(values, start_time)
+    w_max = values.get("w_max")
+    if _is_number(w_max) and not (math.isfinite(w_max) and w_max >= 0):
+        problems.append(("w_max", f"parameter w_max = {w_max!r} rad/s must be >= 0 "
+                                  "(0: no wheel speed limit)"))
+    return problems
+
+
+def _check_follower(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """PathFollower: positive gains, and reference expressions that evaluate."""
+    problems = _check_expressions(values, start_time)
+    for name in ("k_pos", "k_theta"):
+        gain = values.get(name)
+        if _is_number(gain) and not (math.isfinite(gain) and gain > 0):
+            problems.append((name, f"gain {name} = {gain!r} 1/s must be > 0 (the rate at "
+                                   "which the error decays; try 2)"))
+    return problems
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    return []
+
+
+MODELS: dict[str, Model] = {m.name: m for m in (
+    Model("VelocitySource", "velocity_source", "source", _check_expressions),
+    Model("Center2Wheel", "center2wheel", "inverse", _check_inverse),
+    Model("Wheel2Center", "wheel2center", "forward", _check_forward),
+    Model("PoseIntegrator", "pose_integrator", "pose", _no_rules),
+    Model("PathFollower", "path_follower", "follower", _check_follower),
+    # the other two chassis of the original documents (docs/chassis.md)
+    Model("OmniCenter2Wheel", "omni_center2wheel", "omni-inverse",
+          _numbers_rule(("L", "R"), omni_geometry_problem)),
+    Model("OmniWheel2Center", "omni_wheel2center", "omni-forward",
+          _numbers_rule(("L", "R"), omni_geometry_problem)),
+    Model("FieldToBody", "field_to_body", "frame", _no_rules),
+    Model("Bicycle", "bicycle", "forward", _numbers_rule(("l", "reference"), bicycle_problem)),
+    Model("SteeringSource", "steering_source", "steering", _check_expressions),
+)}
+
+
+def bundled_model(md) -> Model | None:
+    """The bundled model a model description belongs to, or None for any other FMU."""
+    model = MODELS.get(md.modelName)
+    return model if model is not None and md.author == AUTHOR else None
+
+
+@dataclass(frozen=True)
+class Roles:
+    """Which instance plays which part of the original diagram (None: not in this graph)."""
+    source: str | None
+    inverse: str | None
+    forward: str | None
+    pose: str | None
+    follower: str | None = None     # a PathFollower: closed loop, the truth is its reference
+
+
+def find_roles(graph) -> Roles:
+    """The single instance of each role's bundled model (None when there is none or several)."""
+    found: dict[str, list[str]] = {}
+    for inst in graph.instances:
+        model = bundled_model(inst.model)
+        if model is not None:
+            found.setdefault(model.role, []).append(inst.name)
+    one = {role: names[0] for role, names in found.items() if len(names) == 1}
+    return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"),
+                 one.get("follower"))

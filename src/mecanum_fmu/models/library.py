@@ -1,0 +1,215 @@
+"""Find the FMU behind a component and read its model description (fmpy's reader)."""
+from __future__ import annotations
+
+import hashlib
+import re
+import uuid
+import zipfile
+from dataclasses import dataclass
+from importlib.metadata import version
+from pathlib import Path
+from xml.etree import ElementTree
+
+import fmpy
+from fmpy import read_model_description
+from fmpy.model_description import ModelDescription
+
+from ..archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
+from .catalog import MODELS
+from ..storage import cache_root
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+MAX_DESCRIPTION_BYTES = 50_000_000      # modelDescription.xml, inflated
+_INLINE = re.compile(r"^from mecanum_fmu\.models\.blocks\.(\w+) import [\w, ]+# inline$", re.MULTILINE)
+
+
+def default_fmu_dir() -> Path:
+    """fmus/ in a source checkout; a per-version cache folder for a plain install."""
+    repo = PACKAGE_DIR.parents[2]
+    if (repo / "pyproject.toml").is_file():
+        return repo / "fmus"
+    from mecanum_fmu import __version__
+    return cache_root() / __version__ / "fmus"
+
+
+@dataclass(frozen=True)
+class SlaveSource:
+    """The self-contained FMU script of a bundled model and the identity derived from it."""
+    model_name: str
+    module_name: str      # top-level module name inside the FMU
+    script: str           # self-contained script text
+
+    @property
+    def digest(self) -> str:
+        """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
+        text = self.script + "\npythonfmu " + version("pythonfmu")
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    @property
+    def guid(self) -> str:
+        return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "mecanum_fmu:" + self.digest)) + "}"
+
+
+def slave_source(model_name: str) -> SlaveSource:
+    """The self-contained FMU script for a bundled model, with the block maths inlined (a
+    pythonfmu script is loaded as a top-level module from the FMU's resources/)."""
+    module = MODELS[model_name].module
+    text = (PACKAGE_DIR / "slaves" / f"{module}.py").read_text()
+
+    def inline(match: re.Match) -> str:
+        block = (PACKAGE_DIR / "blocks" / f"{match.group(1)}.py").read_text()
+        return f"# --- inlined from mecanum_fmu/models/blocks/{match.group(1)}.py ---\n{block}# --- end ---"
+
+    return SlaveSource(model_name, f"mecanum_fmu_{module}", _INLINE.sub(inline, text))
+
+
+def bundled_fmu_path(model_name: str, fmu_dir: Path) -> Path:
+    return Path(fmu_dir) / f"{model_name}.fmu"
+
+
+def is_current(model_name: str, fmu_path: Path) -> bool:
+    """True when fmu_path exists and was built from the current sources (GUID match)."""
+    try:
+        with zipfile.ZipFile(fmu_path) as zf:
+            root = ElementTree.fromstring(zf.read("modelDescription.xml"))
+    except (OSError, KeyError, zipfile.BadZipFile, ElementTree.ParseError):
+        return False
+    return root.get("guid") == slave_source(model_name).guid
+
+
+def stale_warning(spec: str, fmu_dir: Path) -> str | None:
+    """A warning when a bundled FMU was built from other sources than the installed ones."""
+    if spec in MODELS and not is_current(spec, bundled_fmu_path(spec, fmu_dir)):
+        return (f"the bundled FMU {spec} in {fmu_dir} is out of date (built from other "
+                "sources); `run` and `python -m mecanum_fmu fmus` rebuild it")
+    return None
+
+
+def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
+    """A bundled model name -> its FMU in fmu_dir; otherwise a path relative to the scenario
+    file. Never builds (an out-of-date bundled FMU is still returned: see stale_warning).
+    Raises ValueError with a user-facing reason."""
+    if spec in MODELS:
+        path = bundled_fmu_path(spec, fmu_dir)
+        if not path.is_file():
+            raise ValueError(f"the bundled FMU {spec} is not built in {fmu_dir}; build it "
+                             "with `python -m mecanum_fmu fmus` (make fmus)")
+        return path
+    if "\0" in spec:
+        raise ValueError(f"FMU path {spec!r:.80} contains a NUL character")
+    try:
+        path = (scenario_dir / spec).resolve() if not Path(spec).is_absolute() else Path(spec)
+        exists, is_file, is_dir = path.exists(), path.is_file(), path.is_dir()
+    except (OSError, RuntimeError) as err:     # name too long, symlink loop, ...
+        raise ValueError(f"FMU {spec!r:.80}: cannot use this path: "
+                         f"{getattr(err, 'strerror', None) or err}") from None
+    if not exists:
+        hint = ""
+        if not spec.endswith(".fmu"):
+            hint = f" (bundled FMUs: {', '.join(MODELS)})"
+        raise ValueError(f"FMU {spec!r} not found (looked for {path}){hint}")
+    if not is_file:
+        raise ValueError(f"FMU {spec!r} is {'a folder' if is_dir else 'a special file'}, "
+                         "not an .fmu file")
+    return path
+
+
+def read_description(path: Path) -> ModelDescription:
+    """Read and check that the FMU is FMI 2.0 co-simulation. Raises ValueError with the reason."""
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{path.name} is not an FMU (an FMU is a zip archive)")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            infos = {i.filename: i for i in checked_members(zf)}
+    except ArchiveError as err:
+        raise ValueError(f"{path.name} cannot be used safely: {err}; export the FMU "
+                         "again") from None
+    except ZIP_ERRORS as err:
+        raise ValueError(f"{path.name} is a damaged zip archive: {err}") from None
+    if "modelDescription.xml" not in infos:
+        raise ValueError(f"{path.name} has no modelDescription.xml; it is not an FMU")
+    if infos["modelDescription.xml"].file_size > MAX_DESCRIPTION_BYTES:
+        raise ValueError(f"{path.name}: modelDescription.xml inflates to "
+                         f"{infos['modelDescription.xml'].file_size} bytes (limit "
+                         f"{MAX_DESCRIPTION_BYTES}); is this a real FMU?")
+    version = _fmi_version(path)        # before fmpy: its FMI 1.0 reader fails on a bare file
+    if version is not None and version != "2.0":
+        raise ValueError(f"{path.name} is an FMI {version} FMU; this master runs FMI 2.0 "
+                         "co-simulation FMUs")
+    try:
+        md = read_model_description(str(path), validate=False)
+    except ValueError:
+        raise
+    except Exception as err:
+        raise ValueError(f"{path.name}: cannot read modelDescription.xml: {err}") from None
+    if md.fmiVersion != "2.0":
+        raise ValueError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 "
+                         "co-simulation FMUs")
+    if md.coSimulation is None:
+        raise ValueError(f"{path.name} supports model exchange only; this master needs "
+                         "a co-simulation FMU (export it for co-simulation)")
+    _check_numbers(path, md)
+    return md
+
+
+def _check_numbers(path: Path, md: ModelDescription) -> None:
+    """fmi2ValueReference is an unsigned 32-bit and fmi2Integer a signed 32-bit number:
+    ctypes would silently wrap anything outside (2**32 becomes 0)."""
+    for var in md.modelVariables:
+        if not 0 <= var.valueReference < 2**32:
+            raise ValueError(f"{path.name}: variable {var.name!r:.80} has valueReference "
+                             f"{str(var.valueReference)[:24]}; FMI 2.0 value references are "
+                             "0 to 2**32-1 (fix the modelDescription.xml)")
+        if var.type in ("Integer", "Enumeration") and var.start is not None:
+            try:
+                ok = -2**31 <= int(var.start) < 2**31
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(f"{path.name}: {var.type} variable {var.name!r:.80} has start "
+                                 f"{str(var.start)[:40]!r}; fmi2Integer is -2**31 to 2**31-1")
+
+
+def loading_problem(path: Path, md: ModelDescription) -> str | None:
+    """Why the FMU cannot be loaded here, or None: no binary for this platform, or (a pythonfmu
+    FMU) its slave script missing - pythonfmu's fmi2Instantiate then crashes the process.
+    Cheap: reads the member list and resources/slavemodule.txt only."""
+    ident = md.coSimulation.modelIdentifier
+    member = f"binaries/{fmpy.platform}/{ident}{fmpy.sharedLibraryExtension}"
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = set(zf.namelist())
+    except ZIP_ERRORS as err:
+        return f"{path.name} is a damaged zip archive: {err}"
+    if member in names:
+        return _slave_script_problem(path, names)
+    platforms = sorted({n.split("/")[1] for n in names
+                        if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[2]})
+    return (f"{path.name} has no binary for this platform ({member}); it has "
+            f"{', '.join(platforms) if platforms else 'no binaries at all'}; export the FMU "
+            f"for {fmpy.platform}")
+
+
+def _fmi_version(path: Path) -> str | None:
+    """The fmiVersion attribute of the root element, or None when it cannot be read."""
+    try:
+        with zipfile.ZipFile(path) as zf, zf.open("modelDescription.xml") as f:
+            for _, elem in ElementTree.iterparse(f, events=("start",)):
+                return elem.get("fmiVersion")
+    except Exception:       # a broken file is reported by the full read below
+        return None
+    return None
+
+
+def _slave_script_problem(path: Path, names: set[str]) -> str | None:
+    if "resources/slavemodule.txt" not in names:
+        return None
+    try:
+        with zipfile.ZipFile(path) as zf:
+            module = read_member(zf, "resources/slavemodule.txt", 1000).decode().strip()
+    except (ArchiveError, UnicodeDecodeError) as err:
+        return f"{path.name}: resources/slavemodule.txt cannot be read: {err}"
+    if f"resources/{module}.py" not in names:
+        return (f"{path.name} is a pythonfmu FMU whose slave script resources/{module[:80]}.py "
+                "is missing; export the FMU again")
+    return None

@@ -1,0 +1,74 @@
+"""OmniWheel2Center FMU: forward kinematics of the 45-degree omni X-drive, wheel speeds -> twist."""
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu.enums import Fmi2Status
+
+from mecanum_fmu.models.blocks.omni import check_omni_geometry, omni_wheel_to_center  # inline
+
+_WHEELS = ("w1", "w2", "w3", "w4")
+_TWIST = ("vx", "vy", "w")
+_GEOMETRY = ("L", "R")
+WHEEL_DOCS = ("front-left", "rear-left", "rear-right", "front-right")
+
+
+class OmniWheel2Center(Fmi2Slave):
+    author = "mecanum_fmu"
+    description = ("Forward kinematics of a four-wheel 45-degree omni X-drive: wheel speeds "
+                   "w1..w4 (1 front-left, 2 rear-left, 3 rear-right, 4 front-right; rim speed / R) "
+                   "-> least-squares body twist (vx right, vy forward, w counter-clockwise), the "
+                   "exact inverse of OmniCenter2Wheel. Direct feedthrough.")
+    UNITS = {"vx": "m/s", "vy": "m/s", "w": "rad/s", "w1": "rad/s", "w2": "rad/s",
+             "w3": "rad/s", "w4": "rad/s", "L": "m", "R": "m"}
+    DEPENDENCIES = {name: _WHEELS for name in _TWIST}
+    INITIAL_DEPENDENCIES = {name: _WHEELS + _GEOMETRY for name in _TWIST}
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.w1 = self.w2 = self.w3 = self.w4 = 0.0
+        self.L, self.R = 0.2, 0.05
+        self.vx = self.vy = self.w = 0.0
+        for name, where in zip(_WHEELS, WHEEL_DOCS):
+            self.register_variable(Real(name, causality=Fmi2Causality.input,
+                                        variability=Fmi2Variability.continuous,
+                                        description=f"{where} wheel speed, positive pushes "
+                                                    "the chassis counter-clockwise"))
+        geometry_docs = {"L": "distance from the chassis centre to each wheel centre",
+                         "R": "wheel radius"}
+        for name in _GEOMETRY:
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                        variability=Fmi2Variability.fixed,
+                                        description=geometry_docs[name]))
+        docs = {"vx": "chassis velocity along body +X (right), least squares",
+                "vy": "chassis velocity along body +Y (forward), least squares",
+                "w": "chassis yaw rate, counter-clockwise positive, least squares"}
+        for name in _TWIST:
+            self.register_variable(Real(name, causality=Fmi2Causality.output,
+                                        variability=Fmi2Variability.continuous,
+                                        description=docs[name]))
+
+    def _update(self):
+        # Direct feedthrough: outputs follow the inputs at once, no step needed.
+        try:
+            self.vx, self.vy, self.w = omni_wheel_to_center(
+                self.w1, self.w2, self.w3, self.w4, self.L, self.R)
+        except (ArithmeticError, TypeError):
+            pass  # invalid geometry: reported by enter_initialization_mode
+
+    def set_real(self, vrs, values):
+        super().set_real(vrs, values)
+        self._update()
+
+    def enter_initialization_mode(self):
+        try:
+            check_omni_geometry(self.L, self.R)
+        except ValueError as err:
+            self.log(f"OmniWheel2Center: {err}", Fmi2Status.error)
+            raise
+        self._update()
+
+    def exit_initialization_mode(self):
+        self.enter_initialization_mode()
+
+    def do_step(self, current_time, step_size):
+        return True

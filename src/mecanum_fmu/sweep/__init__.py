@@ -1,0 +1,1 @@
+"""Many runs of one scenario on a Dask cluster: the sweep file, workers, results, plots."""

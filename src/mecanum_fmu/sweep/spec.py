@@ -1,0 +1,277 @@
+"""A sweep file (YAML) -> the list of runs: each run's index and parameter values.
+
+The file is data (``yaml.safe_load`` only). Everything is checked before anything runs and
+every problem is reported at once (exit 2), naming the sweep file and the place:
+
+    name: wheel_tolerance
+    scenario: ../circle.yaml            # relative to this file
+    experiment: {step_size: 0.05}       # optional overrides of the scenario's experiment
+    grid: {source.w_expr: ["0", "0.5"]} # optional: the cartesian product of the value lists
+    random: {samples: 1000, seed: 1, w2c.dR1: {normal: [0.0, 0.0003]}}
+
+Run order: grid points first (the outer index, the last grid key varies fastest), then the
+samples of each grid point: run = grid_point * samples + sample. The same `samples` draws
+(one NumPy generator seeded with `seed`, parameters drawn in file order) are used at every grid
+point, so grid points are compared on the same random wheels. Grid values are checked by the
+scenario's own rules up front (a bad one is exit 2); a random draw that breaks them (say
+R + dRi <= 0) makes that run a failed row with the reason, the rest of the study goes on.
+"""
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import Problem, ScenarioError
+from ..graph import Graph, check_start_values, settable_parameters
+from ..scenario import (MASTERS, Scalar, VarRef, _read_yaml, check_experiment, did_you_mean,
+                       is_finite, is_number, parse_ref, show)
+
+_TOP_KEYS = ("name", "description", "scenario", "experiment", "grid", "random")
+_EXPERIMENT_KEYS = ("start_time", "stop_time", "step_size", "master")
+MAX_RUNS = 1_000_000            # grid points x samples; more is surely a typo
+DISTRIBUTIONS = {"normal": "[mean, sd] with sd >= 0", "uniform": "[low, high] with low <= high"}
+
+
+@dataclass(frozen=True)
+class Sweep:
+    path: Path
+    name: str
+    scenario_path: Path
+    experiment: dict[str, Any]
+    grid: tuple[tuple[VarRef, tuple[Scalar, ...]], ...]
+    samples: int                    # 0: no random part
+    seed: int
+    random: tuple[tuple[VarRef, str, tuple[float, float]], ...]
+
+    @property
+    def varied(self) -> list[VarRef]:
+        return [ref for ref, _ in self.grid] + [ref for ref, _, _ in self.random]
+
+
+@dataclass(frozen=True)
+class Run:
+    index: int
+    values: dict[VarRef, Scalar]
+    problem: str | None = None      # a draw the scenario's rules refuse: a failed row
+
+
+def load_sweep(path: str | Path) -> Sweep:
+    """Read and check the file's own structure (no FMU needed). Raises ScenarioError."""
+    path = Path(path)
+    label = str(path)
+    problems: list[Problem] = []
+
+    def bad(place: str, message: str) -> None:
+        problems.append(Problem(label, place, message))
+
+    raw = _read_yaml(path, label)
+    if not isinstance(raw, dict):
+        raise ScenarioError([Problem(label, "file", "a sweep file is a mapping with keys "
+                                     + ", ".join(_TOP_KEYS))])
+    for key in raw:
+        if key not in _TOP_KEYS:
+            bad(str(key), f"unknown key{did_you_mean(str(key), _TOP_KEYS)} (allowed: "
+                          + ", ".join(_TOP_KEYS) + ")")
+    name = raw.get("name", path.stem)
+    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
+        bad("name", f"expected a plain name (used as results/<name>/), got {show(name)}")
+    scenario = raw.get("scenario")
+    if not isinstance(scenario, str) or not scenario:
+        bad("scenario", "missing: the scenario file to sweep, relative to this file")
+        scenario = ""
+    experiment = _experiment(raw.get("experiment"), bad)
+    grid = _grid(raw.get("grid"), bad)
+    samples, seed, random = _random(raw.get("random"), bad)
+    if raw.get("grid") is None and raw.get("random") is None:
+        bad("grid", "nothing to sweep: give a `grid:` of value lists and/or `random:` draws")
+    seen = [str(ref) for ref, _ in grid] + [str(ref) for ref, _, _ in random]
+    for dup in sorted({r for r in seen if seen.count(r) > 1}):
+        bad(f"random.{dup}", f"'{dup}' is varied in both grid and random; vary it in one")
+    total = math.prod(len(v) for _, v in grid) * max(samples, 1)
+    if total > MAX_RUNS:
+        bad("grid" if grid else "random.samples", f"{total} runs (grid points x samples) is "
+            f"more than {MAX_RUNS:,}; split the study")
+    if problems:
+        raise ScenarioError(problems)
+    return Sweep(path, name, (path.parent / scenario), experiment, grid, samples, seed, random)
+
+
+def _experiment(raw, bad) -> dict[str, Any]:
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        bad("experiment", f"expected a mapping of {', '.join(_EXPERIMENT_KEYS)}, got {show(raw)}")
+        return {}
+    out = {}
+    for key, value in raw.items():
+        if key not in _EXPERIMENT_KEYS:
+            bad(f"experiment.{key}", f"unknown key{did_you_mean(str(key), _EXPERIMENT_KEYS)}")
+        elif key == "master" and value not in MASTERS:
+            bad("experiment.master", f"unknown master {show(value)} (one of {', '.join(MASTERS)})")
+        elif key != "master" and not is_finite(value):
+            bad(f"experiment.{key}", f"expected a number, got {show(value)}")
+        else:
+            out[key] = float(value) if key != "master" else value
+    return out
+
+
+def _ref(key, place: str, bad) -> VarRef | None:
+    ref = parse_ref(key)
+    if ref is None:
+        bad(place, f"expected `instance.parameter`, got {show(key)}")
+    return ref
+
+
+def _grid(raw, bad) -> tuple:
+    if raw is None:
+        return ()
+    if not isinstance(raw, dict) or not raw:
+        bad("grid", "empty: give at least one `instance.parameter: [values...]`, or leave "
+                    "`grid:` out")
+        return ()
+    grid = []
+    for key, values in raw.items():
+        place = f"grid.{key}"
+        ref = _ref(key, place, bad)
+        if not isinstance(values, list) or not values:
+            bad(place, f"expected a non-empty list of values, got {show(values)}")
+        elif any(not isinstance(v, (bool, int, float, str)) for v in values):
+            bad(place, "values must be numbers, true/false or text")
+        elif any(is_number(v) and not is_finite(v) for v in values):
+            bad(place, "values must be finite numbers (no .nan or .inf)")
+        elif ref is not None:
+            grid.append((ref, tuple(values)))
+    return tuple(grid)
+
+
+def _random(raw, bad) -> tuple[int, int, tuple]:
+    if raw is None:
+        return 0, 0, ()
+    if not isinstance(raw, dict):
+        bad("random", f"expected a mapping with samples, seed and draws, got {show(raw)}")
+        return 0, 0, ()
+    samples, seed = raw.get("samples"), raw.get("seed", 0)
+    if not isinstance(samples, int) or isinstance(samples, bool) or samples <= 0:
+        bad("random.samples", f"expected a whole number > 0, got {show(samples)}")
+        samples = 0
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        bad("random.seed", f"expected a whole number >= 0, got {show(seed)}")
+        seed = 0
+    draws = []
+    for key, spec in raw.items():
+        if key in ("samples", "seed"):
+            continue
+        place = f"random.{key}"
+        ref = _ref(key, place, bad)
+        kind, args = _distribution(spec, place, bad)
+        if ref is not None and kind is not None:
+            draws.append((ref, kind, args))
+    if not draws:
+        bad("random", "no parameter to draw: add `instance.parameter: {normal: [mean, sd]}`")
+    return samples, seed, tuple(draws)
+
+
+def _distribution(spec, place: str, bad):
+    usage = "; ".join(f"{{{k}: {v}}}" for k, v in DISTRIBUTIONS.items())
+    if not isinstance(spec, dict) or len(spec) != 1:
+        bad(place, f"expected one distribution ({usage}), got {show(spec)}")
+        return None, ()
+    (kind, args), = spec.items()
+    if kind not in DISTRIBUTIONS:
+        bad(place, f"unknown distribution {show(kind)}{did_you_mean(str(kind), DISTRIBUTIONS)} "
+                   f"(use {usage})")
+        return None, ()
+    if not (isinstance(args, list) and len(args) == 2 and all(is_finite(a) for a in args)):
+        bad(f"{place}.{kind}", f"expected {DISTRIBUTIONS[kind]}, got {show(args)}")
+        return None, ()
+    a, b = float(args[0]), float(args[1])
+    if (kind == "normal" and b < 0) or (kind == "uniform" and b < a):
+        bad(f"{place}.{kind}", f"expected {DISTRIBUTIONS[kind]}, got {show(args)}")
+        return None, ()
+    return kind, (a, b)
+
+
+def apply_experiment(sweep: Sweep, graph: Graph) -> Graph:
+    """The graph with the sweep's experiment overrides, checked like a scenario's."""
+    if not sweep.experiment:
+        return graph
+    experiment = dataclasses.replace(graph.scenario.experiment, **sweep.experiment)
+    problems = [Problem(str(sweep.path), place, msg)
+                for place, msg in check_experiment(experiment)]
+    if problems:
+        raise ScenarioError(problems)
+    return dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
+                                                                    experiment=experiment))
+
+
+def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
+    """Check every varied parameter against the graph, then list the runs in index order."""
+    _check_parameters(sweep, graph)
+    points = list(itertools.product(*(values for _, values in sweep.grid)))
+    refs = [ref for ref, _ in sweep.grid]
+    _check_grid_points(sweep, graph, refs, points)
+    rng = np.random.default_rng(sweep.seed)
+    draws = [(ref, getattr(rng, kind)(a, b, sweep.samples).tolist())
+             for ref, kind, (a, b) in sweep.random]
+    runs = []
+    for point in points:
+        for s in range(sweep.samples or 1):
+            values = dict(zip(refs, point))
+            values.update({ref: column[s] for ref, column in draws})
+            problem = None
+            if draws:
+                problem = "; ".join(f"{ref}: {m}" for ref, m in _problems(graph, values)) or None
+            runs.append(Run(len(runs), values, problem))
+    return runs
+
+
+def _check_parameters(sweep: Sweep, graph: Graph) -> None:
+    problems = []
+    names = [i.name for i in graph.instances]
+    kinds = {**{str(ref): ("grid", None) for ref, _ in sweep.grid},
+             **{str(ref): ("random", kind) for ref, kind, _ in sweep.random}}
+    for ref in sweep.varied:
+        place = f"{kinds[str(ref)][0]}.{ref}"
+        if ref.instance not in names:
+            problems.append(f"{place}: unknown instance '{ref.instance}'"
+                            f"{did_you_mean(ref.instance, names)}")
+            continue
+        inst = graph.instance(ref.instance)
+        settable = settable_parameters(inst)
+        var = next((v for v in inst.model.modelVariables if v.name == ref.variable), None)
+        if var is None:
+            problems.append(f"{place}: {inst.model_name} instance '{ref.instance}' has no "
+                            f"parameter '{ref.variable}'{did_you_mean(ref.variable, settable)}")
+        elif ref.variable not in settable:
+            problems.append(f"{place}: '{ref.variable}' is {var.causality} ({var.variability}) "
+                            f"and cannot be set; settable: {', '.join(settable)}")
+        elif kinds[str(ref)][1] and var.type != "Real":
+            problems.append(f"{place}: '{ref}' is {var.type}; random draws are real numbers "
+                            "(sweep it with `grid:` instead)")
+    if problems:
+        raise ScenarioError([Problem(str(sweep.path), *p.split(": ", 1)) for p in problems])
+
+
+def _check_grid_points(sweep: Sweep, graph: Graph, refs, points) -> None:
+    problems: dict[tuple[str, str], Problem] = {}
+    for point in points:
+        for ref, message in _problems(graph, dict(zip(refs, point))):
+            place = f"grid.{ref}" if ref in refs else f"grid (with {ref})"
+            problems.setdefault((place, message), Problem(str(sweep.path), place, message))
+    if problems:
+        raise ScenarioError(list(problems.values()))
+
+
+def _problems(graph: Graph, values: dict[VarRef, Scalar]) -> list[tuple[VarRef, str]]:
+    """(parameter, message) for each of the scenario's rules these values break."""
+    by_instance: dict[str, dict[str, Scalar]] = {}
+    for ref, value in values.items():
+        by_instance.setdefault(ref.instance, {})[ref.variable] = value
+    return [(VarRef(name, key), message) for name, vals in by_instance.items()
+            for key, message in check_start_values(graph, name, vals)]
