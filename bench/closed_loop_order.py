@@ -14,6 +14,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from mecanum_fmu import master
+from mecanum_fmu.process import exit_now
 from mecanum_fmu.runner import prepare
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "closed_loop" / "track_circle.yaml"
@@ -54,4 +55,4 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
-    master.exit_now(0)
+    exit_now(0)

@@ -91,6 +91,6 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 if __name__ == "__main__":       # a guard Dask's worker processes need (they re-import main)
-    from mecanum_fmu import master
+    from mecanum_fmu.process import exit_now
     main()
-    master.exit_now(0)
+    exit_now(0)
