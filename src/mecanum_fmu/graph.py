@@ -124,7 +124,9 @@ class _Checker:
         self.instance_names = [c.name for c in scenario.components]
 
     def bad(self, place: str, message: str) -> None:
-        self.problems.append(Problem(self.scenario.label, place, message))
+        problem = Problem(self.scenario.label, place, message)
+        if problem not in self.problems:     # a shared parameter is checked per taker
+            self.problems.append(problem)
 
     def lookup(self, ref: VarRef, place: str) -> ScalarVariable | None:
         if ref.instance not in self.instance_names:

@@ -1,0 +1,35 @@
+"""How scenario YAML reads: numbers as users write them, each problem once."""
+from pathlib import Path
+
+import pytest
+
+from helpers import ROOT
+from mecanum_fmu.errors import ScenarioError
+from mecanum_fmu.runner import prepare
+from mecanum_fmu.scenario import load_scenario
+
+CIRCLE = (ROOT / "scenarios" / "circle.yaml").read_text()
+
+
+@pytest.mark.parametrize("text, value", [("1e-3", 1e-3), ("2E5", 2e5), ("1.5e+2", 150.0),
+                                         ("-4e1", -40.0), ("0.06", 0.06)])
+def test_exponents_without_a_dot_are_numbers(tmp_path, text, value):
+    """YAML 1.1 would read 1e-3 as text; a scenario reads it as the number it says."""
+    path = tmp_path / "s.yaml"
+    path.write_text(CIRCLE.replace("  R: 0.06 ", f"  R: {text} "))
+    assert load_scenario(path).parameters["R"] == value
+
+
+def test_quoted_numbers_stay_text(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text(CIRCLE.replace("  R: 0.06 ", "  R: '1e-3' "))
+    assert load_scenario(path).parameters["R"] == "1e-3"
+
+
+def test_a_shared_parameter_problem_is_reported_once(tmp_path, fmu_dir):
+    """L goes to both kinematics blocks; a bad L is one problem, not one per block."""
+    path = tmp_path / "s.yaml"
+    path.write_text(CIRCLE.replace("  L: 0.16 ", "  L: -1.0 "))
+    with pytest.raises(ScenarioError) as info:
+        prepare(path, fmu_dir=fmu_dir, build=False)
+    assert [p.place for p in info.value.problems] == ["parameters.L"]
