@@ -21,6 +21,8 @@ from xml.etree import ElementTree as ET
 import pythonfmu
 from pythonfmu import FmuBuilder
 
+from . import fmu_link
+
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_FMU_DIR = PACKAGE_DIR.parent.parent / "fmus"
 
@@ -48,8 +50,12 @@ class SlaveSource:
 
     @property
     def digest(self) -> str:
-        """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
+        """Hash of everything that goes into the FMU: our script, pythonfmu's version and the
+        libpython the binaries are linked to (fmu_link)."""
+        link = fmu_link.build_link()
         text = self.script + "\npythonfmu " + pythonfmu.__version__
+        if link is not None:
+            text += "\nlinked to " + link.tag
         return hashlib.sha256(text.encode()).hexdigest()
 
     @property
@@ -99,6 +105,7 @@ def build_fmu(model_name: str, dest_dir: Path = REPO_FMU_DIR) -> Path:
         with zipfile.ZipFile(raw) as zf:
             entries = {info.filename: zf.read(info) for info in zf.infolist()
                        if not info.filename.endswith("/")}
+    entries = fmu_link.link_entries(entries, fmu_link.build_link())
     entries["modelDescription.xml"] = _fix_model_description(
         entries["modelDescription.xml"], slave_class, source.guid)
     partial = target.with_suffix(".fmu.part")

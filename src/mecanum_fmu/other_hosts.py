@@ -28,7 +28,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .doctor import find_libpython
+from .fmu_link import find_libpython
 from .ssp import PARAMETER_SET
 
 HOSTS = ("libcosim", "ecos", "ecos-cli")
