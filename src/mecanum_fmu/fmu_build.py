@@ -72,7 +72,8 @@ def slave_source(model_name: str) -> SlaveSource:
         block = (PACKAGE_DIR / "blocks" / f"{match.group(1)}.py").read_text()
         return f"# --- inlined from mecanum_fmu/blocks/{match.group(1)}.py ---\n{block}# --- end ---"
 
-    return SlaveSource(model_name, f"mecanum_fmu_{module}", _INLINE.sub(inline, text))
+    script = fmu_link.with_prelude(_INLINE.sub(inline, text), fmu_link.build_link())
+    return SlaveSource(model_name, f"mecanum_fmu_{module}", script)
 
 
 def bundled_fmu_path(model_name: str, fmu_dir: Path = REPO_FMU_DIR) -> Path:

@@ -31,6 +31,7 @@ another interpreter count as stale.
 """
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -85,6 +86,44 @@ def build_link() -> Link | None:
         return None
     soname = sysconfig.get_config_var("INSTSONAME") or lib.name
     return Link(soname=soname, folder=str(lib.resolve().parent))
+
+
+# Put at the top of every slave script (before its first import) when the binary is linked.
+# A non-Python host loads libpython as a dependency of the FMU binary, in the binary's local
+# scope: the interpreter starts, but an extension module it loads later from lib-dynload
+# (math, _struct, ...) finds no Python symbols (`undefined symbol: PyFloat_Type`). Python's own
+# dlopen flags can fix that from the inside, with builtin modules only: dlopen the libpython
+# that is already loaded once more, by its full path (Python prefixes a bare name with ./),
+# with RTLD_GLOBAL | RTLD_NOLOAD (promoted to the global scope; nothing new is loaded; when
+# that file is not loaded, as in a host with another libpython, nothing happens). Its missing PyInit_ function makes the import fail - expected.
+# In a Python host libpython (or the executable) is global already and this changes nothing.
+_PRELUDE = """\
+def _mecanum_fmu_libpython_global(path):  # mecanum_fmu/fmu_link.py: non-Python hosts
+    import _imp, os, sys
+    from importlib.machinery import ModuleSpec
+    flags = sys.getdlopenflags()
+    sys.setdlopenflags(os.RTLD_NOW | os.RTLD_GLOBAL | os.RTLD_NOLOAD)
+    try:
+        _imp.create_dynamic(ModuleSpec("_mecanum_fmu_libpython", None, origin=path))
+    except ImportError:
+        pass   # expected: libpython has no PyInit_ function; the dlopen did the work
+    finally:
+        sys.setdlopenflags(flags)
+
+
+_mecanum_fmu_libpython_global({path!r})
+del _mecanum_fmu_libpython_global
+"""
+_FIRST_IMPORT = re.compile(r"^(?:from|import) (?!__future__)", re.MULTILINE)
+
+
+def with_prelude(script: str, link: Link | None) -> str:
+    """The slave script with the global-scope prelude before its first import."""
+    if link is None:
+        return script
+    match = _FIRST_IMPORT.search(script)
+    at = match.start() if match else len(script)
+    return script[:at] + _PRELUDE.format(path=str(link.path)) + "\n\n" + script[at:]
 
 
 def patchelf() -> str | None:
