@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import io
 import re
 import sys
 import tempfile
@@ -110,14 +111,21 @@ def build_fmu(model_name: str, dest_dir: Path = REPO_FMU_DIR) -> Path:
     entries["modelDescription.xml"] = _fix_model_description(
         entries["modelDescription.xml"], slave_class, source.guid)
     partial = target.with_suffix(".fmu.part")
-    with zipfile.ZipFile(partial, "w") as zf:
+    partial.write_bytes(zip_entries(entries))
+    partial.replace(target)   # atomic: a reader never sees a half-written FMU
+    return target
+
+
+def zip_entries(entries: dict[str, bytes]) -> bytes:
+    """An FMU archive of entries (name -> bytes): sorted, fixed dates, deterministic bytes."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as zf:
         for name in sorted(entries):
             info = zipfile.ZipInfo(name, date_time=_FIXED_DATE)
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
             zf.writestr(info, entries[name], compresslevel=9)
-    partial.replace(target)   # atomic: a reader never sees a half-written FMU
-    return target
+    return buffer.getvalue()
 
 
 def build_all(dest_dir: Path = REPO_FMU_DIR, only_stale: bool = False) -> list[Path]:

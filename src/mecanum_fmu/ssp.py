@@ -125,11 +125,17 @@ def build_ssd(graph, sources: dict[str, str]) -> bytes:
 
 def export_ssp(graph, path: str | Path) -> Path:
     """Write the compiled graph as an SSP 1.0 archive (deterministic bytes). Returns the path."""
+    from . import ssp_bake, ssp_vendor
     path = Path(path)
     sources: dict[str, str] = {}
-    files: dict[str, Path] = {}          # archive name -> FMU file
+    files: dict[str, Path | bytes] = {}  # archive name -> FMU file, or a baked variant's bytes
     by_file: dict[Path, str] = {}
+    baked = ssp_bake.variants(graph)     # String parameters as defaults (ssp_bake.py)
     for inst in graph.instances:
+        if inst.name in baked:
+            files[f"resources/{baked[inst.name].name}"] = baked[inst.name].data
+            sources[inst.name] = f"resources/{baked[inst.name].name}"
+            continue
         fmu = Path(inst.fmu_path).resolve()
         if fmu not in by_file:
             base = re.sub(r"[^\w.-]", "_", inst.model_name) or "model"
@@ -140,13 +146,15 @@ def export_ssp(graph, path: str | Path) -> Path:
             files[name] = fmu
             by_file[fmu] = name
         sources[inst.name] = by_file[fmu]
-    ssd = build_ssd(graph, sources)
+    ssd = ssp_vendor.with_vendor_annotations(build_ssd(graph, sources),
+                                             graph.scenario.experiment.step_size)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
     with zipfile.ZipFile(tmp, "w") as zf:
         _add(zf, SSD_NAME, ssd)
         for name in sorted(files):
-            _add(zf, name, files[name].read_bytes())
+            data = files[name]
+            _add(zf, name, data if isinstance(data, bytes) else data.read_bytes())
     os.replace(tmp, path)
     return path
 
