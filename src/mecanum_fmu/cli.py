@@ -244,11 +244,12 @@ def cmd_fmus(args) -> int:
     build_all(args.dest or default_fmu_dir(), only_stale=not args.force,
               report=lambda path, state: print(f"{path}  ({path.stat().st_size // 1024} KiB, "
                                                f"{state})"))
-    from .interop.doctor import find_libpython
-    lib = find_libpython()
-    print("other FMI tools: FMPy loads them as they are; a non-Python host (OMSimulator, "
-          "cosim, ...) needs " + (f"LD_PRELOAD={lib}" if lib else "a shared libpython")
-          + " (details: python -m mecanum_fmu doctor, docs/other-tools.md)")
+    from .models.link import build_link
+    link = build_link()
+    print("other FMI tools: " + (f"the binaries load {link.path} by themselves (needed entry "
+                                 "+ runpath), no LD_PRELOAD" if link else
+                                 "a non-Python host needs LD_PRELOAD=<a shared libpython>")
+          + " (details: python -m mecanum_fmu doctor, docs/openmodelica.md)")
     return 0
 
 

@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import errno
+import io
 import os
 import stat
 import zipfile
@@ -63,19 +64,26 @@ def read_regular(path: Path | str, limit: int, what: str = "an input file") -> b
     return data
 
 
+def zip_bytes(members: Mapping[str, bytes], compresslevel: int | None = None) -> bytes:
+    """The deterministic zip of members (archive name -> bytes), as bytes."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as zf:
+        for name in sorted(members):
+            info = zipfile.ZipInfo(name, date_time=FIXED_DATE)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            info.create_system = 3
+            zf.writestr(info, members[name], compresslevel=compresslevel)
+    return buffer.getvalue()
+
+
 def write_zip(path: Path, members: Mapping[str, bytes], compresslevel: int | None = None) -> Path:
     """Write members (archive name -> bytes) as a deterministic zip at path, atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".part")
     try:
-        with zipfile.ZipFile(partial, "w") as zf:
-            for name in sorted(members):
-                info = zipfile.ZipInfo(name, date_time=FIXED_DATE)
-                info.compress_type = zipfile.ZIP_DEFLATED
-                info.external_attr = 0o644 << 16
-                info.create_system = 3
-                zf.writestr(info, members[name], compresslevel=compresslevel)
+        partial.write_bytes(zip_bytes(members, compresslevel))
         os.replace(partial, path)
     finally:
         if partial.exists():

@@ -11,22 +11,7 @@ import sys
 import sysconfig
 from pathlib import Path
 
-
-def find_libpython() -> Path | None:
-    """The shared libpython of this interpreter, or None (a statically linked Python)."""
-    libdir = sysconfig.get_config_var("LIBDIR") or ""
-    candidates = []
-    for key in ("INSTSONAME", "LDLIBRARY"):
-        name = sysconfig.get_config_var(key)
-        if name and (".so" in name or name.endswith(".dylib")):
-            candidates.append(Path(libdir) / name)
-            multiarch = sysconfig.get_config_var("MULTIARCH")
-            if multiarch:
-                candidates.append(Path(libdir) / multiarch / name)
-    for path in candidates:
-        if path.is_file():
-            return path
-    return None
+from ..models.link import find_libpython  # noqa: F401  (also imported from here)
 
 
 def doctor_lines(fmu_dir: Path | None = None) -> list[str]:

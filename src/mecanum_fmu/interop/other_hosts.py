@@ -11,8 +11,10 @@ is the host's own.
   ecos      PyPI `ecospy`, `EcosSimulation(ssp_path=...)` (needs Debian's libtbb12). Ecos
             applies an SSP's parameter bindings only when their set is named at init, so we
             name it (ssp.PARAMETER_SET); without that it silently runs the FMUs' defaults.
-  ecos-cli  the `ecos` program shipped inside the ecospy wheel: a non-Python host, so it loads
-            the pythonfmu FMUs only with LD_PRELOAD=<libpython> (what `doctor` prints). Its CSV
+  ecos-cli  the `ecos` program shipped inside the ecospy wheel: a non-Python host. It runs with
+            LD_PRELOAD removed from its environment: our FMUs find their libpython themselves
+            (models/link.py). FMUs built elsewhere by plain pythonfmu need LD_PRELOAD=<libpython>
+            (what `doctor` prints); set MECANUM_FMU_ECOS_PRELOAD=<libpython> for those. Its CSV
             has 6 decimals.
 """
 from __future__ import annotations
@@ -28,15 +30,13 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .doctor import find_libpython
 from .ssp import PARAMETER_SET
 
 HOSTS = ("libcosim", "ecos", "ecos-cli")
 INSTALL = {
     "libcosim": "pip install libcosimpy",
     "ecos": "pip install ecospy; on Debian/Ubuntu also: apt-get install libtbb12",
-    "ecos-cli": "pip install ecospy; on Debian/Ubuntu also: apt-get install libtbb12; "
-                "and a Python built with --enable-shared (see `python -m mecanum_fmu doctor`)",
+    "ecos-cli": "pip install ecospy; on Debian/Ubuntu also: apt-get install libtbb12",
 }
 UNAVAILABLE = 3          # the child's exit code when the host cannot be loaded
 
@@ -143,14 +143,15 @@ def _ecos_cli(ssp: str, start: float, stop: float, step: float, names: list[str]
     from importlib.util import find_spec
 
     binaries = Path(find_spec("ecospy").origin).parent / "binaries"
-    libpython = find_libpython()
     with tempfile.TemporaryDirectory(prefix="mecanum-ecos-") as tmp:
         program = Path(tmp) / "ecos"       # the wheel ships it without the executable bit
         shutil.copy(binaries / "ecos", program)
         program.chmod(0o755)
-        env = dict(os.environ, LD_PRELOAD=str(libpython),
-                   LD_LIBRARY_PATH=os.pathsep.join(
-                       p for p in (str(binaries), os.environ.get("LD_LIBRARY_PATH")) if p))
+        env = dict(os.environ, LD_LIBRARY_PATH=os.pathsep.join(
+            p for p in (str(binaries), os.environ.get("LD_LIBRARY_PATH")) if p))
+        env.pop("LD_PRELOAD", None)       # the FMUs must load by themselves
+        if os.environ.get("MECANUM_FMU_ECOS_PRELOAD"):     # FMUs built elsewhere
+            env["LD_PRELOAD"] = os.environ["MECANUM_FMU_ECOS_PRELOAD"]
         # stop half a step late: Ecos' clock drifts by adding h each step (see _ecos)
         cmd = [str(program), "simulate", "--path", ssp, "--startTime", repr(start),
                "--stopTime", repr(stop + step / 2), "--stepSize", repr(step),
@@ -178,8 +179,6 @@ def _child(argv: list[str]) -> int:
             import libcosimpy.CosimExecution  # noqa: F401
         else:
             import ecospy  # noqa: F401  (loads libecosc.so, which needs libtbb.so.12)
-        if host == "ecos-cli" and find_libpython() is None:
-            raise ImportError("this Python has no shared libpython to preload")
     except (ImportError, OSError) as err:
         print(f"cannot load {host}: {err}")
         return UNAVAILABLE

@@ -8,6 +8,7 @@ from xml.etree import ElementTree as ET
 
 from ..graph import port_type
 from ..scenario import Scalar
+from . import ssp_bake, ssp_vendor
 from .ssp import (ANNOTATION_TYPE, FMU_MIME, PARAMETER_SET, SSD_NAME, VALUE_TAGS, q)
 from ..storage import write_zip
 
@@ -82,9 +83,14 @@ def export_ssp(graph, path: str | Path) -> Path:
     """Write the compiled graph as an SSP 1.0 archive (deterministic bytes). Returns the path."""
     path = Path(path)
     sources: dict[str, str] = {}
-    files: dict[str, Path] = {}          # archive name -> FMU file
+    files: dict[str, Path | bytes] = {}  # archive name -> FMU file, or a baked variant's bytes
     by_file: dict[Path, str] = {}
+    baked = ssp_bake.variants(graph)     # String parameters as defaults (ssp_bake.py)
     for inst in graph.instances:
+        if inst.name in baked:
+            files[f"resources/{baked[inst.name].name}"] = baked[inst.name].data
+            sources[inst.name] = f"resources/{baked[inst.name].name}"
+            continue
         fmu = Path(inst.fmu_path).resolve()
         if fmu not in by_file:
             base = re.sub(r"[^\w.-]", "_", inst.model_name) or "model"
@@ -95,7 +101,9 @@ def export_ssp(graph, path: str | Path) -> Path:
             files[name] = fmu
             by_file[fmu] = name
         sources[inst.name] = by_file[fmu]
-    ssd = build_ssd(graph, sources)
+    ssd = ssp_vendor.with_vendor_annotations(build_ssd(graph, sources),
+                                             graph.scenario.experiment.step_size)
     members = {SSD_NAME: ssd}
-    members.update((name, file.read_bytes()) for name, file in files.items())
+    members.update((name, data if isinstance(data, bytes) else data.read_bytes())
+                   for name, data in files.items())
     return write_zip(path, members)

@@ -21,6 +21,7 @@ from pythonfmu import FmuBuilder
 from .catalog import MODELS
 from .library import bundled_fmu_path, is_current, slave_source
 from ..storage import write_zip
+from . import link as fmu_link
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},
               "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"},
@@ -43,9 +44,12 @@ def build_fmu(model_name: str, dest_dir: Path) -> Path:
         with zipfile.ZipFile(raw) as zf:
             entries = {info.filename: zf.read(info) for info in zf.infolist()
                        if not info.filename.endswith("/")}
+    entries = fmu_link.link_entries(entries, fmu_link.build_link())
     entries["modelDescription.xml"] = _fix_model_description(
         entries["modelDescription.xml"], slave_class, source.guid)
     return write_zip(target, entries, compresslevel=9)
+
+
 
 
 def build_all(dest_dir: Path, only_stale: bool = False,

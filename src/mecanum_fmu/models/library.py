@@ -16,6 +16,7 @@ from fmpy.model_description import ModelDescription
 
 from ..archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
 from .catalog import MODELS
+from .link import build_link, with_prelude
 from ..storage import cache_root
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -43,6 +44,9 @@ class SlaveSource:
     def digest(self) -> str:
         """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
         text = self.script + "\npythonfmu " + version("pythonfmu")
+        linked = build_link()          # the libpython the binaries are linked to (link.py)
+        if linked is not None:
+            text += "\nlinked to " + linked.tag
         return hashlib.sha256(text.encode()).hexdigest()
 
     @property
@@ -60,7 +64,8 @@ def slave_source(model_name: str) -> SlaveSource:
         block = (PACKAGE_DIR / "blocks" / f"{match.group(1)}.py").read_text()
         return f"# --- inlined from mecanum_fmu/models/blocks/{match.group(1)}.py ---\n{block}# --- end ---"
 
-    return SlaveSource(model_name, f"mecanum_fmu_{module}", _INLINE.sub(inline, text))
+    script = with_prelude(_INLINE.sub(inline, text), build_link())
+    return SlaveSource(model_name, f"mecanum_fmu_{module}", script)
 
 
 def bundled_fmu_path(model_name: str, fmu_dir: Path) -> Path:

@@ -1,6 +1,6 @@
 """pythonfmu slaves: thin wrappers that expose the block maths as FMI 2.0 co-simulation FMUs.
 
-Each module is turned into a self-contained, uniquely named FMU script by ``fmu_build``:
+Each module is turned into a self-contained, uniquely named FMU script by ``models/build.py``:
 lines ending in ``# inline`` that import from ``mecanum_fmu.models.blocks`` are replaced by the source
 of that module, because pythonfmu loads the script as a top-level module from ``resources/``.
 
