@@ -15,6 +15,8 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
+from helpers import CHAIN_CONNECTIONS
+
 from mecanum_fmu.models import modes
 from mecanum_fmu import runner
 from mecanum_fmu.models.blocks.bicycle import bicycle_twist
@@ -311,18 +313,7 @@ components:
   c2w: {fmu: OmniCenter2Wheel}
   w2c: {fmu: OmniWheel2Center}
   pose: {fmu: PoseIntegrator}
-connections:
-  - [source.vx, c2w.vx]
-  - [source.vy, c2w.vy]
-  - [source.w,  c2w.w]
-  - [c2w.w1, w2c.w1]
-  - [c2w.w2, w2c.w2]
-  - [c2w.w3, w2c.w3]
-  - [c2w.w4, w2c.w4]
-  - [w2c.vx, pose.vx]
-  - [w2c.vy, pose.vy]
-  - [w2c.w,  pose.w]
-"""
+""" + CHAIN_CONNECTIONS
 
 
 @pytest.mark.parametrize("twist", [(0.0, 0.3, 0.0), (-0.3, 0.3, 0.0), (0.0, 0.0, -0.8)])

@@ -6,13 +6,12 @@ Python host on a statically linked interpreter (Debian's /usr/bin/python3) runs 
 own interpreter."""
 import os
 import subprocess
-import sys
 import zipfile
 from pathlib import Path
 
 import pytest
 
-from helpers import ROOT, write_scenario
+from helpers import CHAIN_CONNECTIONS, write_scenario
 from mecanum_fmu.interop.other_hosts import HostUnavailable, run_host
 from mecanum_fmu.interop.ssp_write import export_ssp
 from mecanum_fmu.models.link import binary_needs, build_link
@@ -27,18 +26,7 @@ components:
   c2w: {fmu: Center2Wheel}
   w2c: {fmu: Wheel2Center}
   pose: {fmu: PoseIntegrator, parameters: {x0: 5.0}}
-connections:
-  - [source.vx, c2w.vx]
-  - [source.vy, c2w.vy]
-  - [source.w, c2w.w]
-  - [c2w.w1, w2c.w1]
-  - [c2w.w2, w2c.w2]
-  - [c2w.w3, w2c.w3]
-  - [c2w.w4, w2c.w4]
-  - [w2c.vx, pose.vx]
-  - [w2c.vy, pose.vy]
-  - [w2c.w, pose.w]
-"""
+""" + CHAIN_CONNECTIONS
 # vx = 0.5 m/s for 10 s from x0 = 5, no turning: the end point is (10, 0) exactly in any
 # master (the twist is constant); with the defaults (sin t, cos t) it would be (6.84, -0.54).
 END = {"pose.x": 10.0, "pose.y": 0.0}
@@ -88,7 +76,7 @@ def test_ecos_program_runs_a_non_default_source_with_nothing_preloaded(straight)
 def _strip_strings(ssp: Path, dest: Path) -> Path:
     """The SSP with every String parameter binding removed (what OMSimulator does)."""
     from xml.etree import ElementTree as ET
-    from mecanum_fmu.interop.ssp import NS, q
+    from mecanum_fmu.interop.ssp import q
     with zipfile.ZipFile(ssp) as zf:
         members = {i.filename: zf.read(i) for i in zf.infolist()}
     root = ET.fromstring(members["SystemStructure.ssd"])
