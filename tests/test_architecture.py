@@ -80,3 +80,16 @@ def test_each_instance_has_its_own_log():
     runtime._on_log(None, b"source", 0, b"info", b"nobody's")
     assert first.messages == ["[Error] first failed"]
     assert second.messages == ["[OK] second ok"]
+
+
+def test_output_piped_into_a_reader_that_leaves_is_no_traceback():
+    """`mecanum-fmu info ... | head -1`: the reader closes the pipe; the command stops quietly."""
+    import subprocess
+    from helpers import cli_args, child_env
+    proc = subprocess.Popen(cli_args("info", "Wheel2Center"), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=child_env(), cwd=ROOT)
+    proc.stdout.close()                       # the reader leaves before anything is written
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=60)
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
+    assert proc.returncode in (0, 141)

@@ -4,6 +4,7 @@ package's exceptions into messages and exit codes (0 ok, 1 simulation failed, 2 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -168,6 +169,9 @@ def exit_with(argv: list[str] | None = None) -> None:
     from .process import exit_now
     try:
         code = main(argv)      # SystemExit (--help, bad options) and bugs propagate as usual
+    except BrokenPipeError:    # `... | head`: the reader left; stop quietly, as Unix tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = 141
     except BaseException:
         if "mecanum_fmu.runtime" in sys.modules:    # a bug: still no extraction left behind
             from .runtime import RUNTIME

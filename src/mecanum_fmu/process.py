@@ -15,8 +15,11 @@ def exit_now(code: int) -> NoReturn:
     aborts now and then ("corrupted double-linked list", ~1 run in 30, after every file was
     written). Flushes the standard streams and removes the FMU extraction folders first, the
     only clean-up that matters once every result file is closed."""
-    sys.stdout.flush()
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (BrokenPipeError, ValueError):   # the reader left (`| head`) or it is closed
+            pass
     if "mecanum_fmu.runtime" in sys.modules:       # nothing was extracted otherwise
         from .runtime import RUNTIME
         RUNTIME.remove_extractions()
