@@ -81,6 +81,16 @@ def test_missing_scenario_names_the_sweep_file(tmp_path, capsys):
     assert f"{path}: scenario: " in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("name", ["..", "a/b", "a b"])
+def test_a_sweep_name_follows_the_scenario_name_rule(tmp_path, capsys, name):
+    """The name names results/<name>/: the scenario's rule (scenario.usable_name) applies."""
+    path = tmp_path / "s.yaml"
+    path.write_text(f"name: '{name}'\nscenario: {CIRCLE}\n" + DRAWS)
+    assert cli.main(["sweep", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: name: " in err and "not a usable name" in err, err
+
+
 # ---------------------------------------------------------------------------------------------
 def test_plan_counts_grid_points_first_and_draws_reproducibly(tmp_path, built_fmus):
     from mecanum_fmu.sweep.cluster import prepare_sweep

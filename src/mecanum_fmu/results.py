@@ -62,10 +62,11 @@ def write_rows(writer, data: np.ndarray) -> None:
     """The rows of a structured array (fields: time, then the names), as write_csv does."""
     columns = [data[n] for n in data.dtype.names]
     for row in zip(*(c.tolist() for c in columns)):
-        writer.writerow([_fmt(v) for v in row])
+        writer.writerow([format_value(v) for v in row])
 
 
-def _fmt(value) -> str:
+def format_value(value) -> str:
+    """One value as results.csv (and runs.csv) writes it: repr keeps a float exact."""
     if isinstance(value, bool):
         return "1" if value else "0"
     if isinstance(value, float):

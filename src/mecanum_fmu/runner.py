@@ -5,7 +5,6 @@ plots last; a run that fails mid-way still writes every row recorded up to the f
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +20,7 @@ from .output import OutputFolder
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
 from .results import Results
-from .scenario import MASTERS, Scenario, check_experiment, load_scenario
+from .scenario import MASTERS, Scenario, load_scenario, override_experiment
 
 
 @dataclass
@@ -52,12 +51,8 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
         if "master" in changes and changes["master"] not in MASTERS:
             raise ScenarioError([Problem(scenario.label, "--master", f"unknown master "
                                  f"{changes['master']!r} (choose one of {', '.join(MASTERS)})")])
-        experiment = dataclasses.replace(scenario.experiment, **changes)
-        problems = [Problem(scenario.label, f"{place} (with the command-line options)", msg)
-                    for place, msg in check_experiment(experiment)]
-        if problems:
-            raise ScenarioError(problems)
-        scenario = dataclasses.replace(scenario, experiment=experiment)
+        scenario = override_experiment(scenario, changes, scenario.label,
+                                       " (with the command-line options)")
     if build:
         build_bundled(scenario, fmu_dir)
     return compile_graph(scenario, fmu_dir)

@@ -5,6 +5,7 @@ Every problem is collected and raised together as one ScenarioError.
 """
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import re
@@ -133,7 +134,7 @@ def load_scenario(path: str | Path) -> Scenario:
     def bad(place: str, message: str) -> None:
         problems.append(Problem(label, place, message))
 
-    doc = _read_yaml(path, label)
+    doc = read_yaml(path, label)
     if doc is None:
         raise ScenarioError([Problem(label, "file", "is empty: a scenario needs at least "
                                      "components (instance name: {fmu: NAME_OR_PATH})")])
@@ -166,7 +167,9 @@ def load_scenario(path: str | Path) -> Scenario:
                     shared)
 
 
-def _read_yaml(path: Path, label: str) -> Any:
+def read_yaml(path: Path, label: str) -> Any:
+    """The YAML document at path, read as data (UniqueKeyLoader, a safe_load loader); a bad file
+    raises ScenarioError naming the place."""
     def fail(place: str, message: str):
         return ScenarioError([Problem(label, place, message)])
 
@@ -242,7 +245,17 @@ def _unknown_keys(mapping: dict, allowed, place: str, bad) -> None:
 def parse_experiment(raw: Any, bad) -> Experiment:
     """The experiment from a mapping of its keys (defaults for those left out); problems go to
     bad(place, message). Scenario files and SSP annotations both come through here."""
-    values = dict(DEFAULT_EXPERIMENT)
+    values, ok = experiment_values(raw, bad)
+    experiment = Experiment(**{**DEFAULT_EXPERIMENT, **values})
+    if ok:
+        for problem in check_experiment(experiment):
+            bad(*problem)
+    return experiment
+
+
+def experiment_values(raw: Any, bad) -> tuple[dict[str, Any], bool]:
+    """The valid entries of a mapping of experiment keys (a scenario's `experiment:`, a sweep's
+    overrides), and whether every time was a finite number; problems go to bad."""
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):
@@ -250,6 +263,7 @@ def parse_experiment(raw: Any, bad) -> Experiment:
                           f"got {_type_name(raw)}")
         raw = {}
     _unknown_keys(raw, tuple(DEFAULT_EXPERIMENT), "experiment", bad)
+    values: dict[str, Any] = {}
     ok = True
     for key in ("start_time", "stop_time", "step_size"):
         if key not in raw:
@@ -269,11 +283,22 @@ def parse_experiment(raw: Any, bad) -> Experiment:
         else:
             bad("experiment.master", f"unknown master {show(raw['master'])}"
                 f"{did_you_mean(raw['master'], MASTERS)} (choose one of {', '.join(MASTERS)})")
-    experiment = Experiment(**values)
-    if ok:
-        for problem in check_experiment(experiment):
-            bad(*problem)
-    return experiment
+    return values, ok
+
+
+def override_experiment(scenario: "Scenario", changes: dict[str, Any], label: str,
+                        where: str = "") -> "Scenario":
+    """The scenario with experiment values replaced (command-line options, a sweep's
+    `experiment:`), checked by the scenario's own rules; problems are raised, placed at
+    `<place><where>` in `label`."""
+    if not changes:
+        return scenario
+    experiment = dataclasses.replace(scenario.experiment, **changes)
+    problems = [Problem(label, f"{place}{where}", message)
+                for place, message in check_experiment(experiment)]
+    if problems:
+        raise ScenarioError(problems)
+    return dataclasses.replace(scenario, experiment=experiment)
 
 
 def check_experiment(exp: Experiment) -> list[tuple[str, str]]:

@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import Interrupted, Problem, ScenarioError
 from ..graph import Graph
 from ..report.ground_truth import find_roles, ground_truth
-from ..results import _fmt
+from ..results import format_value
 from ..runner import prepare
 from .spec import Run, Sweep, apply_experiment, load_sweep, plan_runs
 from .worker import CleanUp, RunResult, run_batch, with_values
@@ -232,10 +232,10 @@ def write_runs_csv(path: Path, sweep: Sweep, graph: Graph, runs: list[Run],
             if row is None:
                 continue           # not run (interrupted): summary.json counts it
             err = errors.get(run.index, {})
-            writer.writerow([run.index] + [_fmt(run.values[ref]) for ref in sweep.varied]
+            writer.writerow([run.index] + [format_value(run.values[ref]) for ref in sweep.varied]
                             + [row.status, row.message]
-                            + [_fmt(row.ends[o]) if o in row.ends else "" for o in outputs]
-                            + ([_fmt(err[e]) if e in err else "" for e in ERRORS]
+                            + [format_value(row.ends[o]) if o in row.ends else "" for o in outputs]
+                            + ([format_value(err[e]) if e in err else "" for e in ERRORS]
                                if has_truth else []))
 
 

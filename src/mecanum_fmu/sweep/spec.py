@@ -29,11 +29,10 @@ import numpy as np
 
 from ..errors import Problem, ScenarioError
 from ..graph import Graph, check_start_values, settable_parameters
-from ..scenario import (MASTERS, Scalar, VarRef, _read_yaml, check_experiment, did_you_mean,
-                       is_finite, is_number, parse_ref, show)
+from ..scenario import (Scalar, VarRef, did_you_mean, experiment_values, is_finite, is_number,
+                        override_experiment, parse_ref, read_yaml, show, usable_name)
 
 _TOP_KEYS = ("name", "description", "scenario", "experiment", "grid", "random")
-_EXPERIMENT_KEYS = ("start_time", "stop_time", "step_size", "master")
 MAX_RUNS = 1_000_000            # grid points x samples; more is surely a typo
 DISTRIBUTIONS = {"normal": "[mean, sd] with sd >= 0", "uniform": "[low, high] with low <= high"}
 
@@ -70,7 +69,7 @@ def load_sweep(path: str | Path) -> Sweep:
     def bad(place: str, message: str) -> None:
         problems.append(Problem(label, place, message))
 
-    raw = _read_yaml(path, label)
+    raw = read_yaml(path, label)
     if not isinstance(raw, dict):
         raise ScenarioError([Problem(label, "file", "a sweep file is a mapping with keys "
                                      + ", ".join(_TOP_KEYS))])
@@ -79,13 +78,14 @@ def load_sweep(path: str | Path) -> Sweep:
             bad(str(key), f"unknown key{did_you_mean(str(key), _TOP_KEYS)} (allowed: "
                           + ", ".join(_TOP_KEYS) + ")")
     name = raw.get("name", path.stem)
-    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
-        bad("name", f"expected a plain name (used as results/<name>/), got {show(name)}")
+    if not isinstance(name, str) or usable_name(name) != name:     # the scenario's rule
+        bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only, not "
+                    "only dots; it names the results folder results/<name>/)")
     scenario = raw.get("scenario")
     if not isinstance(scenario, str) or not scenario:
         bad("scenario", "missing: the scenario file to sweep, relative to this file")
         scenario = ""
-    experiment = _experiment(raw.get("experiment"), bad)
+    experiment, _ = experiment_values(raw.get("experiment"), bad)
     grid = _grid(raw.get("grid"), bad)
     samples, seed, random = _random(raw.get("random"), bad)
     if raw.get("grid") is None and raw.get("random") is None:
@@ -100,25 +100,6 @@ def load_sweep(path: str | Path) -> Sweep:
     if problems:
         raise ScenarioError(problems)
     return Sweep(path, name, (path.parent / scenario), experiment, grid, samples, seed, random)
-
-
-def _experiment(raw, bad) -> dict[str, Any]:
-    if raw is None:
-        return {}
-    if not isinstance(raw, dict):
-        bad("experiment", f"expected a mapping of {', '.join(_EXPERIMENT_KEYS)}, got {show(raw)}")
-        return {}
-    out = {}
-    for key, value in raw.items():
-        if key not in _EXPERIMENT_KEYS:
-            bad(f"experiment.{key}", f"unknown key{did_you_mean(str(key), _EXPERIMENT_KEYS)}")
-        elif key == "master" and value not in MASTERS:
-            bad("experiment.master", f"unknown master {show(value)} (one of {', '.join(MASTERS)})")
-        elif key != "master" and not is_finite(value):
-            bad(f"experiment.{key}", f"expected a number, got {show(value)}")
-        else:
-            out[key] = float(value) if key != "master" else value
-    return out
 
 
 def _ref(key, place: str, bad) -> VarRef | None:
@@ -201,13 +182,8 @@ def apply_experiment(sweep: Sweep, graph: Graph) -> Graph:
     """The graph with the sweep's experiment overrides, checked like a scenario's."""
     if not sweep.experiment:
         return graph
-    experiment = dataclasses.replace(graph.scenario.experiment, **sweep.experiment)
-    problems = [Problem(str(sweep.path), place, msg)
-                for place, msg in check_experiment(experiment)]
-    if problems:
-        raise ScenarioError(problems)
-    return dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
-                                                                    experiment=experiment))
+    scenario = override_experiment(graph.scenario, sweep.experiment, str(sweep.path))
+    return dataclasses.replace(graph, scenario=scenario)
 
 
 def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
