@@ -70,10 +70,12 @@ def build_all(dest_dir: Path, only_stale: bool = False,
 
 
 def _slave_class(module_name: str):
+    """The model's slave class: of the Fmi2Slave subclasses in the script, the most derived
+    (an inlined base such as FeedthroughSlave is not the model), as pythonfmu picks it."""
     module = importlib.import_module(module_name)
-    return next(obj for obj in vars(module).values()
+    return max((obj for obj in vars(module).values()
                 if isinstance(obj, type) and issubclass(obj, pythonfmu.Fmi2Slave)
-                and obj is not pythonfmu.Fmi2Slave)
+                and obj is not pythonfmu.Fmi2Slave), key=lambda cls: len(cls.__mro__))
 
 
 def _forget_module(module_name: str, folder: str) -> None:

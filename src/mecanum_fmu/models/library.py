@@ -21,7 +21,10 @@ from ..storage import cache_root
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 MAX_DESCRIPTION_BYTES = 50_000_000      # modelDescription.xml, inflated
-_INLINE = re.compile(r"^from mecanum_fmu\.models\.blocks\.(\w+) import [\w, ]+# inline$", re.MULTILINE)
+# `from mecanum_fmu.models.blocks.X import ...  # inline` (the maths) or
+# `from mecanum_fmu.models.slaves.X import ...  # inline` (what slaves share)
+_INLINE = re.compile(r"^from mecanum_fmu\.models\.(blocks|slaves)\.(\w+) import [\w, ]+# inline$",
+                     re.MULTILINE)
 
 
 def default_fmu_dir() -> Path:
@@ -61,8 +64,9 @@ def slave_source(model_name: str) -> SlaveSource:
     text = (PACKAGE_DIR / "slaves" / f"{module}.py").read_text()
 
     def inline(match: re.Match) -> str:
-        block = (PACKAGE_DIR / "blocks" / f"{match.group(1)}.py").read_text()
-        return f"# --- inlined from mecanum_fmu/models/blocks/{match.group(1)}.py ---\n{block}# --- end ---"
+        where = f"{match.group(1)}/{match.group(2)}.py"
+        block = (PACKAGE_DIR / where).read_text()
+        return f"# --- inlined from mecanum_fmu/models/{where} ---\n{block}# --- end ---"
 
     script = with_prelude(_INLINE.sub(inline, text), build_link())
     return SlaveSource(model_name, f"mecanum_fmu_{module}", script)

@@ -1,9 +1,9 @@
 """Center2Wheel FMU: inverse kinematics, chassis twist -> four wheel speeds."""
 
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
-from pythonfmu.enums import Fmi2Status
+from pythonfmu import Fmi2Causality, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 
+from mecanum_fmu.models.slaves.feedthrough import FeedthroughSlave  # inline
 from mecanum_fmu.models.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, check_wheel_limit, center_to_wheel, limit_wheel_speeds  # inline
 
 _TWIST = ("vx", "vy", "w")
@@ -11,7 +11,7 @@ _WHEELS = ("w1", "w2", "w3", "w4")
 _GEOMETRY = ("alpha", "L", "W", "R")
 
 
-class Center2Wheel(Fmi2Slave):
+class Center2Wheel(FeedthroughSlave):
     author = "mecanum_fmu"
     description = ("Inverse kinematics of a four-wheel O-layout mecanum chassis: body twist "
                    "(vx right, vy forward, w counter-clockwise) -> wheel speeds w1..w4 "
@@ -66,21 +66,6 @@ class Center2Wheel(Fmi2Slave):
         except (ArithmeticError, TypeError):
             pass  # invalid geometry: reported by enter_initialization_mode
 
-    def set_real(self, vrs, values):
-        super().set_real(vrs, values)
-        self._update()
-
-    def enter_initialization_mode(self):
-        try:
-            check_geometry(self.alpha, self.L, self.W, self.R)
-            check_wheel_limit(self.w_max)
-        except ValueError as err:
-            self.log(f"Center2Wheel: {err}", Fmi2Status.error)
-            raise
-        self._update()
-
-    def exit_initialization_mode(self):
-        self.enter_initialization_mode()
-
-    def do_step(self, current_time, step_size):
-        return True
+    def _check(self):
+        check_geometry(self.alpha, self.L, self.W, self.R)
+        check_wheel_limit(self.w_max)

@@ -1,14 +1,15 @@
 """FieldToBody FMU: a world-frame ("field-oriented") command -> the body twist at the heading."""
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Fmi2Causality, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 
+from mecanum_fmu.models.slaves.feedthrough import FeedthroughSlave  # inline
 from mecanum_fmu.models.blocks.pose import world_to_body  # inline
 
 _INPUTS = ("vX", "vY", "omega", "theta")
 _TWIST = ("vx", "vy", "w")
 
 
-class FieldToBody(Fmi2Slave):
+class FieldToBody(FeedthroughSlave):
     author = "mecanum_fmu"
     description = ("Field-oriented command: world-frame velocity (vX, vY) and yaw rate omega, "
                    "rotated by the heading theta into the body twist (vx right, vy forward, w "
@@ -43,16 +44,3 @@ class FieldToBody(Fmi2Slave):
     def _update(self):
         self.vx, self.vy = world_to_body(self.vX, self.vY, self.theta)
         self.w = self.omega
-
-    def set_real(self, vrs, values):
-        super().set_real(vrs, values)
-        self._update()
-
-    def enter_initialization_mode(self):
-        self._update()
-
-    def exit_initialization_mode(self):
-        self._update()
-
-    def do_step(self, current_time, step_size):
-        return True

@@ -1,8 +1,8 @@
 """OmniCenter2Wheel FMU: inverse kinematics of the 45-degree omni X-drive, twist -> wheel speeds."""
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Fmi2Causality, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
-from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.feedthrough import FeedthroughSlave  # inline
 from mecanum_fmu.models.blocks.omni import check_omni_geometry, omni_center_to_wheel  # inline
 
 _TWIST = ("vx", "vy", "w")
@@ -11,7 +11,7 @@ _GEOMETRY = ("L", "R")
 WHEEL_DOCS = ("front-left", "rear-left", "rear-right", "front-right")
 
 
-class OmniCenter2Wheel(Fmi2Slave):
+class OmniCenter2Wheel(FeedthroughSlave):
     author = "mecanum_fmu"
     description = ("Inverse kinematics of a four-wheel 45-degree omni X-drive: body twist "
                    "(vx right, vy forward, w counter-clockwise) -> wheel speeds w1..w4 = rim "
@@ -55,20 +55,5 @@ class OmniCenter2Wheel(Fmi2Slave):
         except (ArithmeticError, TypeError):
             pass  # invalid geometry: reported by enter_initialization_mode
 
-    def set_real(self, vrs, values):
-        super().set_real(vrs, values)
-        self._update()
-
-    def enter_initialization_mode(self):
-        try:
-            check_omni_geometry(self.L, self.R)
-        except ValueError as err:
-            self.log(f"OmniCenter2Wheel: {err}", Fmi2Status.error)
-            raise
-        self._update()
-
-    def exit_initialization_mode(self):
-        self.enter_initialization_mode()
-
-    def do_step(self, current_time, step_size):
-        return True
+    def _check(self):
+        check_omni_geometry(self.L, self.R)

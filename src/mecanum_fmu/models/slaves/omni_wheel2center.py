@@ -1,8 +1,8 @@
 """OmniWheel2Center FMU: forward kinematics of the 45-degree omni X-drive, wheel speeds -> twist."""
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Fmi2Causality, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
-from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.feedthrough import FeedthroughSlave  # inline
 from mecanum_fmu.models.blocks.omni import check_omni_geometry, omni_wheel_to_center  # inline
 
 _WHEELS = ("w1", "w2", "w3", "w4")
@@ -11,7 +11,7 @@ _GEOMETRY = ("L", "R")
 WHEEL_DOCS = ("front-left", "rear-left", "rear-right", "front-right")
 
 
-class OmniWheel2Center(Fmi2Slave):
+class OmniWheel2Center(FeedthroughSlave):
     author = "mecanum_fmu"
     description = ("Forward kinematics of a four-wheel 45-degree omni X-drive: wheel speeds "
                    "w1..w4 (1 front-left, 2 rear-left, 3 rear-right, 4 front-right; rim speed / R) "
@@ -55,20 +55,5 @@ class OmniWheel2Center(Fmi2Slave):
         except (ArithmeticError, TypeError):
             pass  # invalid geometry: reported by enter_initialization_mode
 
-    def set_real(self, vrs, values):
-        super().set_real(vrs, values)
-        self._update()
-
-    def enter_initialization_mode(self):
-        try:
-            check_omni_geometry(self.L, self.R)
-        except ValueError as err:
-            self.log(f"OmniWheel2Center: {err}", Fmi2Status.error)
-            raise
-        self._update()
-
-    def exit_initialization_mode(self):
-        self.enter_initialization_mode()
-
-    def do_step(self, current_time, step_size):
-        return True
+    def _check(self):
+        check_omni_geometry(self.L, self.R)

@@ -1,9 +1,9 @@
 """Wheel2Center FMU: forward kinematics, four wheel speeds -> chassis twist."""
 
-from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
-from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.feedthrough import FeedthroughSlave  # inline
 from mecanum_fmu.models.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, check_radius_deviations, instantaneous_center, wheel_to_center  # inline
 
 _WHEELS = ("w1", "w2", "w3", "w4")
@@ -13,7 +13,7 @@ _ICR = ("icr_x", "icr_y", "has_icr")
 _DEVIATIONS = ("dR1", "dR2", "dR3", "dR4")
 
 
-class Wheel2Center(Fmi2Slave):
+class Wheel2Center(FeedthroughSlave):
     author = "mecanum_fmu"
     description = ("Forward kinematics of a four-wheel O-layout mecanum chassis: wheel speeds "
                    "w1..w4 -> least-squares body twist (vx right, vy forward, w counter-clockwise). "
@@ -84,21 +84,6 @@ class Wheel2Center(Fmi2Slave):
         except (ArithmeticError, TypeError):
             pass  # invalid geometry: reported by enter_initialization_mode
 
-    def set_real(self, vrs, values):
-        super().set_real(vrs, values)
-        self._update()
-
-    def enter_initialization_mode(self):
-        try:
-            check_geometry(self.alpha, self.L, self.W, self.R)
-            check_radius_deviations(self.R, (self.dR1, self.dR2, self.dR3, self.dR4))
-        except ValueError as err:
-            self.log(f"Wheel2Center: {err}", Fmi2Status.error)
-            raise
-        self._update()
-
-    def exit_initialization_mode(self):
-        self.enter_initialization_mode()
-
-    def do_step(self, current_time, step_size):
-        return True
+    def _check(self):
+        check_geometry(self.alpha, self.L, self.W, self.R)
+        check_radius_deviations(self.R, (self.dR1, self.dR2, self.dR3, self.dR4))
