@@ -15,7 +15,6 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from ..models.blocks.bicycle import bicycle_twist
 from ..models.blocks.expression import compile_expression
@@ -28,13 +27,6 @@ NOT_MINE = object()
 PASS_THROUGH = {"Wheel2Center": "w1", "OmniWheel2Center": "w1",
                 "Center2Wheel": "vx", "OmniCenter2Wheel": "vx"}
 EXPRESSION_SOURCES = ("VelocitySource", "SteeringSource")
-
-
-def _start(inst: Instance, name: str, default: float = 0.0):
-    if name in inst.start_values:
-        return inst.start_values[name]
-    var = next((v for v in inst.model.modelVariables if v.name == name), None)
-    return var.start if var is not None and var.start is not None else default
 
 
 def _upstream(graph: Graph, inst: Instance, var: str) -> tuple[Instance, str] | None:
@@ -60,12 +52,12 @@ def command(graph: Graph, inst: Instance, var: str) -> Callable[[float], float] 
     value of an unconnected input; None when another FMU drives it."""
     found = _upstream(graph, inst, var)
     if found is None:
-        value = float(_start(inst, var))
+        value = float(inst.value(var) or 0.0)   # no start value declared: 0
         return lambda t: value
     source, output = found
     if source.model_name not in EXPRESSION_SOURCES:
         return None
-    return compile_expression(str(_start(source, f"{output}_expr")))
+    return compile_expression(str(source.value(f"{output}_expr")))
 
 
 def chassis_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10, atol: float = 1e-12):
@@ -84,7 +76,7 @@ def _twist_function(graph: Graph, origin: Instance):
     if origin.model_name not in names:
         return None
     if origin.model_name == "VelocitySource":
-        funcs = [compile_expression(str(_start(origin, f"{v}_expr"))) for v in ("vx", "vy", "w")]
+        funcs = [compile_expression(str(origin.value(f"{v}_expr"))) for v in ("vx", "vy", "w")]
     else:
         funcs = [command(graph, origin, n) for n in names[origin.model_name]]
     if any(f is None for f in funcs):
@@ -96,7 +88,7 @@ def _twist_function(graph: Graph, origin: Instance):
             vX, vY, omega = (f(t) for f in funcs)
             return (*world_to_body(vX, vY, theta), omega)
         return twist
-    l, reference = float(_start(origin, "l")), int(_start(origin, "reference"))
+    l, reference = float(origin.value("l")), int(origin.value("reference"))
     return lambda t, theta: bicycle_twist(funcs[0](t), funcs[1](t), l, reference)
 
 
@@ -104,16 +96,15 @@ def pose_truth(graph: Graph, pose: Instance, times: np.ndarray, rtol: float = 1e
                atol: float = 1e-12):
     """The commanded twist that drives `pose` (from VelocitySource, FieldToBody or Bicycle,
     past any kinematics pair) integrated from the pose's start; None when there is none."""
-    from .ground_truth import Truth
+    from .ground_truth import Truth, integrate
     origin = twist_origin(graph, pose)
     twist = _twist_function(graph, origin) if origin is not None else None
     if twist is None or len(times) == 0:
         return None
-    start = tuple(float(_start(pose, k)) for k in ("x0", "y0", "theta0"))
+    start = tuple(float(pose.value(k)) for k in ("x0", "y0", "theta0"))
     times = np.asarray(times, dtype=float)
-    span = float(times[-1] - times[0]) if len(times) > 1 else 1.0
-    sol = solve_ivp(lambda t, s: pose_rate(s[2], *twist(t, s[2])), (times[0], times[-1]), start,
-                    t_eval=times, rtol=rtol, atol=atol, method="DOP853",
-                    max_step=max(span / 2000, 1e-6))
-    body = np.array([twist(t, th) for t, th in zip(times, sol.y[2])]).reshape(len(times), 3)
-    return Truth(times, sol.y[0], sol.y[1], sol.y[2], body[:, 0], body[:, 1], body[:, 2])
+    t0 = float(times[0])       # solved in time since the start, as ground_truth does
+    path = integrate(lambda tau, s: pose_rate(s[2], *twist(t0 + float(tau), s[2])), start,
+                      times - t0, np.array([]), rtol, atol)
+    body = np.array([twist(t, th) for t, th in zip(times, path[2])]).reshape(len(times), 3)
+    return Truth(times, path[0], path[1], path[2], body[:, 0], body[:, 1], body[:, 2])

@@ -71,7 +71,7 @@ def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
         t = t0 + float(tau)  # (a start of 1e15 s has a float spacing of 0.125 s)
         return pose_rate(state[2], funcs[0](t), funcs[1](t), funcs[2](t))
 
-    path = _integrate(rhs, start, times - t0, np.asarray(breaks, dtype=float) - t0, rtol, atol)
+    path = integrate(rhs, start, times - t0, np.asarray(breaks, dtype=float) - t0, rtol, atol)
     twist = np.array([[f(t) for f in funcs] for t in times.tolist()]).reshape(len(times), 3)
     return Truth(times, path[0], path[1], path[2], twist[:, 0], twist[:, 1], twist[:, 2])
 
@@ -86,7 +86,7 @@ def _commanded(source) -> tuple[list, tuple]:
     return [lambda t, i=i: float(twist_of(t)[i]) for i in range(3)], breaks
 
 
-def _integrate(rhs, start, taus: np.ndarray, breaks: np.ndarray, rtol: float,
+def integrate(rhs, start, taus: np.ndarray, breaks: np.ndarray, rtol: float,
                atol: float) -> np.ndarray:
     """The pose at taus (3 x n). max_step keeps the solver from stepping over short segments
     of piecewise profiles; a table is solved piece by piece between its rows."""
