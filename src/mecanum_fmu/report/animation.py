@@ -14,13 +14,12 @@ from typing import Mapping
 
 import numpy as np
 from matplotlib.animation import PillowWriter
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from .ground_truth import Roles, Truth
 from ..models.modes import geometry_of
 from ..results import Results
+from .plots import new_figure
 
 FPS = 20
 MAX_FRAMES = 100
@@ -54,8 +53,7 @@ def write_animation(results: Results, roles: Roles, truth: Truth | None,
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     x, y, theta, rim = _track(results, roles, params["R"])
-    fig = Figure(figsize=FIG_SIZE, dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure(FIG_SIZE, dpi=DPI)
     ax = fig.add_subplot()
     _set_view(ax, x, y, truth, params["L"], params["W"])
     update = _scene(ax, results, (x, y, theta, rim), truth, params)

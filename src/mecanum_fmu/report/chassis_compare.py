@@ -69,10 +69,8 @@ def pose_report_lines(poses: dict[str, dict]) -> list[str]:
 
 def compare_figure(graph: Graph, results: Results, title: str = "One command, three chassis"):
     """One Agg figure: every pose's path, with a heading tick every second."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(7.0, 6.0), dpi=100, layout="constrained")
-    FigureCanvasAgg(fig)
+    from .plots import new_figure      # here: summaries need no matplotlib
+    fig = new_figure((7.0, 6.0))
     ax = fig.add_subplot()
     t = results.time
     every = max(1, int(round(1.0 / results.step_size))) if results.step_size else 1

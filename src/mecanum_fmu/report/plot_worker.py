@@ -122,12 +122,12 @@ def _draw(results, roles, truth, out_dir: str, title: str, frame=None) -> list[P
 def _prepare(hint: tuple | None):
     """Draw the dashboard's frame once (or, without a hint, a small figure): the first draw
     loads fonts and fills caches, and the frame's axes and ticks are then ready."""
-    from .plots import _figure, dashboard_frame
+    from .plots import dashboard_frame, new_figure
     if hint is not None:
         frame = dashboard_frame(*hint)
         frame.figure.canvas.draw()
         return frame
-    fig = _figure((2.0, 1.5), layout=None)
+    fig = new_figure((2.0, 1.5), layout=None)
     ax = fig.add_subplot()
     ax.plot([0, 1], [0, 1], "--", label="warm-up")
     ax.set_title("warm-up")

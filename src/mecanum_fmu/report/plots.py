@@ -240,8 +240,10 @@ def available_panels(results: Results, roles: Roles) -> list[str]:
     return [key for key, panel in PANELS.items() if panel.needs(results, roles)]
 
 
-def _figure(size: tuple[float, float], layout: str | None = "constrained") -> Figure:
-    fig = Figure(figsize=size, dpi=DPI, layout=layout)
+def new_figure(size: tuple[float, float], layout: str | None = "constrained",
+               dpi: int = DPI) -> Figure:
+    """A figure on the Agg canvas (no pyplot): the project's one way to make one."""
+    fig = Figure(figsize=size, dpi=dpi, layout=layout)
     FigureCanvasAgg(fig)
     return fig
 
@@ -251,7 +253,7 @@ def build_figures(results: Results, roles: Roles, truth: Truth | None,
     """One figure per available panel, keyed by panel name."""
     figures: dict[str, Figure] = {}
     for key in available_panels(results, roles):
-        fig = _figure(PANEL_SIZE)
+        fig = new_figure(PANEL_SIZE)
         ax = fig.add_subplot()
         PANELS[key].draw(ax, results, roles, truth)
         ax.set_title(f"{title}: {PANELS[key].title}" if title else PANELS[key].title)
@@ -280,7 +282,7 @@ def dashboard_frame(results: Results, roles: Roles, title: str = "") -> Frame:
     keys = available_panels(results, roles)
     rows = max(1, math.ceil(len(keys) / 2))
     height = max(DASHBOARD_SIZE[1], ROW_HEIGHT * rows)
-    fig = _figure((DASHBOARD_SIZE[0], height), layout=None)
+    fig = new_figure((DASHBOARD_SIZE[0], height), layout=None)
     fig.subplots_adjust(**_margins(height, rows))
     for i, key in enumerate(keys):
         ax = fig.add_subplot(rows, 2, i + 1)

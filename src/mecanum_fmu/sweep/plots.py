@@ -5,21 +5,15 @@ import os
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..graph import Graph
 from ..report.ground_truth import find_roles, ground_truth
+from ..report.plots import new_figure
 from .spec import Run, Sweep
 from .worker import RunResult
 
 MAX_PATHS = 200          # paths overlaid (every k-th ok run)
-
-
-def _figure() -> Figure:
-    fig = Figure(figsize=(6.0, 5.0), dpi=100, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def _save(fig: Figure, path: Path) -> Path:
@@ -48,7 +42,7 @@ def write_sweep_plots(out_dir: Path, sweep: Sweep, graph: Graph, runs: list[Run]
 
 
 def _scatter(out_dir, sweep, pose, ok, truth) -> Path:
-    fig = _figure()
+    fig = new_figure((6.0, 5.0))
     ax = fig.add_subplot()
     xy = np.array([[r.ends[f"{pose}.x"], r.ends[f"{pose}.y"]] for r in ok])
     ax.scatter(xy[:, 0], xy[:, 1], s=6, alpha=0.5, label=f"co-simulation end points ({len(ok)})")
@@ -67,7 +61,7 @@ def _scatter(out_dir, sweep, pose, ok, truth) -> Path:
 
 
 def _histogram(out_dir, sweep, errors) -> Path:
-    fig = _figure()
+    fig = new_figure((6.0, 5.0))
     ax = fig.add_subplot()
     e = np.array([v["error.position"] for v in errors.values()])
     ax.hist(e * 1000.0, bins=min(50, max(5, len(e) // 10)))
@@ -80,7 +74,7 @@ def _histogram(out_dir, sweep, errors) -> Path:
 
 
 def _paths(out_dir, sweep, ok, truth) -> Path:
-    fig = _figure()
+    fig = new_figure((6.0, 5.0))
     ax = fig.add_subplot()
     shown = [r for r in ok if r.path is not None]
     for r in shown[::max(1, len(shown) // MAX_PATHS)]:
