@@ -130,6 +130,7 @@ def assert_clean(code: int, err: str, *names: str) -> None:
     ("absolute_member", "validate", "is an absolute path"),
     ("dotdot_member", "validate", "could leave the extraction folder"),
     ("no_slave_script", "validate", "slave script"),
+    ("no_slavemodule_txt", "validate", "without resources/slavemodule.txt"),   # was a segfault
     ("raising_slave_script", "run", "cannot be instantiated"),
 ])
 def test_fmu_that_cannot_be_loaded(damage, stage, expect, built_fmus, sandbox, capsys):
@@ -151,6 +152,8 @@ def test_fmu_that_cannot_be_loaded(damage, stage, expect, built_fmus, sandbox, c
             content["../escaped.txt"] = b"x"
         elif damage == "no_slave_script":
             content["resources/renamed.py"] = content.pop(SCRIPT)
+        elif damage == "no_slavemodule_txt":
+            content["a/"] = content.pop("resources/slavemodule.txt")
         elif damage == "raising_slave_script":
             content[SCRIPT] = b"raise RuntimeError('broken on purpose')\n"
         write_members(fmu, content)

@@ -191,7 +191,7 @@ def loading_problem(path: Path, md: ModelDescription) -> str | None:
     except ZIP_ERRORS as err:
         return f"{path.name} is a damaged zip archive: {err}"
     if member in names:
-        return _slave_script_problem(path, names)
+        return _slave_script_problem(path, names, md)
     platforms = sorted({n.split("/")[1] for n in names
                         if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[2]})
     return (f"{path.name} has no binary for this platform ({member}); it has "
@@ -210,8 +210,11 @@ def _fmi_version(path: Path) -> str | None:
     return None
 
 
-def _slave_script_problem(path: Path, names: set[str]) -> str | None:
+def _slave_script_problem(path: Path, names: set[str], md: ModelDescription) -> str | None:
     if "resources/slavemodule.txt" not in names:
+        if (md.generationTool or "").startswith("PythonFMU"):   # its binary would crash
+            return (f"{path.name} is a pythonfmu FMU without resources/slavemodule.txt (the name "
+                    "of its slave script); export the FMU again")
         return None
     try:
         with zipfile.ZipFile(path) as zf:
