@@ -46,7 +46,7 @@ if __name__ == "__main__" and sys.argv[1:] == ["--record"]:
     from mecanum_fmu.process import exit_now
     hashes = dict(RECORDED)       # recorded hashes stay: only new scenarios are added
     for path in scenario_files():
-        for name in ("trapezoidal", "gauss-seidel", "jacobi"):
+        for name in ("quadratic", "trapezoidal", "gauss-seidel", "jacobi"):
             key = f"{path.relative_to(ROOT).as_posix()}::{name}"
             if key in hashes:
                 continue

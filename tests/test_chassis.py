@@ -136,7 +136,8 @@ def test_omni_field_circle(fmu_dir, tmp_path):
     linear, at the scenario's step with the default master."""
     out = run_file(CHASSIS / "omni_field_circle.yaml", tmp_path / "o", fmu_dir)
     res = out.results
-    assert res.master == "trapezoidal" and res.time[-1] == pytest.approx(10.0)
+    assert res.master == "quadratic" and res.step_size == 0.05
+    assert res.time[-1] == pytest.approx(10.0)
     x, y, th = (res.final(f"pose.{k}") for k in ("x", "y", "theta"))
     assert abs(x - (1 - math.cos(10.0))) < 1e-3
     assert abs(y - math.sin(10.0)) < 1e-3
@@ -161,7 +162,7 @@ def test_omni_field_feedback_is_second_order(fmu_dir, tmp_path):
         errors.append(math.hypot(res.final("pose.x") - (1 - math.cos(10.0)),
                                  res.final("pose.y") - math.sin(10.0)))
     assert 3.5 < errors[0] / errors[1] < 4.5, errors
-    assert errors[0] < 3e-3
+    assert errors[0] < 1e-3      # the issue asked for 1e-3 at h = 0.05 with the default master
 
 
 @pytest.mark.parametrize("name,reference", [("bicycle_circle", 0), ("bicycle_circle_front", 1)])

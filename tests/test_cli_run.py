@@ -44,7 +44,7 @@ def test_seed_scenario_matches_the_spec(tmp_path, capsys, in_repo):
     assert max(abs(math.hypot(a - 1.0, b) - 1.0) for a, b in zip(px, py)) < 1e-3
 
     summary = json.loads((out_dir / "summary.json").read_text())
-    assert summary["master"] == "trapezoidal"
+    assert summary["master"] == "quadratic"
     assert summary["steps"] == 200
     assert isinstance(summary["wall_time_s"], float) and summary["wall_time_s"] >= 0
     assert summary["end_pose"]["x"] == pytest.approx(x, abs=1e-15)
@@ -81,6 +81,7 @@ def rotating_reference():
 @pytest.mark.parametrize("master, steps, ratio", [
     ("gauss-seidel", (0.02, 0.01), (1.7, 2.3)),     # zero-order hold: first order
     ("trapezoidal", (0.1, 0.05), (3.4, 4.6)),       # mean of t_k and t_k+1: second order
+    ("quadratic", (0.1, 0.05), None),               # see quadratic_ratio
 ])
 def test_end_point_error_converges_at_the_master_order(tmp_path, capsys, in_repo, profile,
                                                        master, steps, ratio):
@@ -100,7 +101,16 @@ def test_end_point_error_converges_at_the_master_order(tmp_path, capsys, in_repo
         x, y = end_point(out_dir)
         errors.append(math.hypot(x - reference[0], y - reference[1]))
     assert errors[1] < errors[0]
+    ratio = ratio or quadratic_ratio(profile)
     assert ratio[0] < errors[0] / errors[1] < ratio[1], errors
+
+
+def quadratic_ratio(profile: str) -> tuple[float, float]:
+    """The parabola's mean over the step is exact to O(h^4) per step (third order over the run)
+    while the twist's frame does not turn (w = 0, the circle); with w != 0 the exact
+    integrator's turn within the step meets the twist's change over it: O(h^3) per step, the
+    run second order (docs/masters.md)."""
+    return (7.0, 12.0) if profile == "circle" else (3.4, 4.6)
 
 
 def test_rotating_profile_turns(tmp_path):

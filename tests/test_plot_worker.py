@@ -155,7 +155,7 @@ def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
     outcome = run(graph, tmp_path / "run", plots=False, log=lambda line: None)
     frame = plots.dashboard_frame(stand_in, roles, title)
     assert frame.keys == plots.available_panels(outcome.results, roles) == PANEL_KEYS + ["icr"]
-    assert frame.figure.get_suptitle() == "circle - trapezoidal, step 0.05 s"
+    assert frame.figure.get_suptitle() == "circle - quadratic, step 0.05 s"
     here = plots.write_plots(outcome.results, roles, outcome.truth, tmp_path / "here", title)
     worker = PlotWorker.start()
     worker.expect(graph)

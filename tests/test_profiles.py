@@ -126,8 +126,8 @@ def test_ground_truth_of_a_table_is_the_closed_form_path(fmu_dir, tmp_path):
     outcome = run(prepare(scenario, fmu_dir=fmu_dir), tmp_path / "out", plots=False,
                   log=lambda line: None)
     assert outcome.truth.end == pytest.approx((0.2, 0.7, 0.0), abs=1e-9)
-    # the trapezoidal master integrates piecewise-linear inputs exactly when the kinks
-    # fall on steps (they do: h = 0.25)
+    # the quadratic (default) and trapezoidal masters integrate piecewise-linear inputs exactly
+    # when the kinks fall on steps (they do: h = 0.25); the quadratic one through its limiter
     assert outcome.summary["end_pose"]["x"] == pytest.approx(0.2, abs=1e-12)
     assert outcome.summary["end_pose"]["y"] == pytest.approx(0.7, abs=1e-12)
 

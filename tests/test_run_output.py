@@ -72,11 +72,12 @@ def test_a_start_time_of_1e15_runs_and_matches_its_ground_truth(tmp_path, fmu_di
     """The float spacing at 1e15 s is 0.125 s: the ground truth integrates in time since the
     start. Time there takes only the values t0 + 0.125 k, so the commanded twist (sin t,
     cos t) is constant within 0.0625 s of each: its exact integral is the trapezoidal sum
-    over the communication points, the reference for x and y here (w = 0)."""
+    over the communication points, the reference for x and y here (w = 0). The trapezoidal
+    master sums exactly that; the quadratic one would integrate the smooth sin t instead."""
     from mecanum_fmu.runner import prepare, run
     scenario = variant(tmp_path, "late", **{
         "start_time: 0.0": "start_time: 1.0e+15", "stop_time: 10.0": "stop_time: 1.00000000000001e+15",
-        "step_size: 0.05 ": "step_size: 0.125 "})
+        "step_size: 0.05 ": "step_size: 0.125 ", "master: quadratic": "master: trapezoidal"})
     outcome = run(prepare(scenario, fmu_dir=fmu_dir), tmp_path / "out", plots=False,
                   log=lambda line: None)
     t0 = 1.0e15
@@ -189,7 +190,7 @@ def test_a_value_that_overflows_mid_run_stops_at_that_step(tmp_path, fmu_dir):
     from mecanum_fmu.errors import SimulationError
     from mecanum_fmu.runner import prepare
     scenario = variant(tmp_path, "grow", **{'w_expr: "0"': 'w_expr: "1e308*t"',
-                                            "master: trapezoidal": "master: gauss-seidel"})
+                                            "master: quadratic": "master: gauss-seidel"})
     graph = prepare(scenario, fmu_dir=fmu_dir)
     with pytest.raises(SimulationError) as caught:
         master.simulate(graph, graph.scenario.experiment)

@@ -106,7 +106,7 @@ def test_export_structure_and_content(exported, circle_graph, built_fmus):
     default = root.find(q("ssd", "DefaultExperiment"))
     assert (float(default.get("startTime")), float(default.get("stopTime"))) == (0.0, 10.0)
     ours = default.find(f".//{q('mf', 'Experiment')}")
-    assert ours.get("stepSize") == "0.05" and ours.get("master") == "trapezoidal"
+    assert ours.get("stepSize") == "0.05" and ours.get("master") == "quadratic"
 
 
 def params_of(comps, name):
@@ -291,7 +291,7 @@ def test_third_party_ssp_runs_under_our_master(bare, tmp_path, built_fmus, cache
     scenario = ssp_read.load_ssp(path)
     assert scenario.name == "third_party_car"
     assert scenario.experiment.stop_time == 4.0
-    assert scenario.experiment.master == "trapezoidal"        # defaults: no annotation
+    assert scenario.experiment.master == "quadratic"          # defaults: no annotation
     params = {c.name: c.parameters for c in scenario.components}
     assert params["cmd"] == {"vy_expr": "0.5", "vx_expr": "0.2", "w_expr": "0"}
     assert params["inv"] == {"R": 0.05, "L": 0.2}

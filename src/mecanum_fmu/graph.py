@@ -95,7 +95,22 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
                           start_values[c.name], c.place) for c in scenario.components]
     order, link_order = _dependency_order(instances, links, scenario.label)
     return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
-                 tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)))
+                 tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
+                       + _rollback_warning(scenario, order, links)))
+
+
+def _rollback_warning(scenario: Scenario, order: list[Instance], links: list[Link]) -> list[str]:
+    """The quadratic master steps a loop twice and rolls back in between: every FMU must be able
+    to get and set its state. Without, it steps the loop once (as the trapezoidal master)."""
+    position = {inst.name: i for i, inst in enumerate(order)}
+    loop = any(position[l.source.ref.instance] > position[l.target.ref.instance] for l in links)
+    unable = [inst.name for inst in order if not inst.can_get_set_state]
+    if scenario.experiment.master != "quadratic" or not loop or not unable:
+        return []
+    return [f"{scenario.label}: the quadratic master takes each step of a feedback loop twice, "
+            f"rolling back with fmi2SetFMUstate, which {', '.join(repr(n) for n in unable)} "
+            f"cannot do (canGetAndSetFMUstate is false): the loop is stepped once on "
+            f"extrapolated inputs instead, as by the trapezoidal master"]
 
 
 class _Checker:

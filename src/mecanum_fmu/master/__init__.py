@@ -19,7 +19,11 @@ from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
 from .instance import FmuCallError, RunningInstance
-from .plan import Buffers, plan_transfers
+from .plan import Buffers, Holds, plan_transfers
+
+# How each master holds the inputs over a step (plan.HOLDS)
+HOLD = {"quadratic": "quadratic", "trapezoidal": "trapezoidal", "gauss-seidel": "zoh",
+        "jacobi": "zoh"}
 from .recorder import Recorder, step_count
 from .stepping import (NonFinite, StepFailure, check_finite, ctrl_c_latched, initialise,
                        step_all)
@@ -44,7 +48,7 @@ def simulate(graph: Graph, experiment: Experiment,
     with ExitStack() as stack:
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
-        primes = plan_transfers(running, graph, buffers, experiment.master == "trapezoidal")
+        holds = plan_transfers(running, graph, buffers, HOLD[experiment.master])
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)
@@ -55,9 +59,10 @@ def simulate(graph: Graph, experiment: Experiment,
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
         recorder.record()
-        for prime in primes:
-            prime()
-        _run_loop(running, recorder, ctrl_c, buffers, progress)
+        holds.prime()
+        _run_loop(running, recorder, ctrl_c, buffers, progress, holds,
+                  rollback=holds.ahead and experiment.master == "quadratic" and all(
+                      r.can_roll_back for r in running))
         return recorder.results(True)
 
 
@@ -71,12 +76,13 @@ def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
     return running
 
 
-def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress) -> None:
+def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress, holds: Holds,
+              rollback: bool) -> None:
     freeze = buffers.freeze if recorder.experiment.master == "jacobi" else None
     tick = _time.perf_counter()
     try:
         with np.errstate(all="ignore"):     # an overflow is reported as a non-finite value
-            step_all(running, recorder, ctrl_c, freeze, progress)
+            step_all(running, recorder, ctrl_c, freeze, progress, holds, rollback)
     except StepFailure as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
         if not np.isfinite(buffers.real).all():   # the cause: a value that went non-finite

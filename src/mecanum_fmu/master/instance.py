@@ -63,10 +63,21 @@ class RunningInstance:
         self.c_set = {"Real": f["fmi2SetReal"], "Integer": f["fmi2SetInteger"],
                       "Boolean": f["fmi2SetBoolean"]}
         self.c_do_step = f["fmi2DoStep"]
+        # fmi2GetFMUstate/SetFMUstate/FreeFMUstate: the quadratic master's rollback
+        self.c_get_state, self.c_set_state, self.c_free_state = (
+            f.get("fmi2GetFMUstate"), f.get("fmi2SetFMUstate"), f.get("fmi2FreeFMUstate"))
+        self.state = ctypes.c_void_p()
+        self.state_ref = ctypes.byref(self.state)
         self.broken = 0       # worst status returned: Error (3) or Fatal (4) limit what may follow
         self.failed = False   # returned Discard or worse: freed, never kept
         self.reads: list = []     # (c_get, vrs, n, pointer), filled by the plan
         self.writes: list = []    # (fill, c_set, vrs, n, pointer)
+
+    @property
+    def can_roll_back(self) -> bool:
+        """It says it can get and set its state, and has the functions to."""
+        return self.inst.can_get_set_state and None not in (
+            self.c_get_state, self.c_set_state, self.c_free_state)
 
     def call(self, function: str, status: int) -> None:
         if status > 1:

@@ -66,15 +66,15 @@ def _outputs_of(graph: Graph) -> dict[str, list[Port]]:
 
 
 def plan_transfers(running: list[RunningInstance], graph: Graph, buffers: Buffers,
-                   trapezoidal: bool) -> list[Callable[[], None]]:
+                   hold: str) -> Holds:
     """Preallocate, per instance and type, one batched get and one batched set (see
-    _plan_writes). Returns the functions that seed the blends' history at t0."""
+    _plan_writes). `hold`: "zoh" (Gauss-Seidel, Jacobi), "trapezoidal" or "quadratic"."""
     position = {r.name: i for i, r in enumerate(running)}
-    primes: list[Callable[[], None]] = []
+    holds = Holds()
     for r in running:
         _plan_reads(r, buffers)
-        primes += _plan_writes(r, graph, buffers, position, trapezoidal)
-    return primes
+        _plan_writes(r, graph, buffers, position, hold, holds)
+    return holds
 
 
 def _plan_reads(r: RunningInstance, buffers: Buffers) -> None:
@@ -90,27 +90,18 @@ def _plan_reads(r: RunningInstance, buffers: Buffers) -> None:
 
 
 def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: dict,
-                 trapezoidal: bool) -> list[Callable[[], None]]:
+                 hold: str, holds: Holds) -> None:
     """A set takes its values straight from the input buffer when its sources sit in one
     contiguous run in the right order (the usual chain), else from a staging array filled by
-    one np.take. With `trapezoidal`, a Real input that no output of its FMU depends on (it only
-    drives the FMU's state over the step) takes the mean of its values at t_k and t_k+1: a
-    trapezoidal hold, second order. t_k+1 is known when the source steps earlier in the
-    Gauss-Seidel order; otherwise the mean is extrapolated from t_k and t_k-1
-    (1.5 u_k - 0.5 u_k-1). A Real input fed back from an FMU that steps later (e.g. a heading
-    from an integrator) takes its value at t_k+1 extrapolated, 2 u_k - u_k-1, so the feedback
-    stays second order."""
+    one np.take. Real inputs that a hold blends (see HOLDS) get a staging array filled from
+    their history."""
     links = [l for l in graph.links if l.target.ref.instance == r.name]
-    state_only = _state_only_inputs(r.inst) if trapezoidal else set()
-    fed_back = ({l.target.ref.variable for l in links
-                 if position[l.source.ref.instance] > position[r.name]} if trapezoidal else set())
-    blended = state_only | fed_back
+    roles = _blend_roles(r, links, position) if hold != "zoh" else {}
     real = [l for l in links if l.target.type == "Real"]
-    groups = (("Real", [l for l in real if l.target.ref.variable not in blended]),
-              ("Blend", [l for l in real if l.target.ref.variable in blended]),
+    groups = (("Real", [l for l in real if l.target.ref.variable not in roles]),
+              ("Blend", [l for l in real if l.target.ref.variable in roles]),
               ("Integer", [l for l in links if l.target.type == "Integer"]),
               ("Boolean", [l for l in links if l.target.type == "Boolean"]))
-    primes = []
     for kind, mine in groups:
         if not mine:
             continue
@@ -120,18 +111,16 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
         src = np.array([buffers.slot(l.source) for l in mine], dtype=np.intp)
         vrs, c_set = _vr_array([l.target.vr for l in mine]), r.c_set[value_kind]
         if kind == "Blend":
-            weights = [_hold_weights(position[l.source.ref.instance] < position[r.name],
-                                     l.target.ref.variable in state_only) for l in mine]
-            fill, prime, staging = _blend(buf, src, weights)
-            primes.append(prime)
-            r.writes.append((fill, c_set, vrs, len(mine), _pointer(staging, 0, ctype)))
+            mine_roles = [roles[l.target.ref.variable] for l in mine]
+            blend = holds.add(buf, src, [HOLDS[hold][role] for role in mine_roles],
+                              ahead=any(role != "state" for role in mine_roles))
+            r.writes.append((blend.fill, c_set, vrs, len(mine), _pointer(blend.staging, 0, ctype)))
         elif list(src) == list(range(src[0], src[0] + len(src))):
             r.writes.append((None, c_set, vrs, len(mine), _pointer(buf, int(src[0]), ctype)))
         else:
             staging = np.zeros(len(mine), dtype=dtype)
             r.writes.append((_take(buf, src, staging), c_set, vrs, len(mine),
                              _pointer(staging, 0, ctype)))
-    return primes
 
 
 def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[[], None]:
@@ -139,33 +128,113 @@ def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[
     return lambda: np.take(buffer, src, out=staging)
 
 
-def _hold_weights(upstream_first: bool, state_only: bool) -> tuple[float, float]:
-    """(w_new, w_old): the mean over the step of a state-only input (known at t_k+1, or
-    extrapolated), else a fed-back input's value at t_k+1 extrapolated."""
-    if state_only:
-        return (0.5, 0.5) if upstream_first else (1.5, -0.5)
-    return 2.0, -1.0
+def _blend_roles(r: RunningInstance, links: list, position: dict) -> dict[str, str]:
+    """The Real inputs a hold blends, by role: "state" (no output of the FMU depends on it,
+    its source stepped first: its value at t_k+1 is known), "state_ahead" (the same, but its
+    source steps later: a loop closing into the FMU's state) and "fed_back" (an input with
+    direct feedthrough whose source steps later)."""
+    state_only = _state_only_inputs(r.inst)
+    roles = {}
+    for l in links:
+        name, later = l.target.ref.variable, position[l.source.ref.instance] > position[r.name]
+        if name in state_only:
+            roles[name] = "state_ahead" if later else "state"
+        elif later and l.target.type == "Real":
+            roles[name] = "fed_back"
+    return roles
 
 
-def _blend(buffer: np.ndarray, src: np.ndarray, pairs: list[tuple[float, float]]):
-    """Inputs take w_new * (value now) + w_old * (value at the previous fill): one take, one
-    dot, one copy per step. Returns (fill, prime, staging); prime() records the values at t0."""
-    m = len(src)
-    staging = np.zeros(m)
-    weights = np.zeros((m, 2 * m))
-    for i, (new, old) in enumerate(pairs):
-        weights[i, i], weights[i, m + i] = new, old
-    picked = np.empty(2 * m)          # [values now | values at the previous fill]
-    now, old = picked[:m], picked[m:]
+# How a hold sets a blended input, per role, in each mode (Holds.mode: single pass or
+# predictor, corrector): weights over (value in the buffer now, u_k, u_k-1) and whether the
+# parabola's correction is added. While a step runs, the buffer holds u_k+1 for "state" inputs
+# (their source stepped first) and u_k for the others (in the corrector pass: u_k+1 as the
+# predictor pass produced it).
+#   trapezoidal: the mean of u over the step, (u_k + u_k+1)/2; where u_k+1 is not known yet,
+#     extrapolated 1.5 u_k - 0.5 u_k-1; a fed-back input's value at t_k+1, 2 u_k - u_k-1.
+#   quadratic: the mean over the step of the parabola through u_k-1, u_k, u_k+1: the trapezoid
+#     minus (u_k+1 - 2 u_k + u_k-1)/12, that second difference limited (minmod) by the previous
+#     one, so that a kink or a jump in the input (a table's breakpoint) adds nothing and a
+#     piecewise-linear input is integrated exactly, as by the trapezoid. Where u_k+1 is not
+#     known, the step is taken twice: predicted with trapezoidal's extrapolation, rolled back
+#     (fmi2SetFMUstate) and corrected with the predicted u_k+1 (docs/masters.md).
+_TRAPEZOID, _NOW = (0.5, 0.5, 0.0), (1.0, 0.0, 0.0)
+_AHEAD, _FED_BACK = (0.0, 1.5, -0.5), (0.0, 2.0, -1.0)
+HOLDS = {
+    "trapezoidal": {"state": ((_TRAPEZOID, False),) * 2, "state_ahead": ((_AHEAD, False),) * 2,
+                    "fed_back": ((_FED_BACK, False),) * 2},
+    "quadratic": {"state": ((_TRAPEZOID, True),) * 2,
+                  "state_ahead": ((_AHEAD, False), (_TRAPEZOID, True)),
+                  "fed_back": ((_FED_BACK, False), (_NOW, False))},
+}
 
-    def fill():
-        np.take(buffer, src, out=now)
-        np.dot(weights, picked, out=staging)
-        old[:] = now
 
-    def prime():
-        np.take(buffer, src, out=old)
-    return fill, prime, staging
+class Holds:
+    """The history of every blended input and the pass a step is in. Per step: fill() of
+    each blend (through the instances' writes), then commit() once the step is final."""
+    PREDICT, CORRECT = 0, 1
+
+    def __init__(self):
+        self.blends: list[_Blend] = []
+        self.mode = self.PREDICT
+        self.steps = 0          # committed steps: the parabola needs two behind it
+        self.ahead = False      # some input's next value is unknown when its FMU steps (a loop)
+
+    def add(self, buffer: np.ndarray, src: np.ndarray, rules: list, ahead: bool) -> "_Blend":
+        self.blends.append(_Blend(self, buffer, src, rules))
+        self.ahead = self.ahead or ahead
+        return self.blends[-1]
+
+    def prime(self) -> None:
+        """Record the values at t0 as the whole history."""
+        for b in self.blends:
+            for _ in range(3):
+                b.commit()
+        self.steps = 0
+
+    def commit(self) -> None:
+        """The step is final: its end values become u_k, and the history moves back one."""
+        for b in self.blends:
+            b.commit()
+        self.steps += 1
+        self.mode = self.PREDICT
+
+
+class _Blend:
+    """Inputs set to weights . (values now | u_k | u_k-1), plus the limited parabola
+    correction where the rule says so."""
+
+    def __init__(self, holds: Holds, buffer: np.ndarray, src: np.ndarray, rules: list):
+        m = len(src)
+        self.holds, self.buffer, self.src = holds, buffer, src
+        self.staging = np.zeros(m)
+        self.picked = np.zeros(3 * m)      # [values now | u_k | u_k-1]
+        self.now, self.u_k, self.u_km1 = self.picked[:m], self.picked[m:2 * m], self.picked[2 * m:]
+        self.u_km2 = np.zeros(m)
+        self.matrices = [np.zeros((m, 3 * m)) for _ in range(2)]
+        self.parabola = [np.zeros(m) for _ in range(2)]     # 1/12 where the rule adds it
+        for i, per_mode in enumerate(rules):
+            for mode, ((w_now, w_k, w_km1), parabola) in enumerate(per_mode):
+                self.matrices[mode][i, [i, m + i, 2 * m + i]] = w_now, w_k, w_km1
+                self.parabola[mode][i] = 1 / 12 if parabola else 0.0
+        self.limited = [bool(p.any()) for p in self.parabola]
+
+    def fill(self) -> None:
+        np.take(self.buffer, self.src, out=self.now)
+        mode = self.holds.mode
+        np.dot(self.matrices[mode], self.picked, out=self.staging)
+        if self.limited[mode] and self.holds.steps >= 2:
+            self.staging -= self.parabola[mode] * _minmod(
+                self.now - 2 * self.u_k + self.u_km1, self.u_k - 2 * self.u_km1 + self.u_km2)
+
+    def commit(self) -> None:
+        self.u_km2[:] = self.u_km1
+        self.u_km1[:] = self.u_k
+        np.take(self.buffer, self.src, out=self.u_k)
+
+
+def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per element: the one of a, b nearer zero when they have the same sign, else 0."""
+    return np.where(a * b > 0, np.where(np.abs(a) < np.abs(b), a, b), 0.0)
 
 
 def _vr_array(vrs: list[int]) -> ctypes.Array:

@@ -13,6 +13,7 @@ from fmpy.fmi1 import FMICallException
 from ..graph import Graph, port_type
 from ..process import raise_terminated
 from .instance import FmuCallError, RunningInstance
+from .plan import Holds
 from .recorder import Recorder
 
 
@@ -103,14 +104,15 @@ class StepFailure(Exception):
 
 
 def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bool],
-             freeze: Callable[[], None] | None,
-             progress: Callable[[float], None] | None) -> None:
-    """The hot loop: everything it touches was prepared. Raises StepFailure, NonFinite,
-    KeyboardInterrupt."""
+             freeze: Callable[[], None] | None, progress: Callable[[float], None] | None,
+             holds: Holds, rollback: bool) -> None:
+    """The hot loop: everything it touches was prepared. With `rollback`, every step is taken
+    twice: predicted, rolled back to t_k (fmi2SetFMUstate), corrected (plan.HOLDS). Raises
+    StepFailure, NonFinite, KeyboardInterrupt."""
     exp = recorder.experiment
     start, stop, h, n_steps = exp.start_time, exp.stop_time, exp.step_size, recorder.n_steps
     program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
-    record = recorder.record
+    record, commit = recorder.record, (holds.commit if holds.blends else None)
     # One dot product per step finds any NaN or infinity in the Real values (0 * inf is NaN,
     # 0 * finite is 0, and a sum of zeros cannot overflow).
     real_dot, zeros = recorder.buffers.real.dot, np.zeros_like(recorder.buffers.real)
@@ -122,20 +124,11 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
         h_k = h if k < n_steps - 1 else stop - t
         if freeze is not None:
             freeze()
-        for r, comp, do_step, writes, reads in program:
-            for fill, c_set, vrs, n, pointer in writes:
-                if fill is not None:
-                    fill()
-                st = c_set(comp, vrs, n, pointer)
-                if st > 1:
-                    raise StepFailure(r, "set", st, t, t + h_k)
-            st = do_step(comp, t, h_k, 1)
-            if st > 1:
-                raise StepFailure(r, r.step_failure(), st, t, t + h_k)
-            for c_get, vrs, n, pointer in reads:
-                st = c_get(comp, vrs, n, pointer)
-                if st > 1:
-                    raise StepFailure(r, "get", st, t + h_k, t + h_k)
+        if rollback:
+            _predict(running, program, holds, t, h_k)
+        _one_pass(program, t, h_k)
+        if commit is not None:
+            commit()
         if real_dot(zeros) != 0.0:
             raise NonFinite(t + h_k)
         record()
@@ -146,3 +139,40 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
                 next_report = now + 0.5
     if ctrl_c[0]:                 # pressed during the last step
         raise KeyboardInterrupt
+
+
+def _one_pass(program: list, t: float, h_k: float) -> None:
+    """Every instance in step order: set its inputs, step it, read its outputs."""
+    for r, comp, do_step, writes, reads in program:
+        for fill, c_set, vrs, n, pointer in writes:
+            if fill is not None:
+                fill()
+            st = c_set(comp, vrs, n, pointer)
+            if st > 1:
+                raise StepFailure(r, "set", st, t, t + h_k)
+        st = do_step(comp, t, h_k, 1)
+        if st > 1:
+            raise StepFailure(r, r.step_failure(), st, t, t + h_k)
+        for c_get, vrs, n, pointer in reads:
+            st = c_get(comp, vrs, n, pointer)
+            if st > 1:
+                raise StepFailure(r, "get", st, t + h_k, t + h_k)
+
+
+def _predict(running: list[RunningInstance], program: list, holds: Holds, t: float,
+             h_k: float) -> None:
+    """Save every instance's state, take the step with the predictor's inputs (the buffers
+    then hold the predicted values at t_k+1), roll every instance back to t_k."""
+    for r in running:
+        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, r.state_ref), t)
+    holds.mode = holds.PREDICT
+    _one_pass(program, t, h_k)
+    for r in running:
+        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, r.state), t)
+        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
+    holds.mode = holds.CORRECT
+
+
+def _state_call(r: RunningInstance, function: str, status: int, t: float) -> None:
+    if status > 1:
+        raise StepFailure(r, function, status, t, t)
