@@ -16,7 +16,7 @@ from mecanum_fmu.runner import prepare
 
 ROOT = Path(__file__).resolve().parents[1]
 EXACT = (1 - np.cos(10.0), np.sin(10.0))      # docs/spec.md, The seed scenario
-MASTERS = ("trapezoidal", "gauss-seidel", "jacobi")
+MASTERS = ("quadratic", "trapezoidal", "gauss-seidel", "jacobi")
 STEPS = (0.2, 0.1, 0.05, 0.01, 0.001)
 
 
@@ -60,7 +60,7 @@ def _plot(rows, path: Path) -> None:
     fig = Figure(figsize=(6.5, 4.5))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    for name, marker in zip(MASTERS, "os^"):
+    for name, marker in zip(MASTERS, "Dos^"):
         mine = [r for r in rows if r["master"] == name]
         ax.loglog([r["wall"] for r in mine], [r["err"] for r in mine], marker=marker, label=name)
         for r in mine:

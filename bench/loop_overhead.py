@@ -128,6 +128,7 @@ def main() -> dict:
                           ("bare loop, ctypes", lambda: bare_ctypes(graph, n)),
                           ("master gauss-seidel", lambda: ours(graph, "gauss-seidel")),
                           ("master trapezoidal", lambda: ours(graph, "trapezoidal")),
+                          ("master quadratic", lambda: ours(graph, "quadratic")),
                           ("  of which NaN/inf check", lambda: finite_check(graph, n))):
             wall = fn()
             results[label] = min(wall, results.get(label, wall))

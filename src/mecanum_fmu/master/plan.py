@@ -200,41 +200,49 @@ class Holds:
 
 
 class _Blend:
-    """Inputs set to weights . (values now | u_k | u_k-1), plus the limited parabola
-    correction where the rule says so."""
+    """Inputs set to weights . (values now | u_k | u_k-1), minus the limited parabola
+    correction where the rule says so: a handful of NumPy calls per fill, no allocation."""
 
     def __init__(self, holds: Holds, buffer: np.ndarray, src: np.ndarray, rules: list):
         m = len(src)
         self.holds, self.buffer, self.src = holds, buffer, src
         self.staging = np.zeros(m)
-        self.picked = np.zeros(3 * m)      # [values now | u_k | u_k-1]
-        self.now, self.u_k, self.u_km1 = self.picked[:m], self.picked[m:2 * m], self.picked[2 * m:]
-        self.u_km2 = np.zeros(m)
-        self.matrices = [np.zeros((m, 3 * m)) for _ in range(2)]
-        self.parabola = [np.zeros(m) for _ in range(2)]     # 1/12 where the rule adds it
+        self.history = np.zeros(4 * m)     # [values now | u_k | u_k-1 | u_k-2]
+        self.now, self.u_k = self.history[:m], self.history[m:2 * m]
+        self.older, self.old = self.history[2 * m:], self.history[m:3 * m]   # for the shift
+        self.matrices = [np.zeros((m, 4 * m)) for _ in range(2)]
+        # Per mode: rows 0..m-1 give (now - 2 u_k + u_k-1)/12, rows m..2m-1 the difference
+        # before it, (u_k - 2 u_k-1 + u_k-2)/12, for the inputs the rule corrects (else 0).
+        self.second = [np.zeros((2 * m, 4 * m)) for _ in range(2)]
         for i, per_mode in enumerate(rules):
             for mode, ((w_now, w_k, w_km1), parabola) in enumerate(per_mode):
                 self.matrices[mode][i, [i, m + i, 2 * m + i]] = w_now, w_k, w_km1
-                self.parabola[mode][i] = 1 / 12 if parabola else 0.0
-        self.limited = [bool(p.any()) for p in self.parabola]
+                if parabola:
+                    self.second[mode][i, [i, m + i, 2 * m + i]] = np.array([1, -2, 1]) / 12
+                    self.second[mode][m + i, [m + i, 2 * m + i, 3 * m + i]] = (
+                        np.array([1, -2, 1]) / 12)
+        self.limited = [bool(d.any()) for d in self.second]
+        self.d = np.zeros(2 * m)
+        self.a, self.b = self.d[:m], self.d[m:]
+        self.low, self.high = np.zeros(m), np.zeros(m)
 
     def fill(self) -> None:
         np.take(self.buffer, self.src, out=self.now)
         mode = self.holds.mode
-        np.dot(self.matrices[mode], self.picked, out=self.staging)
+        np.dot(self.matrices[mode], self.history, out=self.staging)
         if self.limited[mode] and self.holds.steps >= 2:
-            self.staging -= self.parabola[mode] * _minmod(
-                self.now - 2 * self.u_k + self.u_km1, self.u_k - 2 * self.u_km1 + self.u_km2)
+            # minmod(a, b) = b clipped to [min(a, 0), max(a, 0)]: the one nearer zero when
+            # both have the same sign, else 0
+            np.dot(self.second[mode], self.history, out=self.d)
+            np.minimum(self.a, 0.0, out=self.low)
+            np.maximum(self.a, 0.0, out=self.high)
+            np.maximum(self.b, self.low, out=self.low)
+            np.minimum(self.low, self.high, out=self.low)
+            np.subtract(self.staging, self.low, out=self.staging)
 
     def commit(self) -> None:
-        self.u_km2[:] = self.u_km1
-        self.u_km1[:] = self.u_k
-        np.take(self.buffer, self.src, out=self.u_k)
-
-
-def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per element: the one of a, b nearer zero when they have the same sign, else 0."""
-    return np.where(a * b > 0, np.where(np.abs(a) < np.abs(b), a, b), 0.0)
+        self.older[:] = self.old            # u_k-1 -> u_k-2, u_k -> u_k-1 (numpy copies
+        np.take(self.buffer, self.src, out=self.u_k)     # overlapping views safely)
 
 
 def _vr_array(vrs: list[int]) -> ctypes.Array:
