@@ -353,8 +353,8 @@ def _feedback_into_state(instances: list[Instance], links: list[Link]) -> set[st
     """Inputs (`instance.input`) that close a feedback loop into an FMU's state: no output of
     their FMU depends on them and their source is downstream of their FMU. Such an FMU steps
     before the rest of its loop (on extrapolated inputs), so that the blocks with direct
-    feedthrough downstream see its outputs at the end of the step: a closed loop then stays
-    second order under the trapezoidal master. Open chains have none: their order is as before."""
+    feedthrough downstream see its outputs at the end of the step: a closed loop then keeps
+    the master's order (docs/masters.md). Open chains have none: their order is as before."""
     downstream: dict[str, set[str]] = {}
     for link in links:
         downstream.setdefault(link.source.ref.instance, set()).add(link.target.ref.instance)
