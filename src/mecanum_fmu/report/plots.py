@@ -345,21 +345,31 @@ def _save_png(pixels: np.ndarray, path: Path) -> None:
 
 
 def write_plots(results: Results, roles: Roles, truth: Truth | None, out_dir: Path | str,
-                title: str = "", frame: Frame | None = None) -> list[Path]:
+                title: str = "", frame: Frame | None = None, halves: bool = False) -> list[Path]:
     """Write dashboard.png and <panel>.png for each available panel; return the paths.
 
     The dashboard is drawn once (in `frame` if it fits); each panel's PNG is its part of the
-    dashboard's pixels."""
+    dashboard's pixels. `halves`: draw the two columns in two processes (report.halves; the
+    plot worker only: it forks)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     fig = build_dashboard(results, roles, truth, title, frame)
-    fig.canvas.draw()
-    pixels = np.asarray(fig.canvas.buffer_rgba())
-    rgb = pixels[..., :3].copy()           # the background is opaque: no alpha channel
-    paths = [out_dir / "dashboard.png"]
-    _save_png(rgb, paths[0])
-    for key, (top, bottom, left, right) in zip(available_panels(results, roles),
-                                               panel_boxes(fig, pixels)):
-        paths.append(out_dir / f"{key}.png")
-        _save_png(rgb[top:bottom, left:right], paths[-1])
-    return paths           # the figure is not registered with pyplot: the GC frees it
+    keys = available_panels(results, roles)
+
+    def save(pixels: np.ndarray, which: list[int]) -> None:
+        boxes = panel_boxes(fig, pixels)
+        for i in which:
+            top, bottom, left, right = boxes[i]
+            _save_png(pixels[top:bottom, left:right, :3], out_dir / f"{keys[i]}.png")
+
+    def save_whole(pixels: np.ndarray) -> None:
+        _save_png(pixels[..., :3], out_dir / "dashboard.png")     # opaque: no alpha channel
+    if halves:
+        from .halves import draw_in_halves
+        draw_in_halves(fig, save, save_whole)
+    else:
+        fig.canvas.draw()
+        pixels = np.asarray(fig.canvas.buffer_rgba())
+        save(pixels, list(range(len(keys))))
+        save_whole(pixels)
+    return [out_dir / "dashboard.png"] + [out_dir / f"{k}.png" for k in keys]
