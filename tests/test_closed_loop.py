@@ -177,7 +177,7 @@ def test_tracking_panels_appear_only_with_a_follower(fmu_dir, tmp_path):
     assert "tracking" not in keys and "tracking_error" not in keys
 
 
-# ------------------------------------------------------------------ the quadratic master's rollback
+# ------------------------------------------------------- the quadratic master's rollback
 
 def test_quadratic_master_corrects_the_loop_and_widens_its_stable_steps(fmu_dir):
     """The loop's end values are predicted, the step rolled back and taken again: third order
@@ -204,10 +204,12 @@ def test_quadratic_master_without_state_support_steps_the_loop_once(fmu_dir, tmp
         for info in src.infolist():
             data = src.read(info)
             if info.filename == "modelDescription.xml":
-                data = data.replace(b'canGetAndSetFMUstate="true"', b'canGetAndSetFMUstate="false"')
+                data = data.replace(b'canGetAndSetFMUstate="true"',
+                                    b'canGetAndSetFMUstate="false"')
             dst.writestr(info, data)
     scenario = tmp_path / "no_state.yaml"
-    scenario.write_text(CIRCLE.read_text().replace("{fmu: PoseIntegrator,", "{fmu: PoseNoState.fmu,"))
+    scenario.write_text(CIRCLE.read_text().replace("{fmu: PoseIntegrator,",
+                                                   "{fmu: PoseNoState.fmu,"))
     graph = prepare(scenario, fmu_dir=fmu_dir)
     assert any("'pose' cannot do (canGetAndSetFMUstate is false)" in w for w in graph.warnings), \
         graph.warnings

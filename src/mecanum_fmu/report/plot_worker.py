@@ -46,6 +46,8 @@ class PlotWorker:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_PARENT),
                                                           env.get("PYTHONPATH")]))
         env.setdefault("MPLBACKEND", "Agg")
+        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):   # one thread: it forks
+            env.setdefault(name, "1")
         try:
             return cls(subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=env))
@@ -125,10 +127,12 @@ def _draw(results, roles, truth, out_dir: str, title: str, frame=None,
 def _prepare(hint: tuple | None):
     """Draw the dashboard's frame once (or, without a hint, a small figure): the first draw
     loads fonts and fills caches, and the frame's axes and ticks are then ready."""
-    from .plots import dashboard_frame, new_figure
+    import matplotlib
+    from .plots import DRAW_RC, dashboard_frame, new_figure
     if hint is not None:
         frame = dashboard_frame(*hint)
-        frame.figure.canvas.draw()
+        with matplotlib.rc_context(DRAW_RC):
+            frame.figure.canvas.draw()
         return frame
     fig = new_figure((2.0, 1.5), layout=None)
     ax = fig.add_subplot()
