@@ -72,7 +72,7 @@ def main() -> None:
     err = math.hypot(trap.final("pose.x") - exact[0], trap.final("pose.y") - exact[1])
     jacobi_err = math.hypot(ours.values["pose.x"] - exact[0], ours.values["pose.y"] - exact[1])
     need = H * err / jacobi_err        # Jacobi's error is first order: proportional to h
-    print(f"  ours, trapezoidal h = {trap.step_size:g} ({trap.steps} steps): |e| = {err:.3e} in "
+    print(f"  ours, {trap.master} h = {trap.step_size:g} ({trap.steps} steps): |e| = {err:.3e} in "
           f"{trap.wall_time:.4f} s stepping ({trap_total:.3f} s with setup); a Jacobi master "
           f"needs h = {need:.1e} ({STOP / need:,.0f} steps) for that error")
     sys.stdout.flush()
