@@ -1,6 +1,6 @@
-"""Command line: `python -m mecanum_fmu run|validate|fmus|info`. The one place that turns the
-package's exceptions into messages and exit codes (0 ok, 1 simulation failed, 2 bad input,
-130 interrupted, 143 terminated by SIGTERM)."""
+"""Command line: `python -m mecanum_fmu run|validate|fmus|info|export-ssp|cross-check|sweep|doctor`
+(`COMMANDS` below). The one place that turns the package's exceptions into messages and exit
+codes (0 ok, 1 simulation failed, 2 bad input, 130 interrupted, 143 terminated by SIGTERM)."""
 from __future__ import annotations
 
 import argparse
