@@ -18,8 +18,9 @@ MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator
 
 
 @pytest.fixture(scope="session")
-def built_fmus(tmp_path_factory):
-    """modelName -> Path of the FMU, built once into a fresh temporary folder.
+def fmu_dir(tmp_path_factory):
+    """The folder of the bundled FMUs (a scenario's --fmu-dir), built once into a fresh
+    temporary folder.
 
     Build before any FMU is loaded into this process: the build imports each slave script
     under its FMU module name and must not meet an already loaded copy.
@@ -28,17 +29,16 @@ def built_fmus(tmp_path_factory):
 
     dest = tmp_path_factory.mktemp("built_fmus")
     paths = [Path(p) for p in build_all(dest)]
-    fmus = {p.stem: p for p in paths}
-    assert sorted(fmus) == sorted(MODEL_NAMES)
+    assert sorted(p.stem for p in paths) == sorted(MODEL_NAMES)
     for path in paths:
         assert path.is_file() and path.parent == dest
-    return fmus
+    return dest
 
 
 @pytest.fixture(scope="session")
-def fmu_dir(built_fmus):
-    """The folder of the freshly built bundled FMUs (a scenario's --fmu-dir)."""
-    return next(iter(built_fmus.values())).parent
+def built_fmus(fmu_dir):
+    """modelName -> Path of the freshly built FMU."""
+    return {name: fmu_dir / f"{name}.fmu" for name in MODEL_NAMES}
 
 
 def pytest_sessionfinish(session, exitstatus):

@@ -51,11 +51,6 @@ TWISTS = [(0.0, 0.0, 0.0), (0.3, -0.2, 0.7), (-1.2, 0.5, -2.0), (1e-3, 4.0, 0.05
 GEOMETRIES = [(0.2, 0.05), (0.35, 0.1), (1.0, 1.0)]
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(built_fmus):
-    return next(iter(built_fmus.values())).parent
-
-
 def run_file(path, out, fmu_dir, **overrides):
     graph = runner.prepare(path, fmu_dir=fmu_dir, **overrides)
     return runner.run(graph, out, plots=False, log=lambda line: None)

@@ -23,11 +23,6 @@ K_POS = K_THETA = 2.0                          # the PathFollower's default gain
 START = (0.3, -0.2, 0.5)                       # track_circle's start pose
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(built_fmus):
-    return next(iter(built_fmus.values())).parent
-
-
 def follower_law(t, pose, ref, ref_rate, k_pos=K_POS, k_theta=K_THETA):
     """Body twist: world velocity r' + k (r - p) turned into the body frame (SPEC.md 4)."""
     x, y, th = pose

@@ -13,33 +13,27 @@ from pathlib import Path
 
 import pytest
 
-from helpers import CHAIN_CONNECTIONS, ROOT, SPEC_END, write_scenario
+from helpers import CHAIN_CONNECTIONS, ROOT, SPEC_END, run_host_or_skip, tool_missing, write_scenario
 from mecanum_fmu.interop.cross_check import HOST_TOLERANCE, TOLERANCE, compared_outputs, cross_check, \
     difference, ours_jacobi
 from mecanum_fmu.interop.other_hosts import HOSTS, HostUnavailable, run_host
 from mecanum_fmu.runner import prepare
 from mecanum_fmu.interop.ssp_write import export_ssp
 
-REQUIRE = os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1"
 
 
 def run_or_skip(host, ssp, graph, names):
     exp = graph.scenario.experiment
-    try:
-        return run_host(host, ssp, start=exp.start_time, stop=exp.stop_time,
-                        step=exp.step_size, variables=names)
-    except HostUnavailable as err:
-        if REQUIRE:
-            pytest.fail(f"{err} - MECANUM_FMU_REQUIRE_TOOLS=1 forbids skipping")
-        pytest.skip(str(err))
+    return run_host_or_skip(host, ssp, start=exp.start_time, stop=exp.stop_time,
+                            step=exp.step_size, variables=names)
 
 
 @pytest.fixture(scope="module")
-def seed(built_fmus, tmp_path_factory):
+def seed(fmu_dir, tmp_path_factory):
     """The seed circle at h = 0.05 under the Jacobi master: graph, SSP and our end values."""
     folder = tmp_path_factory.mktemp("interop")
     graph = prepare(ROOT / "scenarios" / "circle.yaml", master_name="jacobi", step_size=0.05,
-                    fmu_dir=next(iter(built_fmus.values())).parent)
+                    fmu_dir=fmu_dir)
     ssp = export_ssp(graph, folder / "circle.ssp")
     names = compared_outputs(graph)
     return graph, ssp, names, ours_jacobi(graph, names)
@@ -77,10 +71,9 @@ components:
 
 
 @pytest.mark.parametrize("host", HOSTS)
-def test_component_parameters_travel_in_the_ssp(built_fmus, tmp_path, host):
+def test_component_parameters_travel_in_the_ssp(fmu_dir, tmp_path, host):
     """Every parameter binding counts: the forward model's radius differs from the inverse
     model's (the body moves 5/6 as fast), the start pose is not zero and the car turns."""
-    fmu_dir = next(iter(built_fmus.values())).parent
     graph = prepare(write_scenario(tmp_path, "mismatched", MISMATCHED), fmu_dir=fmu_dir)
     names = compared_outputs(graph)
     ours = ours_jacobi(graph, names)
@@ -102,14 +95,13 @@ def test_component_parameters_travel_in_the_ssp(built_fmus, tmp_path, host):
     assert difference(run.values, ours.values, names) <= HOST_TOLERANCE.get(host, TOLERANCE)
 
 
-def test_cross_check_command_reports_agreement(built_fmus, tmp_path):
-    fmu_dir = next(iter(built_fmus.values())).parent
+def test_cross_check_command_reports_agreement(fmu_dir, tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "mecanum_fmu", "cross-check", str(ROOT / "scenarios/circle.yaml"),
          "--hosts", "libcosim,ecos", "--step-size", "0.1", "--require", "--fmu-dir", str(fmu_dir)],
         capture_output=True, text=True, timeout=300)
-    if proc.returncode == 1 and "not run" in proc.stdout and not REQUIRE:
-        pytest.skip(proc.stdout)
+    if proc.returncode == 1 and "not run" in proc.stdout:
+        tool_missing(proc.stdout)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.count("agrees") == 2
     assert "Traceback" not in proc.stderr

@@ -11,13 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from helpers import CHAIN_CONNECTIONS, write_scenario
-from mecanum_fmu.interop.other_hosts import HostUnavailable, run_host
+from helpers import CHAIN_CONNECTIONS, run_host_or_skip, write_scenario
 from mecanum_fmu.interop.ssp_write import export_ssp
 from mecanum_fmu.models.link import binary_needs, build_link
 from mecanum_fmu.runner import prepare
 
-REQUIRE = os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1"
 STRAIGHT = """\
 name: straight
 experiment: {start_time: 0.0, stop_time: 10.0, step_size: 0.05, master: jacobi}
@@ -38,19 +36,14 @@ def _no_preload():
 
 
 def _run(host, ssp):
-    try:
-        return run_host(host, ssp, start=0.0, stop=10.0, step=0.05, variables=sorted(END))
-    except HostUnavailable as err:
-        if REQUIRE:
-            pytest.fail(f"{err} - MECANUM_FMU_REQUIRE_TOOLS=1 forbids skipping")
-        pytest.skip(str(err))
+    return run_host_or_skip(host, ssp, start=0.0, stop=10.0, step=0.05, variables=sorted(END))
 
 
 @pytest.fixture(scope="module")
-def straight(tmp_path_factory, built_fmus):
+def straight(tmp_path_factory, fmu_dir):
     folder = tmp_path_factory.mktemp("straight")
     graph = prepare(write_scenario(folder, "straight", STRAIGHT),
-                    fmu_dir=next(iter(built_fmus.values())).parent)
+                    fmu_dir=fmu_dir)
     return folder, export_ssp(graph, folder / "straight.ssp")
 
 

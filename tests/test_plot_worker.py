@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -112,12 +113,17 @@ def test_worker_failure_is_reported_with_its_reason(tmp_path):
         PlotWorker.start().finish(results, ROLES, truth, tmp_path)
 
 
-def test_cancelled_worker_ends(tmp_path):
+def test_cancelled_worker_ends():
+    """The worker waits for its first message on stdin, so it is still running when cancelled;
+    cancel kills it, waits for it (no zombie) and drops it, so a later finish draws here."""
     worker = PlotWorker.start()
     proc = worker._proc
+    assert proc is not None and proc.poll() is None     # started, blocked reading its stdin
     worker.cancel()
-    assert proc.returncode is not None
-    assert not any(tmp_path.iterdir())
+    assert proc.returncode == -signal.SIGKILL           # killed and waited for
+    assert proc.stdin.closed and proc.stdout.closed
+    assert worker._proc is None
+    worker.cancel()                                     # a second cancel does nothing
 
 
 def test_failed_run_keeps_the_tables_and_writes_no_plots(tmp_path, tmp_path_factory):
@@ -143,8 +149,7 @@ connections: [[source.vx, pose.vx], [source.vy, pose.vy], [source.w, pose.w]]
     assert len((out / "results.csv").read_text().splitlines()) > 40     # rows up to t = 5 s
 
 
-def test_validate_loads_neither_matplotlib_nor_scipy(built_fmus):
-    fmu_dir = next(iter(built_fmus.values())).parent
+def test_validate_loads_neither_matplotlib_nor_scipy(fmu_dir):
     code = ("import json, sys\n"
             "from mecanum_fmu.cli import main\n"
             f"code = main(['validate', {str(CIRCLE)!r}, '--fmu-dir', {str(fmu_dir)!r}])\n"
@@ -162,12 +167,12 @@ def test_validate_loads_neither_matplotlib_nor_scipy(built_fmus):
     assert not ours & {"mecanum_fmu.report.plots", "mecanum_fmu.master", "mecanum_fmu.report.animation"}
 
 
-def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
+def test_the_frame_drawn_before_the_run_ends_fits_the_run(fmu_dir, tmp_path):
     """The worker builds the dashboard's frame from the graph alone; for the seed circle it
     has the run's six panels and title, and drawing into it gives the same bytes."""
     from mecanum_fmu.report.plot_worker import _frame_hint
     from mecanum_fmu.runner import prepare, run
-    graph = prepare(CIRCLE, fmu_dir=next(iter(built_fmus.values())).parent)
+    graph = prepare(CIRCLE, fmu_dir=fmu_dir)
     stand_in, roles, title = _frame_hint(graph)
     outcome = run(graph, tmp_path / "run", plots=False, log=lambda line: None)
     frame = plots.dashboard_frame(stand_in, roles, title)

@@ -5,19 +5,17 @@ section 4 with a piecewise-constant or piecewise-linear twist), and the nested-w
 showcase that the segments replace.
 """
 import math
-import os
 import re
 import zipfile
 
 import numpy as np
 import pytest
 
-from helpers import ROOT, write_scenario
+from helpers import ROOT, run_host_or_skip, write_scenario
 from mecanum_fmu import master
 from mecanum_fmu.models.blocks.profile_table import TableError, parse_table, table_sampler
 from mecanum_fmu.runner import prepare, run
 
-REQUIRE = os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1"
 SOURCE_TO_POSE = """\
   pose: {fmu: PoseIntegrator}
 connections:
@@ -32,11 +30,6 @@ w, time, vy, buttons, vx
 0.5, 1.0, 0.2, 0, 0.4
 0.5, 3.0, 0.2, 0, -0.2
 """
-
-
-@pytest.fixture(scope="module")
-def fmu_dir(built_fmus):
-    return next(iter(built_fmus.values())).parent
 
 
 def table_scenario(folder, interpolation, stop=4.0, step=0.25, table="profile.csv"):
@@ -239,7 +232,6 @@ def test_recorded_joystick_table_against_its_expressions(fmu_dir):
 
 def test_the_table_travels_in_the_ssp_and_runs_in_libcosim(fmu_dir, tmp_path):
     from mecanum_fmu.interop.cross_check import TOLERANCE, compared_outputs, difference, ours_jacobi
-    from mecanum_fmu.interop.other_hosts import HostUnavailable, run_host
     from mecanum_fmu.interop.ssp_write import export_ssp
     scenario = table_scenario(tmp_path, "linear", stop=4.0, step=0.05)
     graph = prepare(scenario, fmu_dir=fmu_dir)
@@ -249,12 +241,7 @@ def test_the_table_travels_in_the_ssp_and_runs_in_libcosim(fmu_dir, tmp_path):
         assert not [n for n in zf.namelist() if n.endswith(".csv")]
     names = compared_outputs(graph)
     ours = ours_jacobi(graph, names)
-    try:
-        other = run_host("libcosim", ssp, start=0.0, stop=4.0, step=0.05, variables=names)
-    except HostUnavailable as err:
-        if REQUIRE:
-            pytest.fail(f"{err} - MECANUM_FMU_REQUIRE_TOOLS=1 forbids skipping")
-        pytest.skip(str(err))
+    other = run_host_or_skip("libcosim", ssp, start=0.0, stop=4.0, step=0.05, variables=names)
     assert difference(other.values, ours.values, names) <= TOLERANCE
     # and the table was used: the source's end values are the table's last row, not the
     # default expressions (sin 4, cos 4, 0)

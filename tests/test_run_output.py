@@ -15,11 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import ROOT, SPEC_END, child_env, cli_args, read_csv, run_child, run_main
+from helpers import ROOT, SPEC_END, child_env, cli_args, read_csv, run_child, run_main, tool_missing
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
 TIMEOUT = 180          # a safety net against a hung child, not a measurement
-REQUIRE_TOOLS = os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1"
 
 
 def variant(tmp_path: Path, name: str, **replace: str) -> Path:
@@ -113,9 +112,7 @@ def _mount_tmpfs(folder: Path, options: str) -> None:
     proc = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
                           capture_output=True, text=True)
     if proc.returncode != 0:
-        if REQUIRE_TOOLS:
-            pytest.fail(f"cannot mount a tmpfs (needed for this test): {proc.stderr}")
-        pytest.skip(f"cannot mount a tmpfs (not root, or no permission): {proc.stderr}")
+        tool_missing(f"cannot mount a tmpfs (not root, or no permission): {proc.stderr}")
 
 
 @pytest.fixture
