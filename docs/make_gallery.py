@@ -1,7 +1,7 @@
 """Make the README gallery: docs/img/modes.png (every scenario in scenarios/modes/) and
 docs/img/circle.gif (the seed study, animated).
 
-    PYTHONPATH=src python docs/make_gallery.py
+    .venv/bin/python docs/make_gallery.py
 """
 from __future__ import annotations
 
