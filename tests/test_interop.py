@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from helpers import CHAIN_CONNECTIONS, ROOT, SPEC_END, run_host_or_skip, tool_missing, write_scenario
+from helpers import CHAIN_CONNECTIONS, ROOT, SPEC_END, run_host_or_skip, tool_missing, \
+    write_scenario
 from mecanum_fmu.interop.cross_check import HOST_TOLERANCE, TOLERANCE, compared_outputs, cross_check, \
     difference, ours_jacobi
 from mecanum_fmu.interop.other_hosts import HOSTS, HostUnavailable, run_host
