@@ -10,6 +10,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
+from .masters import DEFAULT as DEFAULT_MASTER, MASTERS
 
 
 def _number(text: str) -> float:
@@ -40,8 +41,8 @@ def _add_run(sub) -> None:
     run.add_argument("--out", type=Path, help="output folder (default: results/<scenario name>)")
     run.add_argument("--step-size", type=_number, help="communication step (s)")
     run.add_argument("--stop-time", type=_number, help="end of the run (s)")
-    run.add_argument("--master", help="quadratic (default), trapezoidal, gauss-seidel or jacobi "
-                     "(docs/masters.md)")
+    run.add_argument("--master", help=f"{', '.join(MASTERS)} (default {DEFAULT_MASTER}; "
+                     "docs/masters.md)")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument("--animate", action="store_true", help="also write animation.gif")
     run.add_argument("--quiet", "-q", action="store_true", help="print only errors")

@@ -17,13 +17,13 @@ from typing import Any, Union
 import yaml
 
 from .errors import Problem, ScenarioError
+from .masters import DEFAULT as DEFAULT_MASTER, MASTERS
 from .storage import NotARegularFile, read_regular
 
-MASTERS = ("quadratic", "trapezoidal", "gauss-seidel", "jacobi")
 MAX_FILE_BYTES = 1_000_000
 MAX_NAME = 100          # characters of a scenario name (it names the results folder)
 DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
-                      "master": "quadratic"}
+                      "master": DEFAULT_MASTER}
 
 Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")

@@ -15,15 +15,12 @@ import numpy as np
 
 from ..errors import Interrupted, SimulationError
 from ..graph import Graph
+from ..masters import entry as master_entry
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
-
-# How each master holds the inputs over a step (plan.HOLDS)
-HOLD = {"quadratic": "quadratic", "trapezoidal": "trapezoidal", "gauss-seidel": "zoh",
-        "jacobi": "zoh"}
 from .recorder import Recorder, step_count
 from .stepping import (NonFinite, StepFailure, check_finite, ctrl_c_latched, initialise,
                        step_all)
@@ -43,12 +40,13 @@ def simulate(graph: Graph, experiment: Experiment,
     reached it when simulate returns or raises, except when the sink itself raises, which
     ends the run with that exception). `keep_rows`: the returned Results hold every row
     (None, the default) or about that many evenly spaced rows plus the exact last one."""
-    buffers = Buffers(graph, jacobi=experiment.master == "jacobi")
+    how = master_entry(experiment.master)
+    buffers = Buffers(graph, freeze=how.freezes_inputs)
     recorder = Recorder(graph, experiment, buffers, step_count(experiment), sink, keep_rows)
     with ExitStack() as stack:
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
-        holds = plan_transfers(running, graph, buffers, HOLD[experiment.master])
+        holds = plan_transfers(running, graph, buffers, how.hold)
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)
@@ -61,7 +59,7 @@ def simulate(graph: Graph, experiment: Experiment,
         recorder.record()
         holds.prime()
         _run_loop(running, recorder, ctrl_c, buffers, progress, holds,
-                  rollback=holds.ahead and experiment.master == "quadratic" and all(
+                  rollback=holds.ahead and how.rolls_back and all(
                       r.can_roll_back for r in running))
         return recorder.results(True)
 
@@ -78,7 +76,7 @@ def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
 
 def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress, holds: Holds,
               rollback: bool) -> None:
-    freeze = buffers.freeze if recorder.experiment.master == "jacobi" else None
+    freeze = buffers.freeze if buffers.frozen else None
     tick = _time.perf_counter()
     try:
         with np.errstate(all="ignore"):     # an overflow is reported as a non-finite value
@@ -126,3 +124,4 @@ def _failure(r: RunningInstance, function: str, status: int, when: float,
         + (f" (FMU says: {said})" if said else ""),
         component=r.name, time=when, status=STATUS.get(status, str(status)),
         results=recorder.results(False))
+

@@ -21,7 +21,7 @@ _C_TYPES = {"Real": (ctypes.c_double, np.float64), "Integer": (ctypes.c_int, np.
 class Buffers:
     """One slot per value that moves or is recorded, contiguous per instance and type."""
 
-    def __init__(self, graph: Graph, jacobi: bool):
+    def __init__(self, graph: Graph, freeze: bool):
         self.real_slots: dict[Port, int] = {}
         self.int_slots: dict[Port, int] = {}
         self.outputs_of = _outputs_of(graph)
@@ -34,7 +34,8 @@ class Buffers:
         self.int = np.zeros(max(len(self.int_slots), 1), dtype=np.int32)
         # Inputs are set from these. Jacobi: a copy of the values at t_k, frozen before anyone
         # steps, so every component sees t_k whatever the order; otherwise the live buffers.
-        self.real_in, self.int_in = ((self.real.copy(), self.int.copy()) if jacobi
+        self.frozen = freeze
+        self.real_in, self.int_in = ((self.real.copy(), self.int.copy()) if freeze
                                      else (self.real, self.int))
 
     def slots(self, port: Port) -> dict[Port, int]:
