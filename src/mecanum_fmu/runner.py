@@ -19,7 +19,7 @@ from .report.ground_truth import Truth, ground_truth
 from .output import OutputFolder
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
-from .results import Results
+from .results import Results, error_estimate_lines
 from .scenario import MASTERS, Scenario, load_scenario, override_experiment
 
 
@@ -112,7 +112,9 @@ def _run_in(graph: Graph, out: OutputFolder, *, plotter: PlotWorker | None, prog
     results, files = _simulate_into(graph, out, progress, keep_rows)
     truth, truth_error = _ground_truth(graph, results)
     summary = summarize(graph, results, truth)
-    if truth is not None or truth_error:
+    from .master import estimate_error  # here: light start-up (validate)
+    summary |= estimate_error(graph, results)    # the run again at 2h and 4h
+    if truth is not None or truth_error or "error_estimate_method" in summary:
         if truth_error:
             summary["ground_truth_error"] = truth_error
         _rewrite_summary(out, summary, files)
@@ -248,4 +250,4 @@ def report_lines(summary: dict) -> list[str]:
         lines += pose_report_lines(summary["poses"])
     if "wheel_signs" in summary:
         lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
-    return lines
+    return lines + error_estimate_lines(summary)

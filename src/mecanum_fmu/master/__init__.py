@@ -19,13 +19,14 @@ from ..masters import entry as master_entry
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
+from .estimate import error_estimate
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
 from .recorder import Recorder, step_count
 from .stepping import (NonFinite, StepFailure, check_finite, ctrl_c_latched, initialise,
                        step_all)
 
-__all__ = ["simulate", "release_instances", "RUNTIME"]
+__all__ = ["simulate", "estimate_error", "release_instances", "RUNTIME"]
 
 
 def simulate(graph: Graph, experiment: Experiment,
@@ -125,3 +126,8 @@ def _failure(r: RunningInstance, function: str, status: int, when: float,
         component=r.name, time=when, status=STATUS.get(status, str(status)),
         results=recorder.results(False))
 
+
+def estimate_error(graph: Graph, results: Results) -> dict:
+    """The run's coupling error, for summary.json (master/estimate.py): the graph stepped
+    again at 2h and 4h."""
+    return error_estimate(graph, results, simulate)
