@@ -53,13 +53,15 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     coarse = []
     for factor in (2, 4):
         try:
-            coarse.append(simulate(graph, dataclasses.replace(exp, step_size=factor *
-                                                              exp.step_size)))
+            coarse.append(_coarse_run(graph, dataclasses.replace(
+                exp, step_size=factor * exp.step_size), names, simulate))
         except SimulationError as err:
             return _none(f"the same run at {factor}x the step failed ({err})")
     order = master_entry(exp.master).order
-    estimate = {n: _richardson(results, coarse[0], coarse[1], n, order) for n in names}
-    cost = sum(c.wall_time for c in coarse) / max(results.wall_time, 1e-12)
+    fine = (results.time, {n: np.asarray(results[n], dtype=float) for n in names})
+    estimate = {n: _richardson(exp, results.steps, fine, coarse[0][1:], coarse[1][1:], n, order)
+                for n in names}
+    cost = sum(c[0] for c in coarse) / max(results.wall_time, 1e-12)
     return {"error_estimate": estimate, "error_estimate_method": METHOD.format(order=order),
             "error_estimate_cost": round(cost, 3)}
 
@@ -68,29 +70,43 @@ def _none(reason: str) -> dict:
     return {"error_estimate": None, "error_estimate_method": f"no estimate: {reason}"}
 
 
-def _on_grid(results: Results, name: str, every: float) -> tuple[np.ndarray, np.ndarray]:
-    """(index on the grid of step `every`, value) of the rows that fall on that grid."""
-    k = (results.time - results.start_time) / every
-    on = np.abs(k - np.round(k)) < 1e-6
-    on[-1] = True                          # the end (stop_time) is common to every run
-    index = np.round(k[on]).astype(np.int64)
-    index[-1] = _END                       # the end, keyed apart (and last: sorted)
-    return index, np.asarray(results[name], dtype=float)[on]
+def _coarse_run(graph: Graph, exp, names: list[str], simulate) -> tuple:
+    """(stepping seconds, times, {name: values}) of the run at exp's step: only the pose
+    columns are kept (a sink), so that a long run costs little memory."""
+    parts: list[np.ndarray] = []
+    results = simulate(graph, exp, sink=lambda chunk: parts.append(chunk[["time"] + names]),
+                       keep_rows=2)
+    rows = np.concatenate(parts)
+    return results.wall_time, rows["time"], {n: np.asarray(rows[n], dtype=float) for n in names}
 
 
-def _common(a: tuple, b: tuple) -> tuple[np.ndarray, np.ndarray]:
-    common, ia, ib = np.intersect1d(a[0], b[0], return_indices=True)
-    return a[1][ia], b[1][ib]
+def _keys(exp, times: np.ndarray, every: float) -> np.ndarray:
+    """A key per row: its index on the grid of step `every`, -1 off the grid; the end (stop
+    time, common to every run) gets the largest key."""
+    k = (times - exp.start_time) / every
+    keys = np.where(np.abs(k - np.round(k)) < 1e-6, np.round(k), -1).astype(np.int64)
+    keys[-1] = _END
+    return keys
 
 
-def _richardson(fine: Results, mid: Results, coarse: Results, name: str, order: int) -> dict:
-    h = fine.step_size
-    f2, m2 = _common(_on_grid(fine, name, 2 * h), _on_grid(mid, name, 2 * h))
-    f4, m4 = _common(_on_grid(fine, name, 4 * h), _on_grid(mid, name, 4 * h))
-    c4 = _common(_on_grid(mid, name, 4 * h), _on_grid(coarse, name, 4 * h))[1]
+def _common(exp, every: float, *runs: tuple) -> list[np.ndarray]:
+    """The values of each (times, values) run on the times they all share, in time order."""
+    keys = [_keys(exp, t, every) for t, _ in runs]
+    shared = keys[0][keys[0] >= 0]
+    for k in keys[1:]:
+        shared = np.intersect1d(shared, k[k >= 0])
+    return [v[np.isin(k, shared)] for (_, v), k in zip(runs, keys)]
+
+
+def _richardson(exp, steps: int, fine: tuple, mid: tuple, coarse: tuple, name: str,
+                order: int) -> dict:
+    h = exp.step_size
+    pick = lambda run: (run[0], run[1][name])      # noqa: E731
+    f2, m2 = _common(exp, 2 * h, pick(fine), pick(mid))
+    f4, m4, c4 = _common(exp, 4 * h, pick(fine), pick(mid), pick(coarse))
     d1, d1_4, d2 = f2 - m2, f4 - m4, m4 - c4
     scale = max(1.0, float(np.max(np.abs(f2))))
-    floor = _ROUND_OFF * scale * max(fine.steps, 1)
+    floor = _ROUND_OFF * scale * max(steps, 1)
     if np.max(np.abs(d1)) <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
     p = _order(np.max(np.abs(d2)), np.max(np.abs(d1_4)), floor, order)
