@@ -30,9 +30,14 @@ REGISTRY: dict[str, Master] = {m.name: m for m in (
            "dependency order, zero-order hold of the newest values"),
     Master("jacobi", "zoh", True, False, 1,
            "every component steps on the values of t_k, zero-order hold"),
+    Master("adaptive", "quadratic", False, True, 3,
+           "the quadratic hold on a step chosen to meet a tolerance (--tolerance)",
+           adaptive=True),
 )}
 MASTERS = tuple(REGISTRY)
 DEFAULT = "quadratic"
+ADAPTIVE = "adaptive"   # what a tolerance chooses (--tolerance, experiment.tolerance)
+DEFAULT_TOLERANCE = 1e-4  # the adaptive master's, when neither --tolerance nor the scenario sets one
 ZOH_HOST = "jacobi"     # the master that steps as a plain fixed-step host does (cross-check)
 
 

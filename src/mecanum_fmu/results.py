@@ -25,6 +25,8 @@ class Results:
     wall_time: float                # seconds spent in the stepping loop
     complete: bool = True
     extra: dict = field(default_factory=dict)
+    steps_taken: int | None = None      # the adaptive master: accepted steps (doStep passes)
+    steps_rejected: int = 0             # ... and rejected ones, rolled back
 
     @property
     def time(self) -> np.ndarray:

@@ -13,12 +13,13 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import Interrupted, SimulationError
+from ..errors import Interrupted, Problem, ScenarioError, SimulationError
 from ..graph import Graph
-from ..masters import entry as master_entry
+from ..masters import DEFAULT, DEFAULT_TOLERANCE, Master, entry as master_entry
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
+from .adaptive import AdaptiveHolds, estimate_of, step_adaptive
 from .estimate import error_estimate
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
@@ -47,7 +48,8 @@ def simulate(graph: Graph, experiment: Experiment,
     with ExitStack() as stack:
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
-        holds = plan_transfers(running, graph, buffers, how.hold)
+        holds = plan_transfers(running, graph, buffers, how.hold,
+                               AdaptiveHolds() if how.adaptive else None)
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)
@@ -59,10 +61,37 @@ def simulate(graph: Graph, experiment: Experiment,
             raise _not_finite(buffers, err.time, recorder) from None
         recorder.record()
         holds.prime()
-        _run_loop(running, recorder, ctrl_c, buffers, progress, holds,
-                  rollback=holds.ahead and how.rolls_back and all(
-                      r.can_roll_back for r in running))
-        return recorder.results(True)
+        stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
+        _run_loop(recorder, ctrl_c, buffers, stepper)
+        results = recorder.results(True)
+        if counts:
+            results.steps_taken, results.steps_rejected = (counts["steps_taken"],
+                                                           counts["steps_rejected"])
+            results.extra["error_estimate"] = estimate_of(graph, results, counts)
+        return results
+
+
+def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ctrl_c,
+             progress, holds: Holds) -> tuple[Callable[[], None], dict]:
+    """The stepping loop of this master, and the adaptive master's step counts."""
+    rollback = all(r.can_roll_back for r in running)
+    if not how.adaptive:
+        freeze = recorder.buffers.freeze if recorder.buffers.frozen else None
+        return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
+                                 holds.ahead and how.rolls_back and rollback)), {}
+    if not rollback or not holds.twist:
+        why = (f"rejects and retakes steps with fmi2Get/SetFMUstate, which "
+               + ", ".join(repr(r.name) for r in running if not r.can_roll_back) + " cannot do"
+               if not rollback else "controls the error of a PoseIntegrator's pose, and this "
+               "graph has none")
+        raise ScenarioError([Problem(recorder.graph.scenario.label, "experiment.master",
+                                     f"the {how.name} master {why}; choose a fixed-step "
+                                     f"master (e.g. {DEFAULT})")])
+    counts = {"steps_taken": 0, "steps_rejected": 0, "position": 0.0, "heading": 0.0,
+              "estimates": [(0.0, 0.0)]}
+    tolerance = recorder.experiment.tolerance or DEFAULT_TOLERANCE
+    return (lambda: step_adaptive(running, recorder, ctrl_c, progress, holds, tolerance,
+                                  counts)), counts
 
 
 def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
@@ -75,13 +104,12 @@ def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
     return running
 
 
-def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress, holds: Holds,
-              rollback: bool) -> None:
-    freeze = buffers.freeze if buffers.frozen else None
+def _run_loop(recorder: Recorder, ctrl_c, buffers: Buffers, stepper: Callable[[], None]
+              ) -> None:
     tick = _time.perf_counter()
     try:
         with np.errstate(all="ignore"):     # an overflow is reported as a non-finite value
-            step_all(running, recorder, ctrl_c, freeze, progress, holds, rollback)
+            stepper()
     except StepFailure as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
         if not np.isfinite(buffers.real).all():   # the cause: a value that went non-finite

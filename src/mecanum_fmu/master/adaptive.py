@@ -1,0 +1,260 @@
+"""The adaptive master: the quadratic hold on a step chosen to meet a tolerance.
+
+Per step, after the pass (docs/masters.md, "The adaptive master"):
+- the hold is the quadratic master's on unequal steps: the mean over the step of the parabola
+  through u_k-1, u_k, u_k+1 (its second difference limited by the previous one, minmod);
+  in a loop the step is predicted with the linear extrapolation, rolled back and corrected;
+- the hold's error is its next term: the mean of the cubic through the last four samples
+  minus the parabola's, |u'''| h^3 / 24, with u''' limited (minmod of this step's and the last
+  step's third divided difference: a jump or a kink in a table adds nothing, no storm of
+  rejections); the turning of the twist's frame within the step adds |w| |dv| h^2 / 12 to the
+  position; a heading error moves the position by |v| (stop - t) over the rest of the run;
+- the step is accepted when the pose's error is at most TOL * h / (stop - start), else every
+  FMU is rolled back (fmi2SetFMUstate) and the step retried, shorter;
+- the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
+  [0.5, 2], 0.2 after a rejection) and is cut so that the steps land on the output grid
+  (every step_size seconds, where results.csv gets its rows).
+The sum of the accepted steps' errors is the run's error estimate.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from typing import Callable
+
+import numpy as np
+
+from ..graph import Instance, Port
+from ..models.catalog import bundled_model
+from .instance import RunningInstance
+from .plan import Holds
+from .recorder import Recorder
+from .stepping import NonFinite, StepFailure, _one_pass, _state_call
+
+_TWIST = ("vx", "vy", "w")
+SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
+
+
+def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0)
+
+
+class AdaptiveHolds(Holds):
+    """Holds over unequal steps: h (this step), g and f (the two before)."""
+
+    def __init__(self):
+        super().__init__("quadratic")
+        self.h = self.g = self.f = 1.0
+        self.twist: list[tuple["_VarBlend", list[int]]] = []   # the pose's vx, vy, w
+
+    def add(self, buffer, src, roles, targets: list[Port], inst: Instance) -> "_VarBlend":
+        blend = _VarBlend(self, buffer, src, roles)
+        self.blends.append(blend)
+        self.ahead = self.ahead or any(role != "state" for role in roles)
+        model = bundled_model(inst.model)
+        names = [t.ref.variable for t in targets]
+        if model is not None and model.role == "pose" and all(n in names for n in _TWIST):
+            self.twist.append((blend, [names.index(n) for n in _TWIST]))
+        return blend
+
+    def prime(self) -> None:
+        super().prime()
+        for b in self.blends:
+            b.third_before[:] = 0.0
+
+    def commit(self) -> None:
+        for b in self.blends:
+            b.third_before[:] = b.third
+        super().commit()
+        self.f, self.g = self.g, self.h
+
+
+class _VarBlend:
+    """One group of blended inputs: history [now | u_k | u_k-1 | u_k-2] and its roles."""
+
+    def __init__(self, holds: AdaptiveHolds, buffer: np.ndarray, src: np.ndarray, roles: list):
+        m = len(src)
+        self.holds, self.buffer, self.src = holds, buffer, src
+        self.staging = np.zeros(m)
+        self.history = np.zeros(4 * m)
+        self.rows = self.history.reshape(4, m)          # views: now, u_k, u_k-1, u_k-2
+        self.older, self.old = self.history[2 * m:], self.history[m:3 * m]
+        roles = np.array(roles)
+        self.ahead, self.fed = roles == "state_ahead", roles == "fed_back"
+        self.third = np.zeros(m)          # u''' over this step (limited in error())
+        self.third_before = np.zeros(m)
+
+    def fill(self) -> None:
+        np.take(self.buffer, self.src, out=self.rows[0])
+        now, u, u1, u2 = self.rows
+        hs = self.holds
+        h, g, f = hs.h, hs.g, hs.f
+        mean = 0.5 * (now + u)
+        if hs.steps >= 2:
+            second = 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
+            before = 2 * ((u - u1) / g + (u2 - u1) / f) / (g + f)
+            mean = mean - _minmod(second, before) * h * h / 12
+        if hs.mode == hs.PREDICT:
+            slope = (u - u1) / g
+            self.staging[:] = np.where(self.ahead, u + slope * h / 2,
+                                       np.where(self.fed, u + slope * h, mean))
+        else:
+            self.staging[:] = np.where(self.fed, now, mean)
+
+    def error(self) -> np.ndarray:
+        """The error of this step's held mean, per input: |u'''| h^3 / 24, u''' limited."""
+        now, u, u1, u2 = self.rows
+        hs = self.holds
+        h, g, f = hs.h, hs.g, hs.f
+        d2a = ((now - u) / h - (u - u1) / g) / (h + g)
+        d2b = ((u - u1) / g - (u1 - u2) / f) / (g + f)
+        self.third[:] = 6 * (d2a - d2b) / (h + g + f)
+        if hs.steps < 3:       # no history yet: the step is kept short instead (first_step)
+            return np.zeros_like(self.third)
+        return np.abs(_minmod(self.third, self.third_before)) * h ** 3 / 24
+
+    def commit(self) -> None:
+        self.older[:] = self.old
+        np.take(self.buffer, self.src, out=self.rows[1])
+
+
+def step_error(holds: AdaptiveHolds, t_end: float, stop: float) -> tuple[float, float]:
+    """(position error in m, heading error in rad) of the step just taken, over every pose."""
+    position = heading = 0.0
+    h = holds.h
+    for blend, (ivx, ivy, iw) in holds.twist:
+        e = blend.error()
+        now, u = blend.rows[0], blend.rows[1]
+        vx, vy, w = blend.staging[ivx], blend.staging[ivy], blend.staging[iw]
+        dvx, dvy, dw = now[ivx] - u[ivx], now[ivy] - u[ivy], now[iw] - u[iw]
+        e_theta = h * e[iw]
+        # the frame turns within the step: J (w dv - dw v) h^2 / 12 (docs/masters.md)
+        turning = math.hypot(w * dvx - dw * vx, w * dvy - dw * vy) * h * h / 12
+        position = max(position, h * math.hypot(e[ivx], e[ivy]) + turning
+                       + e_theta * math.hypot(vx, vy) * (stop - t_end))
+        heading = max(heading, e_theta)
+    for blend in holds.blends:      # inputs of other FMUs: their third differences move on
+        if all(blend is not b for b, _ in holds.twist):
+            blend.error()
+    return position, heading
+
+
+class Controller:
+    """The step: PI on the error ratio, clamped, cut to land on the output grid."""
+
+    def __init__(self, tolerance: float, span: float, first: float):
+        self.tolerance, self.span = tolerance, span
+        self.wanted, self.ratio_before = first, 1.0
+
+    def ratio(self, position: float, heading: float, h: float) -> float:
+        allowed = self.tolerance * h / self.span
+        return max(position, heading) / allowed
+
+    def accept(self, ratio: float) -> None:
+        r = max(ratio, 1e-10)
+        factor = SAFETY * r ** -K_I * self.ratio_before ** K_P
+        self.wanted *= min(2.0, max(0.5, factor))
+        self.ratio_before = r
+
+    def reject(self, ratio: float) -> None:
+        self.wanted *= max(0.2, min(0.9, SAFETY * ratio ** (-1 / 3)))
+
+    def step_to(self, t: float, target: float) -> float:
+        """A step from t that lands on `target` (the next output time) in whole steps."""
+        n = max(1, math.ceil((target - t) / self.wanted - 1e-9))
+        return (target - t) / n
+
+
+def first_step(tolerance: float, interval: float) -> float:
+    """The first steps have no history for the error estimate: short (the trapezoid's error
+    then is h^3 |u''| / 12 per step, below the tolerance for any smooth input of size ~1)."""
+    return interval * min(1.0, tolerance ** (1 / 3))
+
+
+def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[int],
+                  progress: Callable[[float], None] | None, holds: AdaptiveHolds,
+                  tolerance: float, counts: dict) -> None:
+    """The adaptive loop: rows recorded on the output grid only. counts gets steps_taken,
+    steps_rejected and the accumulated error estimate. Raises StepFailure, NonFinite,
+    KeyboardInterrupt."""
+    exp = recorder.experiment
+    start, stop, interval = exp.start_time, exp.stop_time, exp.step_size
+    program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
+    control = Controller(tolerance, stop - start, first_step(tolerance, interval))
+    real = recorder.buffers.real
+    t, j = start, 0
+    next_report = _time.perf_counter() + 1.0
+    while j < recorder.n_steps:
+        target = stop if j == recorder.n_steps - 1 else start + (j + 1) * interval
+        h = control.step_to(t, target)
+        _save(running, t)
+        while True:
+            if ctrl_c[0]:
+                raise KeyboardInterrupt
+            _attempt(running, program, holds, t, h)
+            position, heading = step_error(holds, t + h, stop)
+            ratio = control.ratio(position, heading, h)
+            if ratio <= 1.0 or h <= 1e-12 * (stop - start):
+                break
+            counts["steps_rejected"] += 1
+            control.reject(ratio)
+            h = control.step_to(t, target)
+            _restore(running, t)
+        _free(running, t)
+        holds.commit()
+        counts["steps_taken"] += 1
+        counts["position"] += position
+        counts["heading"] += heading
+        control.accept(ratio)
+        if not np.isfinite(real).all():
+            raise NonFinite(t + h)
+        t = t + h
+        if abs(t - target) <= 1e-9 * interval:
+            t, j = target, j + 1
+            recorder.record()
+            counts["estimates"].append((counts["position"], counts["heading"]))
+            if progress is not None and _time.perf_counter() >= next_report:
+                progress((t - start) / (stop - start))
+                next_report = _time.perf_counter() + 0.5
+
+
+def _attempt(running, program, holds: AdaptiveHolds, t: float, h: float) -> None:
+    """One pass at step h (in a loop: predicted, rolled back, corrected)."""
+    holds.h = h
+    if holds.ahead:
+        holds.mode = holds.PREDICT
+        _one_pass(program, t, h)
+        _restore(running, t)
+        holds.mode = holds.CORRECT
+    _one_pass(program, t, h)
+
+
+def _save(running: list[RunningInstance], t: float) -> None:
+    for r in running:
+        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, r.state_ref), t)
+
+
+def _restore(running: list[RunningInstance], t: float) -> None:
+    for r in running:
+        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, r.state), t)
+
+
+def _free(running: list[RunningInstance], t: float) -> None:
+    for r in running:
+        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
+
+
+def estimate_of(graph, results, counts: dict) -> dict:
+    """summary.json's error estimate of an adaptive run: the accepted steps' errors summed."""
+    per_row = np.array(counts["estimates"]) if counts["estimates"] else np.zeros((1, 2))
+    estimate = {}
+    for inst in graph.instances:
+        model = bundled_model(inst.model)
+        if model is None or model.role != "pose":
+            continue
+        for k, column in (("x", 0), ("y", 0), ("theta", 1)):
+            if f"{inst.name}.{k}" in results.names:
+                values = per_row[:, column]
+                estimate[f"{inst.name}.{k}"] = {"max": float(values.max()),
+                                                "end": float(values[-1])}
+    return estimate
