@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .errors import Problem, ScenarioError
+
 
 @dataclass(frozen=True)
 class Master:
@@ -44,3 +46,15 @@ ZOH_HOST = "jacobi"     # the master that steps as a plain fixed-step host does 
 def entry(name: str) -> Master:
     """The registry entry of a master name (checked by the scenario loader)."""
     return REGISTRY[name]
+
+
+def tolerance_master(name: str | None, tolerance: float | None, label: str) -> str | None:
+    """The master a command-line --tolerance chooses (None without one): the adaptive one;
+    a fixed-step --master beside it is refused."""
+    if tolerance is None:
+        return None
+    if name is not None and not entry(name).adaptive if name in REGISTRY else False:
+        raise ScenarioError([Problem(label, "--tolerance", f"the {name} master takes a fixed "
+                                     f"step; drop --master {name} (a tolerance chooses the "
+                                     f"{ADAPTIVE} master) or --tolerance")])
+    return ADAPTIVE

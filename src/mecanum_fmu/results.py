@@ -90,6 +90,9 @@ def error_estimate_lines(summary: dict) -> list[str]:
     if estimate is None:
         return [f"error estimate: {summary['error_estimate_method']}"]
     lines = [f"error estimate ({summary['error_estimate_method']}):"]
+    if "steps_taken" in summary:
+        lines.insert(0, f"tolerance {summary['tolerance']:g}: {summary['steps_taken']} steps "
+                        f"taken, {summary['steps_rejected']} rejected and rolled back")
     for name, e in estimate.items():
         lines.append(f"  {name}: max {_show(e['max'])}, end {_show(e['end'])}")
     return lines

@@ -20,6 +20,7 @@ from .output import OutputFolder
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
 from .results import Results, error_estimate_lines
+from .masters import tolerance_master
 from .scenario import MASTERS, Scenario, load_scenario, override_experiment
 
 
@@ -36,6 +37,7 @@ class RunOutcome:
 
 def prepare(path: str | Path, *, step_size: float | None = None, stop_time: float | None = None,
             master_name: str | None = None, fmu_dir: Path | None = None,
+            tolerance: float | None = None,
             build: bool = True) -> Graph:
     """Load and check a scenario (with command-line overrides) and compile its graph. With
     build (the default), the bundled FMUs it uses are built first when missing or stale;
@@ -46,7 +48,9 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
     else:
         scenario = load_scenario(path)
     changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
-                                 ("master", master_name)) if v is not None}
+                                 ("master", master_name), ("tolerance", tolerance),
+                                 ("master", tolerance_master(master_name, tolerance,
+                                                             scenario.label))) if v is not None}
     if changes:
         if "master" in changes and changes["master"] not in MASTERS:
             raise ScenarioError([Problem(scenario.label, "--master", f"unknown master "

@@ -67,7 +67,7 @@ def simulate(graph: Graph, experiment: Experiment,
         if counts:
             results.steps_taken, results.steps_rejected = (counts["steps_taken"],
                                                            counts["steps_rejected"])
-            results.extra["error_estimate"] = estimate_of(graph, results, counts)
+            results.extra["error_estimate"] = estimate_of(graph, results, counts, holds)
         return results
 
 
@@ -79,7 +79,7 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
         freeze = recorder.buffers.freeze if recorder.buffers.frozen else None
         return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
                                  holds.ahead and how.rolls_back and rollback)), {}
-    if not rollback or not holds.twist:
+    if not rollback or not holds.poses:
         why = (f"rejects and retakes steps with fmi2Get/SetFMUstate, which "
                + ", ".join(repr(r.name) for r in running if not r.can_roll_back) + " cannot do"
                if not rollback else "controls the error of a PoseIntegrator's pose, and this "
@@ -87,8 +87,8 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
         raise ScenarioError([Problem(recorder.graph.scenario.label, "experiment.master",
                                      f"the {how.name} master {why}; choose a fixed-step "
                                      f"master (e.g. {DEFAULT})")])
-    counts = {"steps_taken": 0, "steps_rejected": 0, "position": 0.0, "heading": 0.0,
-              "estimates": [(0.0, 0.0)]}
+    counts = {"steps_taken": 0, "steps_rejected": 0,
+              "estimates": [[(0.0, 0.0, 0.0)] * len(holds.poses)]}
     tolerance = recorder.experiment.tolerance or DEFAULT_TOLERANCE
     return (lambda: step_adaptive(running, recorder, ctrl_c, progress, holds, tolerance,
                                   counts)), counts

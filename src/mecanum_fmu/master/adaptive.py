@@ -33,6 +33,11 @@ from .stepping import NonFinite, StepFailure, _one_pass, _state_call
 
 _TWIST = ("vx", "vy", "w")
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
+# A step's own error may take LOCAL times its share (h / span) of the tolerance: the steps'
+# errors of a smooth input largely cancel (a quadrature's leading term telescopes), and the
+# signed sum catches the case where they do not: once over BUDGET x the tolerance, the steps
+# are held to STRICT x their share
+LOCAL, BUDGET, STRICT = 4.0, 0.4, 0.5
 
 
 def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -45,7 +50,7 @@ class AdaptiveHolds(Holds):
     def __init__(self):
         super().__init__("quadratic")
         self.h = self.g = self.f = 1.0
-        self.twist: list[tuple["_VarBlend", list[int]]] = []   # the pose's vx, vy, w
+        self.poses: list["PoseError"] = []     # per PoseIntegrator: its vx, vy, w
 
     def add(self, buffer, src, roles, targets: list[Port], inst: Instance) -> "_VarBlend":
         blend = _VarBlend(self, buffer, src, roles)
@@ -54,7 +59,7 @@ class AdaptiveHolds(Holds):
         model = bundled_model(inst.model)
         names = [t.ref.variable for t in targets]
         if model is not None and model.role == "pose" and all(n in names for n in _TWIST):
-            self.twist.append((blend, [names.index(n) for n in _TWIST]))
+            self.poses.append(PoseError(blend, [names.index(n) for n in _TWIST], inst))
         return blend
 
     def prime(self) -> None:
@@ -118,25 +123,72 @@ class _VarBlend:
         np.take(self.buffer, self.src, out=self.rows[1])
 
 
-def step_error(holds: AdaptiveHolds, t_end: float, stop: float) -> tuple[float, float]:
-    """(position error in m, heading error in rad) of the step just taken, over every pose."""
-    position = heading = 0.0
-    h = holds.h
-    for blend, (ivx, ivy, iw) in holds.twist:
-        e = blend.error()
-        now, u = blend.rows[0], blend.rows[1]
-        vx, vy, w = blend.staging[ivx], blend.staging[ivy], blend.staging[iw]
+class PoseError:
+    """The signed error of one pose, accumulated over the accepted steps: the body-frame
+    errors of each step turned into the world frame (heading and position tracked from the
+    held twist), and the heading's errors carried along the path travelled since."""
+
+    def __init__(self, blend: "_VarBlend", index: list[int], inst: Instance):
+        self.blend, self.index, self.name = blend, index, inst.name
+        self.theta = float(inst.value("theta0"))
+        self.p = np.zeros(2)
+        self.e = np.zeros(2)          # position errors made on the steps, world frame
+        self.heading = 0.0            # sum of the heading errors
+        self.moment = np.zeros(2)     # sum of p_t * heading error_t
+
+    def step(self, h: float, left: float) -> tuple[float, float, tuple]:
+        """(position error bound, |heading error|) of this step for the controller, and the
+        signed update to apply if the step is accepted."""
+        e = self.blend.error()
+        ivx, ivy, iw = self.index
+        now, u, mean = self.blend.rows[0], self.blend.rows[1], self.blend.staging
+        vx, vy, w = mean[ivx], mean[ivy], mean[iw]
         dvx, dvy, dw = now[ivx] - u[ivx], now[ivy] - u[ivy], now[iw] - u[iw]
+        # held minus true: the cubic's term (the third derivative's, h^4/24 over the step)
+        # and the frame turning within the step, -J (w dv - dw v) h^2 / 12 (docs/masters.md)
+        tx, ty = (w * dvx - dw * vx) * h * h / 12, (w * dvy - dw * vy) * h * h / 12
+        body = (h * e[ivx] + ty, h * e[ivy] - tx)
         e_theta = h * e[iw]
-        # the frame turns within the step: J (w dv - dw v) h^2 / 12 (docs/masters.md)
-        turning = math.hypot(w * dvx - dw * vx, w * dvy - dw * vy) * h * h / 12
-        position = max(position, h * math.hypot(e[ivx], e[ivy]) + turning
-                       + e_theta * math.hypot(vx, vy) * (stop - t_end))
-        heading = max(heading, e_theta)
+        bound = math.hypot(*body) + abs(e_theta) * math.hypot(vx, vy) * left
+        return bound, abs(e_theta), (body, e_theta, (vx, vy, w))
+
+    def after(self, h: float, update: tuple) -> float:
+        """The largest |error| of x, y, theta if the step were accepted."""
+        saved = (self.theta, self.p.copy(), self.e.copy(), self.heading, self.moment.copy())
+        self.accept(h, update)
+        worst = max(self.now())
+        self.theta, self.p, self.e, self.heading, self.moment = saved
+        return worst
+
+    def accept(self, h: float, update: tuple) -> None:
+        (bx, by), e_theta, (vx, vy, w) = update
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        self.e += (c * bx - s * by, s * bx + c * by)
+        self.p += (h * (c * vx - s * vy), h * (s * vx + c * vy))
+        self.theta += h * w
+        self.heading += e_theta
+        self.moment += self.p * e_theta
+
+    def now(self) -> tuple[float, float, float]:
+        """|error| of x, y, theta now: the steps' own, plus J (p S - sum p_t e_t) of the
+        heading errors (a heading error e_t at p_t moves every later point by J (p - p_t))."""
+        carried = self.p * self.heading - self.moment
+        return (abs(self.e[0] - carried[1]), abs(self.e[1] + carried[0]), abs(self.heading))
+
+
+def step_error(holds: AdaptiveHolds, left: float) -> tuple[float, float, list]:
+    """(position error bound in m, heading error in rad) of the step just taken, the worst
+    over every pose, and the signed updates."""
+    position = heading = 0.0
+    updates = []
+    for pose in holds.poses:
+        bound, e_theta, update = pose.step(holds.h, left)
+        position, heading = max(position, bound), max(heading, e_theta)
+        updates.append(update)
     for blend in holds.blends:      # inputs of other FMUs: their third differences move on
-        if all(blend is not b for b, _ in holds.twist):
+        if all(blend is not pose.blend for pose in holds.poses):
             blend.error()
-    return position, heading
+    return position, heading, updates
 
 
 class Controller:
@@ -146,9 +198,12 @@ class Controller:
         self.tolerance, self.span = tolerance, span
         self.wanted, self.ratio_before = first, 1.0
 
-    def ratio(self, position: float, heading: float, h: float) -> float:
-        allowed = self.tolerance * h / self.span
-        return max(position, heading) / allowed
+    def ratio(self, position: float, heading: float, h: float, drift: float) -> float:
+        """Over 1: reject. The step's own error against LOCAL x its share of the tolerance
+        while the signed accumulated error stays under BUDGET x the tolerance, else against
+        STRICT x its share (the rest of the run then adds at most STRICT x the tolerance)."""
+        share = LOCAL if drift <= BUDGET * self.tolerance else STRICT
+        return max(position, heading) / (share * self.tolerance * h / self.span)
 
     def accept(self, ratio: float) -> None:
         r = max(ratio, 1e-10)
@@ -181,30 +236,34 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
     start, stop, interval = exp.start_time, exp.stop_time, exp.step_size
     program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
     control = Controller(tolerance, stop - start, first_step(tolerance, interval))
-    real = recorder.buffers.real
+    real, ints = recorder.buffers.real, recorder.buffers.int
+    saved_real, saved_int = real.copy(), ints.copy()    # the values at t_k, for a retry
     t, j = start, 0
     next_report = _time.perf_counter() + 1.0
     while j < recorder.n_steps:
         target = stop if j == recorder.n_steps - 1 else start + (j + 1) * interval
         h = control.step_to(t, target)
         _save(running, t)
+        saved_real[:], saved_int[:] = real, ints
         while True:
             if ctrl_c[0]:
                 raise KeyboardInterrupt
             _attempt(running, program, holds, t, h)
-            position, heading = step_error(holds, t + h, stop)
-            ratio = control.ratio(position, heading, h)
+            position, heading, updates = step_error(holds, stop - t - h)
+            drift = max([pose.after(h, u) for pose, u in zip(holds.poses, updates)])
+            ratio = control.ratio(position, heading, h, drift)
             if ratio <= 1.0 or h <= 1e-12 * (stop - start):
                 break
             counts["steps_rejected"] += 1
             control.reject(ratio)
             h = control.step_to(t, target)
             _restore(running, t)
+            real[:], ints[:] = saved_real, saved_int
         _free(running, t)
         holds.commit()
         counts["steps_taken"] += 1
-        counts["position"] += position
-        counts["heading"] += heading
+        for pose, update in zip(holds.poses, updates):
+            pose.accept(h, update)
         control.accept(ratio)
         if not np.isfinite(real).all():
             raise NonFinite(t + h)
@@ -212,7 +271,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
         if abs(t - target) <= 1e-9 * interval:
             t, j = target, j + 1
             recorder.record()
-            counts["estimates"].append((counts["position"], counts["heading"]))
+            counts["estimates"].append([pose.now() for pose in holds.poses])
             if progress is not None and _time.perf_counter() >= next_report:
                 progress((t - start) / (stop - start))
                 next_report = _time.perf_counter() + 0.5
@@ -244,17 +303,15 @@ def _free(running: list[RunningInstance], t: float) -> None:
         _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
 
 
-def estimate_of(graph, results, counts: dict) -> dict:
-    """summary.json's error estimate of an adaptive run: the accepted steps' errors summed."""
-    per_row = np.array(counts["estimates"]) if counts["estimates"] else np.zeros((1, 2))
+def estimate_of(graph, results, counts: dict, holds: AdaptiveHolds) -> dict:
+    """summary.json's error estimate of an adaptive run: the accepted steps' signed errors
+    accumulated (PoseError), per output row: its largest and its last."""
+    rows = np.array(counts["estimates"])        # (row, pose, x/y/theta)
     estimate = {}
-    for inst in graph.instances:
-        model = bundled_model(inst.model)
-        if model is None or model.role != "pose":
-            continue
-        for k, column in (("x", 0), ("y", 0), ("theta", 1)):
-            if f"{inst.name}.{k}" in results.names:
-                values = per_row[:, column]
-                estimate[f"{inst.name}.{k}"] = {"max": float(values.max()),
-                                                "end": float(values[-1])}
+    for i, pose in enumerate(holds.poses):
+        for column, k in enumerate(("x", "y", "theta")):
+            name = f"{pose.name}.{k}"
+            if name in results.names:
+                values = rows[:, i, column]
+                estimate[name] = {"max": float(values.max()), "end": float(values[-1])}
     return estimate

@@ -25,6 +25,8 @@ from ..results import BELOW_ROUND_OFF, Results
 
 METHOD = ("Richardson extrapolation: the run repeated at 2h and 4h, e ~ (y_h - y_2h)/(2^p - 1) "
           "with the observed order p bounded to [1, {order}]")
+ADAPTIVE_METHOD = ("the adaptive master's per-step errors (limited third differences of the "
+                   "twist, the frame's turning, the heading's lever arm), summed")
 _END = np.iinfo(np.int64).max
 _ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
 
@@ -48,6 +50,10 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     exp = graph.scenario.experiment
     if not names or not results.complete:
         return {}
+    if results.steps_taken is not None:         # the adaptive master: its own estimate
+        return {"error_estimate": results.extra["error_estimate"],
+                "error_estimate_method": ADAPTIVE_METHOD, "tolerance": exp.tolerance,
+                "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
     if (exp.stop_time - exp.start_time) < 4 * exp.step_size * (1 - 1e-9):
         return _none("the run has fewer than 4 steps: no coarser runs to compare with")
     coarse = []
