@@ -32,6 +32,7 @@ from .recorder import Recorder
 from .stepping import NonFinite, StepFailure, _one_pass, _state_call
 
 _TWIST = ("vx", "vy", "w")
+DEBUG = 0
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
 # A step's own error may take LOCAL times its share (h / span) of the tolerance: the steps'
 # errors of a smooth input largely cancel (a quadrature's leading term telescopes), and the
@@ -194,8 +195,8 @@ def step_error(holds: AdaptiveHolds, left: float) -> tuple[float, float, list]:
 class Controller:
     """The step: PI on the error ratio, clamped, cut to land on the output grid."""
 
-    def __init__(self, tolerance: float, span: float, first: float):
-        self.tolerance, self.span = tolerance, span
+    def __init__(self, tolerance: float, span: float, first: float, longest: float):
+        self.tolerance, self.span, self.longest = tolerance, span, longest
         self.wanted, self.ratio_before = first, 1.0
 
     def ratio(self, position: float, heading: float, h: float, drift: float) -> float:
@@ -208,11 +209,13 @@ class Controller:
     def accept(self, ratio: float) -> None:
         r = max(ratio, 1e-10)
         factor = SAFETY * r ** -K_I * self.ratio_before ** K_P
-        self.wanted *= min(2.0, max(0.5, factor))
+        # never more than the output interval: a long quiet stretch must not leave a step
+        # that takes many rejections to come down when the input turns
+        self.wanted = min(self.wanted * min(2.0, max(0.5, factor)), self.longest)
         self.ratio_before = r
 
-    def reject(self, ratio: float) -> None:
-        self.wanted *= max(0.2, min(0.9, SAFETY * ratio ** (-1 / 3)))
+    def reject(self, ratio: float, h: float) -> None:
+        self.wanted = h * max(0.2, min(0.9, SAFETY * ratio ** (-1 / 3)))
 
     def step_to(self, t: float, target: float) -> float:
         """A step from t that lands on `target` (the next output time) in whole steps."""
@@ -235,7 +238,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
     exp = recorder.experiment
     start, stop, interval = exp.start_time, exp.stop_time, exp.step_size
     program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
-    control = Controller(tolerance, stop - start, first_step(tolerance, interval))
+    control = Controller(tolerance, stop - start, first_step(tolerance, interval), interval)
     real, ints = recorder.buffers.real, recorder.buffers.int
     saved_real, saved_int = real.copy(), ints.copy()    # the values at t_k, for a retry
     t, j = start, 0
@@ -255,7 +258,8 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
             if ratio <= 1.0 or h <= 1e-12 * (stop - start):
                 break
             counts["steps_rejected"] += 1
-            control.reject(ratio)
+            if DEBUG: print(f"reject t={t:.4f} h={h:.3g} ratio={ratio:.3g} pos={position:.3g} head={heading:.3g} drift={drift:.3g}")
+            control.reject(ratio, h)
             h = control.step_to(t, target)
             _restore(running, t)
             real[:], ints[:] = saved_real, saved_int
