@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..graph import Graph
-from ..masters import entry as master_entry
+from ..masters import DEFAULT_TOLERANCE, entry as master_entry
 from ..models.catalog import bundled_model
 from ..results import BELOW_ROUND_OFF, Results
 
@@ -52,7 +52,8 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
         return {}
     if results.steps_taken is not None:         # the adaptive master: its own estimate
         return {"error_estimate": results.extra["error_estimate"],
-                "error_estimate_method": ADAPTIVE_METHOD, "tolerance": exp.tolerance,
+                "error_estimate_method": ADAPTIVE_METHOD,
+                "tolerance": exp.tolerance or DEFAULT_TOLERANCE,
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
     if (exp.stop_time - exp.start_time) < 4 * exp.step_size * (1 - 1e-9):
         return _none("the run has fewer than 4 steps: no coarser runs to compare with")
