@@ -4,16 +4,17 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
 - the hold is the quadratic master's on unequal steps: the mean over the step of the parabola
   through u_k-1, u_k, u_k+1 (its second difference limited by the previous one, minmod);
   in a loop the step is predicted with the linear extrapolation, rolled back and corrected;
-- the hold's error is its next term: the mean of the cubic through the last four samples
-  minus the parabola's, |u'''| h^3 / 24, with u''' limited (minmod of this step's and the last
-  step's third divided difference: a jump or a kink in a table adds nothing, no storm of
-  rejections); the turning of the twist's frame within the step adds |w| |dv| h^2 / 12 to the
-  position; a heading error moves the position by |v| (stop - t) over the rest of the run;
-- the step is accepted when the pose's error is at most TOL * h / (stop - start), else every
-  FMU is rolled back (fmi2SetFMUstate) and the step retried, shorter;
+- the step's error comes from the pose's twist before and after the step (no extra doStep):
+  the hold's next term, |u'''| h^3 / 24 on the mean, u''' the third divided difference
+  limited by the last step's (minmod: a jump or a kink in a table adds nothing, no storm of
+  rejections); the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error
+  moves every later point by J (p - p_t);
+- a step may take LOCAL x its share TOL * h / (stop - start) while the signed sum of the
+  accepted steps' errors stays under BUDGET x TOL, else STRICT x its share; a rejected step
+  rolls every FMU back (fmi2SetFMUstate) and is retried, shorter;
 - the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
-  [0.5, 2], 0.2 after a rejection) and is cut so that the steps land on the output grid
-  (every step_size seconds, where results.csv gets its rows).
+  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval, and is cut
+  so that the steps land on the output grid (every step_size seconds: results.csv's rows).
 The sum of the accepted steps' errors is the run's error estimate.
 """
 from __future__ import annotations
@@ -29,10 +30,9 @@ from ..models.catalog import bundled_model
 from .instance import RunningInstance
 from .plan import Holds
 from .recorder import Recorder
-from .stepping import NonFinite, StepFailure, _one_pass, _state_call
+from .stepping import NonFinite, _one_pass, _state_call
 
 _TWIST = ("vx", "vy", "w")
-DEBUG = 0
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
 # A step's own error may take LOCAL times its share (h / span) of the tolerance: the steps'
 # errors of a smooth input largely cancel (a quadrature's leading term telescopes), and the
@@ -258,7 +258,6 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
             if ratio <= 1.0 or h <= 1e-12 * (stop - start):
                 break
             counts["steps_rejected"] += 1
-            if DEBUG: print(f"reject t={t:.4f} h={h:.3g} ratio={ratio:.3g} pos={position:.3g} head={heading:.3g} drift={drift:.3g}")
             control.reject(ratio, h)
             h = control.step_to(t, target)
             _restore(running, t)
