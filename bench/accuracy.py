@@ -1,80 +1,180 @@
-"""Accuracy per cost on the seed circle: master x step size -> end-point error, steps, wall time.
+"""Accuracy per cost: per scenario with a ground truth and per master, the end-point error
+against doStep passes and wall time; the adaptive master at several tolerances against the best
+fixed step that meets each (bisection over the steps that land on the output grid); a
+zero-order-hold host (libcosim or Ecos) at a fixed step on our exported SSP where installed.
 
-Prints the table and writes docs/img/accuracy.png (error vs wall time, log-log).
-Run: make bench   (or: .venv/bin/python bench/accuracy.py)
+A "pass" is one doStep of every FMU of the graph: the fixed masters take one per step (two in a
+feedback loop under quadratic), the adaptive master one per step taken or rejected (two in a
+loop). Errors are |end point - ground truth| in m (report/ground_truth.py). Wall times are of
+the stepping loop, on whatever else this machine runs: compare within one run.
+
+Run: make bench  (or: .venv/bin/python bench/accuracy.py [--quick] [--plot PATH])
+It writes results/bench/accuracy.png (never a tracked file); the docs' plot is made with
+  .venv/bin/python bench/accuracy.py --plot docs/img/accuracy.png
 """
 from __future__ import annotations
 
+import argparse
 import dataclasses
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from mecanum_fmu import master
+from mecanum_fmu.interop.other_hosts import HostFailed, HostUnavailable, run_host
+from mecanum_fmu.interop.ssp_write import export_ssp
+from mecanum_fmu.masters import MASTERS, entry
 from mecanum_fmu.process import exit_now
+from mecanum_fmu.report.ground_truth import ground_truth
 from mecanum_fmu.runner import prepare
 
 ROOT = Path(__file__).resolve().parents[1]
-EXACT = (1 - np.cos(10.0), np.sin(10.0))      # docs/spec.md, The seed scenario
-MASTERS = ("quadratic", "trapezoidal", "gauss-seidel", "jacobi")
-STEPS = (0.2, 0.1, 0.05, 0.01, 0.001)
+SCENARIOS = ("circle.yaml", "chassis/omni_field_circle.yaml", "profiles/joystick.yaml",
+             "profiles/quiet_then_busy.yaml", "modes/showcase.yaml", "modes/figure_eight.yaml")
+FIXED = tuple(m for m in MASTERS if not entry(m).adaptive)
+DIVIDE = (1, 2, 4)                      # fixed steps: the output interval / these
+TOLERANCES = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
 
 
-def measure(graph, master_name: str, h: float, repeat: int = 3) -> dict:
-    exp = dataclasses.replace(graph.scenario.experiment, master=master_name, step_size=h)
-    best = None
-    for _ in range(repeat):
-        res = master.simulate(graph, exp)
-        best = res if best is None or res.wall_time < best.wall_time else best
-    ex = best.final("pose.x") - EXACT[0]
-    ey = best.final("pose.y") - EXACT[1]
-    return {"master": master_name, "h": h, "steps": best.steps, "ex": ex, "ey": ey,
-            "err": float(np.hypot(ex, ey)), "wall": best.wall_time}
+def with_experiment(graph, **changes):
+    exp = dataclasses.replace(graph.scenario.experiment, **changes)
+    return dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
+                                                                   experiment=exp)), exp
 
 
-def main() -> list[dict]:
-    graph = prepare(ROOT / "scenarios" / "circle.yaml")
-    rows = [measure(graph, m, h) for m in MASTERS for h in STEPS]
-    print(f"{'master':<13} {'h [s]':>7} {'steps':>7} {'error x':>11} {'error y':>11} "
-          f"{'|error|':>10} {'wall [s]':>9}")
+def measure(graph, **changes) -> dict:
+    graph, exp = with_experiment(graph, **changes)
+    res = master.simulate(graph, exp)
+    truth = ground_truth(graph, res.time)
+    pose = next(n[:-2] for n in res.names if n.endswith(".x") and n[:-2] + ".theta" in res.names)
+    err = float(np.hypot(res[pose + ".x"][-1] - truth.x[-1], res[pose + ".y"][-1] - truth.y[-1]))
+    return {"master": exp.master, "h": exp.step_size, "tol": exp.tolerance, "err": err,
+            "passes": _passes(graph, res), "wall": res.wall_time}
+
+
+def _passes(graph, res) -> int:
+    twice = 2 if entry(res.master).rolls_back and _has_loop(graph) else 1
+    if res.steps_taken is not None:
+        return twice * (res.steps_taken + res.steps_rejected)
+    return twice * res.steps
+
+
+def _has_loop(graph) -> bool:
+    position = {inst.name: i for i, inst in enumerate(graph.instances)}
+    return any(position[l.source.ref.instance] > position[l.target.ref.instance]
+               for l in graph.links)
+
+
+def best_fixed(graph, tolerance: float, cache: dict) -> dict | None:
+    """The fewest passes of a fixed quadratic step h_out / m that meets the tolerance:
+    m doubled until it does, then bisected."""
+    h_out = graph.scenario.experiment.step_size
+
+    def run(m: int) -> dict:
+        if m not in cache:
+            cache[m] = measure(graph, master="quadratic", step_size=h_out / m)
+        return cache[m]
+    low, m = 0, 1
+    while run(m)["err"] > tolerance:
+        low, m = m, 2 * m
+        if m > 256:
+            return None
+    while m - low > 1:
+        mid = (low + m) // 2
+        low, m = (low, mid) if run(mid)["err"] <= tolerance else (mid, m)
+    return run(m)
+
+
+def zoh_host(graph) -> str:
+    exp = graph.scenario.experiment
+    names = [n for n in (str(p.ref) for p in graph.recorded) if n.endswith((".x", ".y"))][:2]
+    with tempfile.TemporaryDirectory(prefix="mecanum-bench-") as tmp:
+        ssp = export_ssp(graph, Path(tmp) / "run.ssp")
+        for host in ("libcosim", "ecos"):
+            try:
+                run = run_host(host, ssp, start=exp.start_time, stop=exp.stop_time,
+                               step=exp.step_size, variables=names)
+            except (HostUnavailable, HostFailed) as err:
+                last = str(err).splitlines()[0]
+                continue
+            truth = ground_truth(graph, np.array([exp.start_time, exp.stop_time]))
+            err = float(np.hypot(run.values[names[0]] - truth.x[-1],
+                                 run.values[names[1]] - truth.y[-1]))
+            return (f"{host} {run.version} (zero-order hold, h = {exp.step_size:g}): "
+                    f"|e| = {err:.2e} m, {run.simulate_s:.3f} s")
+    return f"no zero-order-hold host installed ({last})"
+
+
+def scenario_rows(name: str, quick: bool) -> tuple[list[dict], list[tuple]]:
+    graph = prepare(ROOT / "scenarios" / name)
+    h_out = graph.scenario.experiment.step_size
+    fixed = [measure(graph, master=m, step_size=h_out / d) for m in FIXED for d in DIVIDE]
+    cache = {d: r for d, r in zip(DIVIDE, fixed[:len(DIVIDE)])}
+    adaptive, table = [], []
+    for tol in TOLERANCES[:3] if quick else TOLERANCES:
+        row = measure(graph, master="adaptive", tolerance=tol)
+        adaptive.append(row)
+        table.append((tol, row, best_fixed(graph, tol, cache)))
+    return fixed + adaptive, table
+
+
+def print_scenario(name: str, rows: list[dict], table: list[tuple], host: str) -> None:
+    print(f"\n== {name}")
+    print(f"{'master':<13} {'h or TOL':>9} {'|error| m':>10} {'passes':>7} {'wall s':>8}")
     for r in rows:
-        print(f"{r['master']:<13} {r['h']:>7g} {r['steps']:>7d} {r['ex']:>11.3e} {r['ey']:>11.3e} "
-              f"{r['err']:>10.3e} {r['wall']:>9.4f}")
-    # Cost of reaching 5e-4 with zero-order hold vs the trapezoidal master at h = 0.05.
-    trap = next(r for r in rows if r["master"] == "trapezoidal" and r["h"] == 0.05)
-    gs = {r["h"]: r for r in rows if r["master"] == "gauss-seidel"}
-    # zero-order hold error is ~c*h: the step that reaches the trapezoidal error at h = 0.05
-    c = gs[0.001]["err"] / 0.001
-    h_needed = trap["err"] / c
-    zoh = measure(graph, "gauss-seidel", h_needed, repeat=1)
-    print(f"\nsame error as trapezoidal at h = 0.05 ({trap['err']:.2e} m): gauss-seidel needs "
-          f"h = {h_needed:.2e} s ({zoh['steps']} steps, error {zoh['err']:.2e} m, "
-          f"{zoh['wall']:.3f} s) -> trapezoidal is {zoh['wall'] / trap['wall']:.0f}x less wall time")
-    _plot(rows, ROOT / "docs" / "img" / "accuracy.png")
-    return rows
+        knob = r["tol"] if r["master"] == "adaptive" else r["h"]
+        print(f"{r['master']:<13} {knob:>9.3g} {r['err']:>10.2e} {r['passes']:>7d} "
+              f"{r['wall']:>8.3f}")
+    print(f"{'TOL':>7} {'true |e|':>9} {'<= TOL':>6} {'passes':>7} {'best fixed':>10} "
+          f"{'its h':>9} {'ratio':>6}")
+    for tol, row, best in table:
+        fixed = f"{best['passes']:>10d} {best['h']:>9.3g} {row['passes'] / best['passes']:>6.2f}" \
+            if best is not None else f"{'none':>10}"
+        print(f"{tol:>7.0e} {row['err']:>9.2e} {str(row['err'] <= tol):>6} {row['passes']:>7d} "
+              f"{fixed}")
+    print(f"host: {host}")
 
 
-def _plot(rows, path: Path) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+def plot(everything: dict, path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg   # here: start-up
     from matplotlib.figure import Figure
-    fig = Figure(figsize=(6.5, 4.5))
+    fig = Figure(figsize=(11, 7))
     FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
-    for name, marker in zip(MASTERS, "Dos^"):
-        mine = [r for r in rows if r["master"] == name]
-        ax.loglog([r["wall"] for r in mine], [r["err"] for r in mine], marker=marker, label=name)
-        for r in mine:
-            ax.annotate(f"h={r['h']:g}", (r["wall"], r["err"]), fontsize=7,
-                        xytext=(3, 3), textcoords="offset points")
-    ax.axhline(5e-4, color="grey", lw=0.8, ls="--", label="5e-4 m")
-    ax.set_xlabel("wall time of the stepping loop [s]")
-    ax.set_ylabel("end-point error [m]")
-    ax.set_title("Seed circle: accuracy per cost")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    for i, (name, rows) in enumerate(everything.items()):
+        ax = fig.add_subplot(2, 3, i + 1)
+        for m, marker in zip(MASTERS, "Dos^*"):
+            mine = [r for r in rows if r["master"] == m and r["err"] > 0]
+            if mine:
+                ax.loglog([r["passes"] for r in mine], [r["err"] for r in mine], marker=marker,
+                          label=m, lw=0.8, ms=4)
+        ax.set_title(name, fontsize=8)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.tick_params(labelsize=7)
+        if i % 3 == 0:
+            ax.set_ylabel("end-point error [m]", fontsize=8)
+        if i >= 3:
+            ax.set_xlabel("doStep passes", fontsize=8)
+    fig.axes[0].legend(fontsize=7)
+    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    print(f"wrote {path.relative_to(ROOT)}")
+    fig.savefig(path, dpi=90)
+    print(f"wrote {path}")
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="three tolerances, no 1e-5/1e-6")
+    parser.add_argument("--plot", type=Path, default=ROOT / "results" / "bench" / "accuracy.png")
+    args = parser.parse_args(argv)
+    everything = {}
+    for name in SCENARIOS:
+        rows, table = scenario_rows(name, args.quick)
+        host = zoh_host(prepare(ROOT / "scenarios" / name))
+        print_scenario(name, rows, table, host)
+        everything[name] = rows
+    plot(everything, args.plot)
+    return everything
 
 
 if __name__ == "__main__":

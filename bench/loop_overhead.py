@@ -110,7 +110,7 @@ def finite_check(graph, n: int) -> float:
     """The stepping loop's once-per-step check for NaN/inf (master.stepping.step_all) alone:
     the same dot product on a Real buffer of this graph's size, n times."""
     from mecanum_fmu.master.plan import Buffers
-    real = Buffers(graph, jacobi=False).real
+    real = Buffers(graph, freeze=False).real
     real_dot, zeros = real.dot, np.zeros_like(real)
     tick = time.perf_counter()
     for _ in range(n):

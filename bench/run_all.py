@@ -12,7 +12,7 @@ from mecanum_fmu.process import exit_now
 
 if __name__ == "__main__":
     print("== accuracy per cost (bench/accuracy.py)")
-    accuracy.main()
+    accuracy.main([])
     print("\n== stepping-loop overhead (bench/loop_overhead.py)")
     loop_overhead.main()
     print("\n== peak memory against run length (bench/memory.py)")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
+from .masters import DEFAULT as DEFAULT_MASTER, MASTERS
 
 
 def _number(text: str) -> float:
@@ -18,6 +19,13 @@ def _number(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def _positive(text: str) -> float:
+    value = _number(text)
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number > 0")
+    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,8 +48,11 @@ def _add_run(sub) -> None:
     run.add_argument("--out", type=Path, help="output folder (default: results/<scenario name>)")
     run.add_argument("--step-size", type=_number, help="communication step (s)")
     run.add_argument("--stop-time", type=_number, help="end of the run (s)")
-    run.add_argument("--master", help="quadratic (default), trapezoidal, gauss-seidel or jacobi "
-                     "(docs/masters.md)")
+    run.add_argument("--master", help=f"{', '.join(MASTERS)} (default {DEFAULT_MASTER}; "
+                     "docs/masters.md)")
+    run.add_argument("--tolerance", type=_positive, metavar="TOL",
+                     help="choose the step to keep the pose's estimated error under TOL (m, "
+                     "rad): the adaptive master; rows stay every --step-size s")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument("--animate", action="store_true", help="also write animation.gif")
     run.add_argument("--quiet", "-q", action="store_true", help="print only errors")
@@ -209,7 +220,7 @@ def cmd_run(args) -> int:
     from .runner import prepare, run
     try:
         graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
-                        master_name=args.master, fmu_dir=args.fmu_dir)
+                        master_name=args.master, fmu_dir=args.fmu_dir, tolerance=args.tolerance)
     except BaseException:
         if plotter is not None:
             plotter.cancel()

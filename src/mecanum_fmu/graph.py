@@ -15,6 +15,7 @@ from fmpy.model_description import ModelDescription, ScalarVariable
 from .models import library as fmu_library
 from .models.catalog import bundled_model
 from .errors import Problem, ScenarioError
+from .masters import entry as master_entry
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 
 VALUE_TYPES = ("Real", "Integer", "Boolean")    # what moves between FMUs and is recorded
@@ -100,14 +101,16 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
 
 
 def _rollback_warning(scenario: Scenario, order: list[Instance], links: list[Link]) -> list[str]:
-    """The quadratic master steps a loop twice and rolls back in between: every FMU must be able
-    to get and set its state. Without, it steps the loop once (as the trapezoidal master)."""
+    """A master that rolls back steps a loop twice, restoring the state in between: every FMU
+    must be able to get and set its state. Without, it steps the loop once (as the trapezoidal
+    master)."""
     position = {inst.name: i for i, inst in enumerate(order)}
     loop = any(position[l.source.ref.instance] > position[l.target.ref.instance] for l in links)
     unable = [inst.name for inst in order if not inst.can_get_set_state]
-    if scenario.experiment.master != "quadratic" or not loop or not unable:
+    name = scenario.experiment.master
+    if not master_entry(name).rolls_back or not loop or not unable:
         return []
-    return [f"{scenario.label}: the quadratic master takes each step of a feedback loop twice, "
+    return [f"{scenario.label}: the {name} master takes each step of a feedback loop twice, "
             f"rolling back with fmi2SetFMUstate, which {', '.join(repr(n) for n in unable)} "
             f"cannot do (canGetAndSetFMUstate is false): the loop is stepped once on "
             f"extrapolated inputs instead, as by the trapezoidal master"]

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+BELOW_ROUND_OFF = "below round-off"    # an error estimate within the outputs' round-off
+
 
 @dataclass
 class Results:
@@ -23,6 +25,8 @@ class Results:
     wall_time: float                # seconds spent in the stepping loop
     complete: bool = True
     extra: dict = field(default_factory=dict)
+    steps_taken: int | None = None      # the adaptive master: accepted steps (doStep passes)
+    steps_rejected: int = 0             # ... and rejected ones, rolled back
 
     @property
     def time(self) -> np.ndarray:
@@ -76,3 +80,23 @@ def format_value(value) -> str:
 
 def write_json(data: dict, path: Path) -> None:
     path.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
+
+
+def error_estimate_lines(summary: dict) -> list[str]:
+    """summary.json's error estimate (master/estimate.py) as the run's report prints it."""
+    if "error_estimate_method" not in summary:
+        return []
+    estimate = summary["error_estimate"]
+    if estimate is None:
+        return [f"error estimate: {summary['error_estimate_method']}"]
+    lines = [f"error estimate ({summary['error_estimate_method']}):"]
+    if "steps_taken" in summary:
+        lines.insert(0, f"tolerance {summary['tolerance']:g}: {summary['steps_taken']} steps "
+                        f"taken, {summary['steps_rejected']} rejected and rolled back")
+    for name, e in estimate.items():
+        lines.append(f"  {name}: max {_show(e['max'])}, end {_show(e['end'])}")
+    return lines
+
+
+def _show(value) -> str:
+    return value if isinstance(value, str) else f"{value:.2e}"

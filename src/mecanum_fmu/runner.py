@@ -19,7 +19,8 @@ from .report.ground_truth import Truth, ground_truth
 from .output import OutputFolder
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
-from .results import Results
+from .results import Results, error_estimate_lines
+from .masters import tolerance_master
 from .scenario import MASTERS, Scenario, load_scenario, override_experiment
 
 
@@ -36,6 +37,7 @@ class RunOutcome:
 
 def prepare(path: str | Path, *, step_size: float | None = None, stop_time: float | None = None,
             master_name: str | None = None, fmu_dir: Path | None = None,
+            tolerance: float | None = None,
             build: bool = True) -> Graph:
     """Load and check a scenario (with command-line overrides) and compile its graph. With
     build (the default), the bundled FMUs it uses are built first when missing or stale;
@@ -46,7 +48,9 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
     else:
         scenario = load_scenario(path)
     changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
-                                 ("master", master_name)) if v is not None}
+                                 ("master", master_name), ("tolerance", tolerance),
+                                 ("master", tolerance_master(master_name, tolerance,
+                                                             scenario.label))) if v is not None}
     if changes:
         if "master" in changes and changes["master"] not in MASTERS:
             raise ScenarioError([Problem(scenario.label, "--master", f"unknown master "
@@ -112,7 +116,9 @@ def _run_in(graph: Graph, out: OutputFolder, *, plotter: PlotWorker | None, prog
     results, files = _simulate_into(graph, out, progress, keep_rows)
     truth, truth_error = _ground_truth(graph, results)
     summary = summarize(graph, results, truth)
-    if truth is not None or truth_error:
+    from .master import estimate_error  # here: light start-up (validate)
+    summary |= estimate_error(graph, results)    # the run again at 2h and 4h
+    if truth is not None or truth_error or "error_estimate_method" in summary:
         if truth_error:
             summary["ground_truth_error"] = truth_error
         _rewrite_summary(out, summary, files)
@@ -248,4 +254,4 @@ def report_lines(summary: dict) -> list[str]:
         lines += pose_report_lines(summary["poses"])
     if "wheel_signs" in summary:
         lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
-    return lines
+    return lines + error_estimate_lines(summary)

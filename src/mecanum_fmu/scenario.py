@@ -17,13 +17,13 @@ from typing import Any, Union
 import yaml
 
 from .errors import Problem, ScenarioError
+from .masters import ADAPTIVE, DEFAULT as DEFAULT_MASTER, MASTERS, entry as master_entry
 from .storage import NotARegularFile, read_regular
 
-MASTERS = ("quadratic", "trapezoidal", "gauss-seidel", "jacobi")
 MAX_FILE_BYTES = 1_000_000
 MAX_NAME = 100          # characters of a scenario name (it names the results folder)
 DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
-                      "master": "quadratic"}
+                      "master": DEFAULT_MASTER, "tolerance": None}
 
 Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -48,6 +48,7 @@ class Experiment:
     stop_time: float
     step_size: float
     master: str
+    tolerance: float | None = None    # the adaptive master's error bound (masters.py)
 
 
 @dataclass(frozen=True)
@@ -283,7 +284,21 @@ def experiment_values(raw: Any, bad) -> tuple[dict[str, Any], bool]:
         else:
             bad("experiment.master", f"unknown master {show(raw['master'])}"
                 f"{did_you_mean(raw['master'], MASTERS)} (choose one of {', '.join(MASTERS)})")
+    if "tolerance" in raw:
+        _tolerance(raw, values, bad)
     return values, ok
+
+
+def _tolerance(raw: dict, values: dict, bad) -> None:
+    """experiment.tolerance: a number > 0; it chooses the adaptive master (masters.py)."""
+    value, name = raw["tolerance"], values.get("master")
+    if not is_number(value) or not is_finite(value) or not value > 0:
+        bad("experiment.tolerance", f"expected a number > 0 (e.g. 1e-4), got {show(value)}")
+    elif name is not None and not master_entry(name).adaptive:
+        bad("experiment.tolerance", f"the {name} master takes a fixed step: drop `master: "
+            f"{name}` (a tolerance chooses the adaptive master) or the tolerance")
+    else:
+        values["tolerance"], values["master"] = float(value), ADAPTIVE
 
 
 def override_experiment(scenario: "Scenario", changes: dict[str, Any], label: str,

@@ -26,6 +26,7 @@ from pathlib import Path
 from .. import __version__, master
 from ..errors import Problem, ScenarioError
 from ..graph import Graph
+from ..masters import ZOH_HOST
 from .other_hosts import HOSTS, HostFailed, HostRun, HostUnavailable, run_host
 from .ssp_write import export_ssp
 
@@ -94,7 +95,7 @@ def difference(a: dict[str, float], b: dict[str, float], names: list[str]) -> fl
 
 
 def ours_jacobi(graph: Graph, names: list[str]) -> HostRun:
-    experiment = dataclasses.replace(graph.scenario.experiment, master="jacobi")
+    experiment = dataclasses.replace(graph.scenario.experiment, master=ZOH_HOST)
     t0 = time.perf_counter()
     results = master.simulate(graph, experiment)
     total = time.perf_counter() - t0

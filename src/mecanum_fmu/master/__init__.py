@@ -13,22 +13,21 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import Interrupted, SimulationError
+from ..errors import Interrupted, Problem, ScenarioError, SimulationError
 from ..graph import Graph
+from ..masters import DEFAULT, DEFAULT_TOLERANCE, Master, entry as master_entry
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
+from .adaptive import AdaptiveHolds, estimate_of, step_adaptive
+from .estimate import error_estimate
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
-
-# How each master holds the inputs over a step (plan.HOLDS)
-HOLD = {"quadratic": "quadratic", "trapezoidal": "trapezoidal", "gauss-seidel": "zoh",
-        "jacobi": "zoh"}
 from .recorder import Recorder, step_count
 from .stepping import (NonFinite, StepFailure, check_finite, ctrl_c_latched, initialise,
                        step_all)
 
-__all__ = ["simulate", "release_instances", "RUNTIME"]
+__all__ = ["simulate", "estimate_error", "release_instances", "RUNTIME"]
 
 
 def simulate(graph: Graph, experiment: Experiment,
@@ -43,12 +42,14 @@ def simulate(graph: Graph, experiment: Experiment,
     reached it when simulate returns or raises, except when the sink itself raises, which
     ends the run with that exception). `keep_rows`: the returned Results hold every row
     (None, the default) or about that many evenly spaced rows plus the exact last one."""
-    buffers = Buffers(graph, jacobi=experiment.master == "jacobi")
+    how = master_entry(experiment.master)
+    buffers = Buffers(graph, freeze=how.freezes_inputs)
     recorder = Recorder(graph, experiment, buffers, step_count(experiment), sink, keep_rows)
     with ExitStack() as stack:
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
-        holds = plan_transfers(running, graph, buffers, HOLD[experiment.master])
+        holds = plan_transfers(running, graph, buffers, how.hold,
+                               AdaptiveHolds() if how.adaptive else None)
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)
@@ -60,10 +61,37 @@ def simulate(graph: Graph, experiment: Experiment,
             raise _not_finite(buffers, err.time, recorder) from None
         recorder.record()
         holds.prime()
-        _run_loop(running, recorder, ctrl_c, buffers, progress, holds,
-                  rollback=holds.ahead and experiment.master == "quadratic" and all(
-                      r.can_roll_back for r in running))
-        return recorder.results(True)
+        stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
+        _run_loop(recorder, ctrl_c, buffers, stepper)
+        results = recorder.results(True)
+        if counts:
+            results.steps_taken, results.steps_rejected = (counts["steps_taken"],
+                                                           counts["steps_rejected"])
+            results.extra["error_estimate"] = estimate_of(graph, results, counts, holds)
+        return results
+
+
+def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ctrl_c,
+             progress, holds: Holds) -> tuple[Callable[[], None], dict]:
+    """The stepping loop of this master, and the adaptive master's step counts."""
+    rollback = all(r.can_roll_back for r in running)
+    if not how.adaptive:
+        freeze = recorder.buffers.freeze if recorder.buffers.frozen else None
+        return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
+                                 holds.ahead and how.rolls_back and rollback)), {}
+    if not rollback or not holds.poses:
+        why = (f"rejects and retakes steps with fmi2Get/SetFMUstate, which "
+               + ", ".join(repr(r.name) for r in running if not r.can_roll_back) + " cannot do"
+               if not rollback else "controls the error of a PoseIntegrator's pose, and this "
+               "graph has none")
+        raise ScenarioError([Problem(recorder.graph.scenario.label, "experiment.master",
+                                     f"the {how.name} master {why}; choose a fixed-step "
+                                     f"master (e.g. {DEFAULT})")])
+    counts = {"steps_taken": 0, "steps_rejected": 0,
+              "estimates": [[(0.0, 0.0, 0.0)] * len(holds.poses)]}
+    tolerance = recorder.experiment.tolerance or DEFAULT_TOLERANCE
+    return (lambda: step_adaptive(running, recorder, ctrl_c, progress, holds, tolerance,
+                                  counts)), counts
 
 
 def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
@@ -76,13 +104,12 @@ def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
     return running
 
 
-def _run_loop(running, recorder: Recorder, ctrl_c, buffers: Buffers, progress, holds: Holds,
-              rollback: bool) -> None:
-    freeze = buffers.freeze if recorder.experiment.master == "jacobi" else None
+def _run_loop(recorder: Recorder, ctrl_c, buffers: Buffers, stepper: Callable[[], None]
+              ) -> None:
     tick = _time.perf_counter()
     try:
         with np.errstate(all="ignore"):     # an overflow is reported as a non-finite value
-            step_all(running, recorder, ctrl_c, freeze, progress, holds, rollback)
+            stepper()
     except StepFailure as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
         if not np.isfinite(buffers.real).all():   # the cause: a value that went non-finite
@@ -126,3 +153,9 @@ def _failure(r: RunningInstance, function: str, status: int, when: float,
         + (f" (FMU says: {said})" if said else ""),
         component=r.name, time=when, status=STATUS.get(status, str(status)),
         results=recorder.results(False))
+
+
+def estimate_error(graph: Graph, results: Results) -> dict:
+    """The run's coupling error, for summary.json (master/estimate.py): the graph stepped
+    again at 2h and 4h."""
+    return error_estimate(graph, results, simulate)

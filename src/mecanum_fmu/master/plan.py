@@ -21,7 +21,7 @@ _C_TYPES = {"Real": (ctypes.c_double, np.float64), "Integer": (ctypes.c_int, np.
 class Buffers:
     """One slot per value that moves or is recorded, contiguous per instance and type."""
 
-    def __init__(self, graph: Graph, jacobi: bool):
+    def __init__(self, graph: Graph, freeze: bool):
         self.real_slots: dict[Port, int] = {}
         self.int_slots: dict[Port, int] = {}
         self.outputs_of = _outputs_of(graph)
@@ -34,7 +34,8 @@ class Buffers:
         self.int = np.zeros(max(len(self.int_slots), 1), dtype=np.int32)
         # Inputs are set from these. Jacobi: a copy of the values at t_k, frozen before anyone
         # steps, so every component sees t_k whatever the order; otherwise the live buffers.
-        self.real_in, self.int_in = ((self.real.copy(), self.int.copy()) if jacobi
+        self.frozen = freeze
+        self.real_in, self.int_in = ((self.real.copy(), self.int.copy()) if freeze
                                      else (self.real, self.int))
 
     def slots(self, port: Port) -> dict[Port, int]:
@@ -66,11 +67,12 @@ def _outputs_of(graph: Graph) -> dict[str, list[Port]]:
 
 
 def plan_transfers(running: list[RunningInstance], graph: Graph, buffers: Buffers,
-                   hold: str) -> Holds:
+                   hold: str, holds: "Holds | None" = None) -> Holds:
     """Preallocate, per instance and type, one batched get and one batched set (see
-    _plan_writes). `hold`: "zoh" (Gauss-Seidel, Jacobi), "trapezoidal" or "quadratic"."""
+    _plan_writes). `hold`: "zoh" (Gauss-Seidel, Jacobi), "trapezoidal" or "quadratic";
+    `holds`: where the blended inputs go (default: a Holds of that hold's fixed weights)."""
     position = {r.name: i for i, r in enumerate(running)}
-    holds = Holds()
+    holds = Holds(hold) if holds is None else holds
     for r in running:
         _plan_reads(r, buffers)
         _plan_writes(r, graph, buffers, position, hold, holds)
@@ -111,9 +113,8 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
         src = np.array([buffers.slot(l.source) for l in mine], dtype=np.intp)
         vrs, c_set = _vr_array([l.target.vr for l in mine]), r.c_set[value_kind]
         if kind == "Blend":
-            mine_roles = [roles[l.target.ref.variable] for l in mine]
-            blend = holds.add(buf, src, [HOLDS[hold][role] for role in mine_roles],
-                              ahead=any(role != "state" for role in mine_roles))
+            blend = holds.add(buf, src, [roles[l.target.ref.variable] for l in mine],
+                              [l.target for l in mine], r.inst)
             r.writes.append((blend.fill, c_set, vrs, len(mine), _pointer(blend.staging, 0, ctype)))
         elif list(src) == list(range(src[0], src[0] + len(src))):
             r.writes.append((None, c_set, vrs, len(mine), _pointer(buf, int(src[0]), ctype)))
@@ -173,15 +174,18 @@ class Holds:
     each blend (through the instances' writes), then commit() once the step is final."""
     PREDICT, CORRECT = 0, 1
 
-    def __init__(self):
+    def __init__(self, hold: str):
+        self.hold = hold
         self.blends: list[_Blend] = []
         self.mode = self.PREDICT
         self.steps = 0          # committed steps: the parabola needs two behind it
         self.ahead = False      # some input's next value is unknown when its FMU steps (a loop)
 
-    def add(self, buffer: np.ndarray, src: np.ndarray, rules: list, ahead: bool) -> "_Blend":
-        self.blends.append(_Blend(self, buffer, src, rules))
-        self.ahead = self.ahead or ahead
+    def add(self, buffer: np.ndarray, src: np.ndarray, roles: list[str], targets: list[Port],
+            inst: Instance) -> "_Blend":
+        """A blend of inputs `targets` of `inst` (from buffer[src]), by role (_blend_roles)."""
+        self.blends.append(_Blend(self, buffer, src, [HOLDS[self.hold][r] for r in roles]))
+        self.ahead = self.ahead or any(role != "state" for role in roles)
         return self.blends[-1]
 
     def prime(self) -> None:

@@ -223,7 +223,9 @@ def write_runs_csv(path: Path, sweep: Sweep, graph: Graph, runs: list[Run],
     varied = [str(ref) for ref in sweep.varied]
     has_truth = bool(errors) or (find_roles(graph).source is not None
                                  and find_roles(graph).pose is not None)
-    header = ["run"] + varied + ["status", "message"] + outputs + (list(ERRORS) if has_truth else [])
+    estimates = estimate_columns(results)
+    header = (["run"] + varied + ["status", "message"] + outputs
+              + (list(ERRORS) if has_truth else []) + list(estimates))
     with _atomic(path, "w", newline="") as fh:
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(header)
@@ -236,7 +238,19 @@ def write_runs_csv(path: Path, sweep: Sweep, graph: Graph, runs: list[Run],
                             + [row.status, row.message]
                             + [format_value(row.ends[o]) if o in row.ends else "" for o in outputs]
                             + ([format_value(err[e]) if e in err else "" for e in ERRORS]
-                               if has_truth else []))
+                               if has_truth else [])
+                            + [column.get(run.index, "") for column in estimates.values()])
+
+
+def estimate_columns(results: dict[int, RunResult]) -> dict[str, dict[int, str]]:
+    """runs.csv's error-estimate columns (master/estimate.py): `estimate.<output>.max` and
+    `.end` per pose output, one value per run that has one ("below round-off" as it is)."""
+    columns: dict[str, dict[int, str]] = {}
+    for index, row in sorted(results.items()):
+        for name, e in row.estimate.items():
+            for k in ("max", "end"):
+                columns.setdefault(f"estimate.{name}.{k}", {})[index] = format_value(e[k])
+    return columns
 
 
 class _atomic:

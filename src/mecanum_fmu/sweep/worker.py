@@ -32,6 +32,7 @@ class RunResult:
     path: np.ndarray | None              # (PATH_POINTS, 2): pose x, y, subsampled
     seconds: float                       # the whole run on the worker
     loop_seconds: float                  # its stepping loop
+    estimate: dict = dataclasses.field(default_factory=dict)   # summary.json's error_estimate
 
 
 def with_values(graph: Graph, values: dict[VarRef, Scalar]) -> Graph:
@@ -68,7 +69,10 @@ def _run_one(graph, index, values, path_names) -> RunResult:
             path = np.column_stack([np.asarray(results[n])[rows] for n in path_names])
     if status != "ok":
         ends = {}                      # a failed run has no end point
-    return RunResult(index, status, message, ends, path, time.perf_counter() - tick, loop)
+    estimate = (master.estimate_error(variant, results).get("error_estimate") or {}
+                if status == "ok" else {})
+    return RunResult(index, status, message, ends, path, time.perf_counter() - tick, loop,
+                     estimate)
 
 
 class CleanUp(WorkerPlugin):

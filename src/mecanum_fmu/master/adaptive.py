@@ -1,0 +1,320 @@
+"""The adaptive master: the quadratic hold on a step chosen to meet a tolerance.
+
+Per step, after the pass (docs/masters.md, "The adaptive master"):
+- the hold is the quadratic master's on unequal steps: the mean over the step of the parabola
+  through u_k-1, u_k, u_k+1 (its second difference limited by the previous one, minmod);
+  in a loop the step is predicted with the linear extrapolation, rolled back and corrected;
+- the step's error comes from the pose's twist before and after the step (no extra doStep):
+  the hold's next term, |u'''| h^3 / 24 on the mean, u''' the third divided difference
+  limited by the last step's (minmod: a jump or a kink in a table adds nothing, no storm of
+  rejections); the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error
+  moves every later point by J (p - p_t);
+- a step may take LOCAL x its share TOL * h / (stop - start) while the signed sum of the
+  accepted steps' errors stays under BUDGET x TOL, else STRICT x its share; a rejected step
+  rolls every FMU back (fmi2SetFMUstate) and is retried, shorter;
+- the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
+  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval, and is cut
+  so that the steps land on the output grid (every step_size seconds: results.csv's rows).
+The sum of the accepted steps' errors is the run's error estimate.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from typing import Callable
+
+import numpy as np
+
+from ..graph import Instance, Port
+from ..models.catalog import bundled_model
+from .instance import RunningInstance
+from .plan import Holds
+from .recorder import Recorder
+from .stepping import NonFinite, _one_pass, _state_call
+
+_TWIST = ("vx", "vy", "w")
+SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
+# A step's own error may take LOCAL times its share (h / span) of the tolerance: the steps'
+# errors of a smooth input largely cancel (a quadrature's leading term telescopes), and the
+# signed sum catches the case where they do not: once over BUDGET x the tolerance, the steps
+# are held to STRICT x their share
+LOCAL, BUDGET, STRICT = 4.0, 0.4, 0.5
+
+
+def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.where(a * b > 0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0)
+
+
+class AdaptiveHolds(Holds):
+    """Holds over unequal steps: h (this step), g and f (the two before)."""
+
+    def __init__(self):
+        super().__init__("quadratic")
+        self.h = self.g = self.f = 1.0
+        self.poses: list["PoseError"] = []     # per PoseIntegrator: its vx, vy, w
+
+    def add(self, buffer, src, roles, targets: list[Port], inst: Instance) -> "_VarBlend":
+        blend = _VarBlend(self, buffer, src, roles)
+        self.blends.append(blend)
+        self.ahead = self.ahead or any(role != "state" for role in roles)
+        model = bundled_model(inst.model)
+        names = [t.ref.variable for t in targets]
+        if model is not None and model.role == "pose" and all(n in names for n in _TWIST):
+            self.poses.append(PoseError(blend, [names.index(n) for n in _TWIST], inst))
+        return blend
+
+    def prime(self) -> None:
+        super().prime()
+        for b in self.blends:
+            b.third_before[:] = 0.0
+
+    def commit(self) -> None:
+        for b in self.blends:
+            b.third_before[:] = b.third
+        super().commit()
+        self.f, self.g = self.g, self.h
+
+
+class _VarBlend:
+    """One group of blended inputs: history [now | u_k | u_k-1 | u_k-2] and its roles."""
+
+    def __init__(self, holds: AdaptiveHolds, buffer: np.ndarray, src: np.ndarray, roles: list):
+        m = len(src)
+        self.holds, self.buffer, self.src = holds, buffer, src
+        self.staging = np.zeros(m)
+        self.history = np.zeros(4 * m)
+        self.rows = self.history.reshape(4, m)          # views: now, u_k, u_k-1, u_k-2
+        self.older, self.old = self.history[2 * m:], self.history[m:3 * m]
+        roles = np.array(roles)
+        self.ahead, self.fed = roles == "state_ahead", roles == "fed_back"
+        self.third = np.zeros(m)          # u''' over this step (limited in error())
+        self.third_before = np.zeros(m)
+
+    def fill(self) -> None:
+        np.take(self.buffer, self.src, out=self.rows[0])
+        now, u, u1, u2 = self.rows
+        hs = self.holds
+        h, g, f = hs.h, hs.g, hs.f
+        mean = 0.5 * (now + u)
+        if hs.steps >= 2:
+            second = 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
+            before = 2 * ((u - u1) / g + (u2 - u1) / f) / (g + f)
+            mean = mean - _minmod(second, before) * h * h / 12
+        if hs.mode == hs.PREDICT:
+            slope = (u - u1) / g
+            self.staging[:] = np.where(self.ahead, u + slope * h / 2,
+                                       np.where(self.fed, u + slope * h, mean))
+        else:
+            self.staging[:] = np.where(self.fed, now, mean)
+
+    def error(self) -> np.ndarray:
+        """The error of this step's held mean, per input: |u'''| h^3 / 24, u''' limited."""
+        now, u, u1, u2 = self.rows
+        hs = self.holds
+        h, g, f = hs.h, hs.g, hs.f
+        d2a = ((now - u) / h - (u - u1) / g) / (h + g)
+        d2b = ((u - u1) / g - (u1 - u2) / f) / (g + f)
+        self.third[:] = 6 * (d2a - d2b) / (h + g + f)
+        if hs.steps < 3:       # no history yet: the step is kept short instead (first_step)
+            return np.zeros_like(self.third)
+        return np.abs(_minmod(self.third, self.third_before)) * h ** 3 / 24
+
+    def commit(self) -> None:
+        self.older[:] = self.old
+        np.take(self.buffer, self.src, out=self.rows[1])
+
+
+class PoseError:
+    """The signed error of one pose, accumulated over the accepted steps: the body-frame
+    errors of each step turned into the world frame (heading and position tracked from the
+    held twist), and the heading's errors carried along the path travelled since."""
+
+    def __init__(self, blend: "_VarBlend", index: list[int], inst: Instance):
+        self.blend, self.index, self.name = blend, index, inst.name
+        self.theta = float(inst.value("theta0"))
+        self.p = np.zeros(2)
+        self.e = np.zeros(2)          # position errors made on the steps, world frame
+        self.heading = 0.0            # sum of the heading errors
+        self.moment = np.zeros(2)     # sum of p_t * heading error_t
+
+    def step(self, h: float, left: float) -> tuple[float, float, tuple]:
+        """(position error bound, |heading error|) of this step for the controller, and the
+        signed update to apply if the step is accepted."""
+        e = self.blend.error()
+        ivx, ivy, iw = self.index
+        now, u, mean = self.blend.rows[0], self.blend.rows[1], self.blend.staging
+        vx, vy, w = mean[ivx], mean[ivy], mean[iw]
+        dvx, dvy, dw = now[ivx] - u[ivx], now[ivy] - u[ivy], now[iw] - u[iw]
+        # held minus true: the cubic's term (the third derivative's, h^4/24 over the step)
+        # and the frame turning within the step, -J (w dv - dw v) h^2 / 12 (docs/masters.md)
+        tx, ty = (w * dvx - dw * vx) * h * h / 12, (w * dvy - dw * vy) * h * h / 12
+        body = (h * e[ivx] + ty, h * e[ivy] - tx)
+        e_theta = h * e[iw]
+        bound = math.hypot(*body) + abs(e_theta) * math.hypot(vx, vy) * left
+        return bound, abs(e_theta), (body, e_theta, (vx, vy, w))
+
+    def after(self, h: float, update: tuple) -> float:
+        """The largest |error| of x, y, theta if the step were accepted."""
+        saved = (self.theta, self.p.copy(), self.e.copy(), self.heading, self.moment.copy())
+        self.accept(h, update)
+        worst = max(self.now())
+        self.theta, self.p, self.e, self.heading, self.moment = saved
+        return worst
+
+    def accept(self, h: float, update: tuple) -> None:
+        (bx, by), e_theta, (vx, vy, w) = update
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        self.e += (c * bx - s * by, s * bx + c * by)
+        self.p += (h * (c * vx - s * vy), h * (s * vx + c * vy))
+        self.theta += h * w
+        self.heading += e_theta
+        self.moment += self.p * e_theta
+
+    def now(self) -> tuple[float, float, float]:
+        """|error| of x, y, theta now: the steps' own, plus J (p S - sum p_t e_t) of the
+        heading errors (a heading error e_t at p_t moves every later point by J (p - p_t))."""
+        carried = self.p * self.heading - self.moment
+        return (abs(self.e[0] - carried[1]), abs(self.e[1] + carried[0]), abs(self.heading))
+
+
+def step_error(holds: AdaptiveHolds, left: float) -> tuple[float, float, list]:
+    """(position error bound in m, heading error in rad) of the step just taken, the worst
+    over every pose, and the signed updates."""
+    position = heading = 0.0
+    updates = []
+    for pose in holds.poses:
+        bound, e_theta, update = pose.step(holds.h, left)
+        position, heading = max(position, bound), max(heading, e_theta)
+        updates.append(update)
+    for blend in holds.blends:      # inputs of other FMUs: their third differences move on
+        if all(blend is not pose.blend for pose in holds.poses):
+            blend.error()
+    return position, heading, updates
+
+
+class Controller:
+    """The step: PI on the error ratio, clamped, cut to land on the output grid."""
+
+    def __init__(self, tolerance: float, span: float, first: float, longest: float):
+        self.tolerance, self.span, self.longest = tolerance, span, longest
+        self.wanted, self.ratio_before = first, 1.0
+
+    def ratio(self, position: float, heading: float, h: float, drift: float) -> float:
+        """Over 1: reject. The step's own error against LOCAL x its share of the tolerance
+        while the signed accumulated error stays under BUDGET x the tolerance, else against
+        STRICT x its share (the rest of the run then adds at most STRICT x the tolerance)."""
+        share = LOCAL if drift <= BUDGET * self.tolerance else STRICT
+        return max(position, heading) / (share * self.tolerance * h / self.span)
+
+    def accept(self, ratio: float) -> None:
+        r = max(ratio, 1e-10)
+        factor = SAFETY * r ** -K_I * self.ratio_before ** K_P
+        # never more than the output interval: a long quiet stretch must not leave a step
+        # that takes many rejections to come down when the input turns
+        self.wanted = min(self.wanted * min(2.0, max(0.5, factor)), self.longest)
+        self.ratio_before = r
+
+    def reject(self, ratio: float, h: float) -> None:
+        self.wanted = h * max(0.2, min(0.9, SAFETY * ratio ** (-1 / 3)))
+
+    def step_to(self, t: float, target: float) -> float:
+        """A step from t that lands on `target` (the next output time) in whole steps."""
+        n = max(1, math.ceil((target - t) / self.wanted - 1e-9))
+        return (target - t) / n
+
+
+def first_step(tolerance: float, interval: float) -> float:
+    """The first steps have no history for the error estimate: short (the trapezoid's error
+    then is h^3 |u''| / 12 per step, below the tolerance for any smooth input of size ~1)."""
+    return interval * min(1.0, tolerance ** (1 / 3))
+
+
+def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[int],
+                  progress: Callable[[float], None] | None, holds: AdaptiveHolds,
+                  tolerance: float, counts: dict) -> None:
+    """The adaptive loop: rows recorded on the output grid only. counts gets steps_taken,
+    steps_rejected and the accumulated error estimate. Raises StepFailure, NonFinite,
+    KeyboardInterrupt."""
+    exp = recorder.experiment
+    start, stop, interval = exp.start_time, exp.stop_time, exp.step_size
+    program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
+    control = Controller(tolerance, stop - start, first_step(tolerance, interval), interval)
+    real, ints = recorder.buffers.real, recorder.buffers.int
+    saved_real, saved_int = real.copy(), ints.copy()    # the values at t_k, for a retry
+    t, j = start, 0
+    next_report = _time.perf_counter() + 1.0
+    while j < recorder.n_steps:
+        target = stop if j == recorder.n_steps - 1 else start + (j + 1) * interval
+        h = control.step_to(t, target)
+        _save(running, t)
+        saved_real[:], saved_int[:] = real, ints
+        while True:
+            if ctrl_c[0]:
+                raise KeyboardInterrupt
+            _attempt(running, program, holds, t, h)
+            position, heading, updates = step_error(holds, stop - t - h)
+            drift = max([pose.after(h, u) for pose, u in zip(holds.poses, updates)])
+            ratio = control.ratio(position, heading, h, drift)
+            if ratio <= 1.0 or h <= 1e-12 * (stop - start):
+                break
+            counts["steps_rejected"] += 1
+            control.reject(ratio, h)
+            h = control.step_to(t, target)
+            _restore(running, t)
+            real[:], ints[:] = saved_real, saved_int
+        _free(running, t)
+        holds.commit()
+        counts["steps_taken"] += 1
+        for pose, update in zip(holds.poses, updates):
+            pose.accept(h, update)
+        control.accept(ratio)
+        if not np.isfinite(real).all():
+            raise NonFinite(t + h)
+        t = t + h
+        if abs(t - target) <= 1e-9 * interval:
+            t, j = target, j + 1
+            recorder.record()
+            counts["estimates"].append([pose.now() for pose in holds.poses])
+            if progress is not None and _time.perf_counter() >= next_report:
+                progress((t - start) / (stop - start))
+                next_report = _time.perf_counter() + 0.5
+
+
+def _attempt(running, program, holds: AdaptiveHolds, t: float, h: float) -> None:
+    """One pass at step h (in a loop: predicted, rolled back, corrected)."""
+    holds.h = h
+    if holds.ahead:
+        holds.mode = holds.PREDICT
+        _one_pass(program, t, h)
+        _restore(running, t)
+        holds.mode = holds.CORRECT
+    _one_pass(program, t, h)
+
+
+def _save(running: list[RunningInstance], t: float) -> None:
+    for r in running:
+        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, r.state_ref), t)
+
+
+def _restore(running: list[RunningInstance], t: float) -> None:
+    for r in running:
+        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, r.state), t)
+
+
+def _free(running: list[RunningInstance], t: float) -> None:
+    for r in running:
+        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
+
+
+def estimate_of(graph, results, counts: dict, holds: AdaptiveHolds) -> dict:
+    """summary.json's error estimate of an adaptive run: the accepted steps' signed errors
+    accumulated (PoseError), per output row: its largest and its last."""
+    rows = np.array(counts["estimates"])        # (row, pose, x/y/theta)
+    estimate = {}
+    for i, pose in enumerate(holds.poses):
+        for column, k in enumerate(("x", "y", "theta")):
+            name = f"{pose.name}.{k}"
+            if name in results.names:
+                values = rows[:, i, column]
+                estimate[name] = {"max": float(values.max()), "end": float(values[-1])}
+    return estimate

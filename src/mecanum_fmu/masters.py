@@ -1,0 +1,60 @@
+"""The registry of masters: what each one does, in one place (docs/masters.md).
+
+A master is one entry here; the rest of the code asks the entry (how it holds inputs, whether
+it freezes them, whether it rolls back, its order) and never compares a master's name. Plain
+data, importable without the FMI runtime (the scenario loader and `validate` use it).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .errors import Problem, ScenarioError
+
+
+@dataclass(frozen=True)
+class Master:
+    name: str
+    hold: str               # how inputs are held over a step: "zoh", "trapezoidal", "quadratic"
+    freezes_inputs: bool    # every component steps on the values of t_k (Jacobi)
+    rolls_back: bool        # a feedback loop is predicted, rolled back and corrected
+    order: int              # global order of the end point on smooth inputs (at best)
+    doc: str                # one line for --help and the docs
+    adaptive: bool = False  # the step is chosen to meet a tolerance (--tolerance)
+
+
+REGISTRY: dict[str, Master] = {m.name: m for m in (
+    Master("quadratic", "quadratic", False, True, 3,
+           "Gauss-Seidel order; state-only inputs held at the limited parabola's mean; "
+           "loops predicted, rolled back and corrected"),
+    Master("trapezoidal", "trapezoidal", False, False, 2,
+           "Gauss-Seidel order; state-only inputs held at the mean of the step's end values"),
+    Master("gauss-seidel", "zoh", False, False, 1,
+           "dependency order, zero-order hold of the newest values"),
+    Master("jacobi", "zoh", True, False, 1,
+           "every component steps on the values of t_k, zero-order hold"),
+    Master("adaptive", "quadratic", False, True, 3,
+           "the quadratic hold on a step chosen to meet a tolerance (--tolerance)",
+           adaptive=True),
+)}
+MASTERS = tuple(REGISTRY)
+DEFAULT = "quadratic"
+ADAPTIVE = "adaptive"   # what a tolerance chooses (--tolerance, experiment.tolerance)
+DEFAULT_TOLERANCE = 1e-4  # the adaptive master's, when neither --tolerance nor the scenario sets one
+ZOH_HOST = "jacobi"     # the master that steps as a plain fixed-step host does (cross-check)
+
+
+def entry(name: str) -> Master:
+    """The registry entry of a master name (checked by the scenario loader)."""
+    return REGISTRY[name]
+
+
+def tolerance_master(name: str | None, tolerance: float | None, label: str) -> str | None:
+    """The master a command-line --tolerance chooses (None without one): the adaptive one;
+    a fixed-step --master beside it is refused."""
+    if tolerance is None:
+        return None
+    if name is not None and not entry(name).adaptive if name in REGISTRY else False:
+        raise ScenarioError([Problem(label, "--tolerance", f"the {name} master takes a fixed "
+                                     f"step; drop --master {name} (a tolerance chooses the "
+                                     f"{ADAPTIVE} master) or --tolerance")])
+    return ADAPTIVE

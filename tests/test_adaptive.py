@@ -1,0 +1,82 @@
+"""The adaptive master (--tolerance): its end error against the ground truth (the circle's closed
+form, docs/spec.md, and report/ground_truth.py's truth), its rows on the output grid, its step
+counts against fixed steps, the jumps of a segments table, and the tolerance's input checks."""
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from helpers import ROOT, run_child, run_main, write_scenario
+from mecanum_fmu import master, runner
+from mecanum_fmu.report.ground_truth import ground_truth
+
+CIRCLE = ROOT / "scenarios" / "circle.yaml"
+QUIET_BUSY = ROOT / "scenarios" / "profiles" / "quiet_then_busy.yaml"
+
+
+def _run(path, tolerance: float | None = None, master_name: str = "adaptive", divide: int = 1):
+    graph = runner.prepare(path, master_name=master_name)
+    exp = dataclasses.replace(graph.scenario.experiment, tolerance=tolerance,
+                              step_size=graph.scenario.experiment.step_size / divide)
+    graph = dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario, experiment=exp))
+    return graph, master.simulate(graph, exp)
+
+
+def _end_error(graph, results) -> float:
+    truth = ground_truth(graph, results.time)
+    return float(np.hypot(results["pose.x"][-1] - truth.x[-1], results["pose.y"][-1] - truth.y[-1]))
+
+
+@pytest.mark.parametrize("tolerance", [1e-3, 1e-5])
+def test_circle_meets_the_tolerance_on_the_output_grid(tolerance):
+    graph, results = _run(CIRCLE, tolerance)
+    t = results.time
+    # closed form: x = 1 - cos t, y = sin t
+    error = np.hypot(results["pose.x"][-1] - (1 - np.cos(10.0)), results["pose.y"][-1] - np.sin(10.0))
+    assert error <= tolerance
+    assert len(t) == 201 and np.allclose(t, np.arange(201) * 0.05, rtol=0, atol=1e-12)
+    assert results.steps_taken >= 200 and results.steps_rejected >= 0
+    estimate = results.extra["error_estimate"]["pose.y"]["end"]
+    assert estimate <= tolerance
+
+
+def test_quiet_then_busy_takes_fewer_steps_than_any_fixed_step_that_meets_the_tolerance():
+    tolerance = 1e-4
+    graph, results = _run(QUIET_BUSY, tolerance)
+    assert _end_error(graph, results) <= tolerance
+    calls = results.steps_taken + results.steps_rejected
+    # the longest fixed step on the same output grid (h / 2^k) that meets the tolerance
+    for k in range(0, 6):
+        fixed_graph, fixed = _run(QUIET_BUSY, master_name="quadratic", divide=2 ** k)
+        if _end_error(fixed_graph, fixed) <= tolerance:
+            break
+    assert calls < fixed.steps, (calls, fixed.steps)
+
+
+def test_segment_jumps_take_no_storm_of_rejections():
+    graph, results = _run(ROOT / "scenarios" / "modes" / "showcase.yaml", 1e-2)
+    assert _end_error(graph, results) <= 1e-2
+    assert results.steps_rejected <= 0.05 * results.steps_taken
+
+
+def test_tolerance_in_the_scenario_chooses_the_adaptive_master(tmp_path, capsys):
+    text = CIRCLE.read_text().replace("  master: quadratic ", "  tolerance: 1e-4\n  #")
+    path = write_scenario(tmp_path, "tol", text)
+    code, out, err = run_main(capsys, "run", str(path), "--out", str(tmp_path / "out"),
+                              "--no-plots")
+    assert code == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["master"] == "adaptive" and summary["tolerance"] == 1e-4
+    assert summary["error"]["position"] <= 1e-4
+    assert summary["steps_taken"] + summary["steps_rejected"] >= summary["steps"]
+
+
+@pytest.mark.parametrize("args,says", [
+    (["--tolerance", "1e-4", "--master", "jacobi"], "the jacobi master takes a fixed step"),
+    (["--tolerance", "0"], "not a number > 0"),
+])
+def test_bad_tolerance_is_refused(tmp_path, args, says):
+    proc = run_child("run", CIRCLE, "--out", tmp_path / "o", "--no-plots", *args)
+    assert proc.returncode == 2 and says in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "o" / "results.csv").exists()

@@ -1,0 +1,84 @@
+"""The error estimate of every run (master/estimate.py), checked against the true error: the
+seed circle's closed form (docs/spec.md: vx = sin t, vy = cos t, w = 0 from the origin gives
+x = 1 - cos t, y = sin t, theta = 0) and the ground truth of a turning scenario."""
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from helpers import ROOT
+from mecanum_fmu import master, runner
+from mecanum_fmu.report.ground_truth import ground_truth
+from mecanum_fmu.results import BELOW_ROUND_OFF
+
+CIRCLE = ROOT / "scenarios" / "circle.yaml"
+FACTOR = 3.0        # the target: the estimate within a factor 3 of the true error
+
+
+def _at_step(path, master_name: str, factor: int):
+    graph = runner.prepare(path, master_name=master_name)
+    exp = graph.scenario.experiment
+    exp = dataclasses.replace(exp, step_size=exp.step_size * factor)
+    graph = dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario, experiment=exp))
+    results = master.simulate(graph, exp)
+    return graph, results, master.estimate_error(graph, results)
+
+
+def _close(estimate: float, true: float) -> bool:
+    return true / FACTOR <= estimate <= true * FACTOR
+
+
+# jacobi at 4x the seed's step (h = 0.2 s, compared with 0.8 s: three steps of lag each) is out of
+# Richardson's reach at the end point; docs/masters.md gives its numbers
+@pytest.mark.parametrize("name,factor", [(m, f) for m in ("quadratic", "trapezoidal",
+                                                           "gauss-seidel", "jacobi")
+                                         for f in (1, 2, 4) if (m, f) != ("jacobi", 4)])
+def test_circle_estimate_is_within_3x_of_the_closed_form(name, factor):
+    graph, results, found = _at_step(CIRCLE, name, factor)
+    t = results.time
+    true = {"pose.x": np.abs(results["pose.x"] - (1 - np.cos(t))),
+            "pose.y": np.abs(results["pose.y"] - np.sin(t))}
+    for output, error in true.items():
+        e = found["error_estimate"][output]
+        assert _close(e["max"], error.max()), (output, e, error.max())
+        assert _close(e["end"], error[-1]), (output, e, error[-1])
+    # theta stays 0 (w = 0): nothing to estimate, and no number is made up
+    assert found["error_estimate"]["pose.theta"] == {"max": BELOW_ROUND_OFF,
+                                                     "end": BELOW_ROUND_OFF}
+
+
+@pytest.mark.parametrize("name", ["quadratic", "gauss-seidel"])
+def test_turning_estimate_is_within_3x_of_the_ground_truth(name):
+    graph, results, found = _at_step(ROOT / "scenarios" / "chassis" / "omni_field_circle.yaml",
+                                     name, 1)
+    truth = ground_truth(graph, results.time)
+    assert len(truth.time) == len(results.time)
+    for k in ("x", "y"):
+        error = np.abs(results[f"pose.{k}"] - getattr(truth, k))
+        e = found["error_estimate"][f"pose.{k}"]
+        assert _close(e["max"], error.max()), (k, e, error.max())
+        assert _close(e["end"], error[-1]), (k, e, error[-1])
+    # theta = 0.5 t is integrated exactly (w is constant): within round-off, no number
+    assert np.abs(results["pose.theta"] - truth.theta).max() < 1e-12
+    assert found["error_estimate"]["pose.theta"]["max"] == BELOW_ROUND_OFF
+
+
+def test_no_estimate_with_fewer_than_four_steps():
+    graph = runner.prepare(CIRCLE, step_size=4.0)
+    results = master.simulate(graph, graph.scenario.experiment)
+    found = master.estimate_error(graph, results)
+    assert found["error_estimate"] is None
+    assert "fewer than 4 steps" in found["error_estimate_method"]
+
+
+def test_run_writes_and_prints_the_estimate(tmp_path):
+    lines = []
+    runner.run(runner.prepare(CIRCLE), tmp_path, plots=False, log=lines.append)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    x = summary["error_estimate"]["pose.x"]
+    # the seed at h = 0.05 under the quadratic master: 2.7e-6 m off at the end (docs/masters.md)
+    true_end = abs(summary["end_pose"]["x"] - (1 - np.cos(10.0)))
+    assert _close(x["end"], true_end)
+    assert summary["error_estimate_method"].startswith("Richardson")
+    assert any(line.strip().startswith("pose.x: max") for line in lines)
