@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from .arguments import check_prepare, check_run
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
 from .models.catalog import MODELS, find_roles
@@ -93,6 +94,7 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     stepping loop (ground truth, plots) costs only itself: the tables are written first.
     `plotter`: a plot worker started earlier (the CLI starts it before loading, to hide
     matplotlib's import); without one, one is started here when plots are wanted."""
+    check_run(graph, out_dir, progress, log, keep_rows)
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(graph.scenario)
     plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
     try:

@@ -6,22 +6,21 @@ Every problem is collected and raised together as one ScenarioError.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import re
-import reprlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Union
 
 import yaml
 
-from .errors import Problem, ScenarioError
+from .errors import Problem, ScenarioError, did_you_mean
 from .storage import NotARegularFile, read_regular
+from .values import (MAX_NAME, is_finite, is_number, name_problem, scalar_problem, show,
+                     type_name as _type_name, unknown_keys as _unknown_keys, usable_name)
 
 MASTERS = ("quadratic", "trapezoidal", "gauss-seidel", "jacobi")
 MAX_FILE_BYTES = 1_000_000
-MAX_NAME = 100          # characters of a scenario name (it names the results folder)
 DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
                       "master": "quadratic"}
 
@@ -82,47 +81,9 @@ class Scenario:
         return str(self.path)
 
 
-_REPR = reprlib.Repr()
-_REPR.maxlevel, _REPR.maxstring, _REPR.maxother = 3, 60, 60
-_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
-
-
-def show(value: Any, limit: int = 80) -> str:
-    """A short repr for messages: bounded even for huge or deeply shared (alias bomb) values."""
-    text = _REPR.repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def did_you_mean(name: str, choices) -> str:
-    if not isinstance(name, str) or len(name) > 100:
-        return ""
-    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
-    return f"; did you mean '{close[0]}'?" if close else ""
-
-
 def is_identifier(name: Any) -> bool:
     """The rule for instance names: letters, digits and _, not starting with a digit."""
     return isinstance(name, str) and _NAME.fullmatch(name) is not None
-
-
-def usable_name(text: str) -> str | None:
-    """text made safe to name a results folder (letters, digits, _ . -; runs of anything else
-    become _; at most MAX_NAME characters), or None when nothing usable is left (empty, or
-    only dots such as '..': results/<name> must stay inside results/)."""
-    name = re.sub(r"[^\w.-]+", "_", text).strip("_")[:MAX_NAME]
-    return name if name.strip(".") else None
-
-
-def is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def is_finite(value: Any) -> bool:
-    """A number that is a finite float (an int too large for a float is not)."""
-    try:
-        return is_number(value) and math.isfinite(value)
-    except OverflowError:
-        return False
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -144,9 +105,8 @@ def load_scenario(path: str | Path) -> Scenario:
 
     _unknown_keys(doc, _TOP_KEYS, "top level", bad)
     name = doc.get("name", usable_name(path.stem) or "scenario")
-    if not isinstance(name, str) or usable_name(name) != name:
-        bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only, not "
-                    f"only dots, at most {MAX_NAME} characters; it names the results folder)")
+    if (problem := name_problem(name)) is not None:
+        bad("name", problem)
         name = usable_name(path.stem) or "scenario"
     description = doc.get("description", "")
     if not isinstance(description, str):
@@ -227,19 +187,6 @@ UniqueKeyLoader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
     list("-+0123456789"))
-
-
-def _type_name(value: Any) -> str:
-    names = {dict: "a mapping", list: "a list", str: "text", bool: "true/false",
-             int: "a number", float: "a number", type(None): "nothing"}
-    return names.get(type(value), type(value).__name__)
-
-
-def _unknown_keys(mapping: dict, allowed, place: str, bad) -> None:
-    for key in mapping:
-        if key not in allowed:
-            bad(place, f"unknown key {show(key)}{did_you_mean(str(key), allowed)} "
-                       f"(allowed: {', '.join(allowed)})")
 
 
 def parse_experiment(raw: Any, bad) -> Experiment:
@@ -333,10 +280,8 @@ def _parameters(raw: Any, place: str, bad) -> dict[str, Scalar]:
     for key, value in raw.items():
         if not isinstance(key, str):
             bad(place, f"parameter name {show(key)} must be text")
-        elif not isinstance(value, (bool, int, float, str)):
-            bad(f"{place}.{key}", f"expected a number, true/false or text, got {_type_name(value)}")
-        elif is_number(value) and not is_finite(value):
-            bad(f"{place}.{key}", f"{show(value)} is not a finite number")
+        elif (problem := scalar_problem(value)) is not None:
+            bad(f"{place}.{key}", problem)
         else:
             out[key] = value
     return out

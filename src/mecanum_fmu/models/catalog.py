@@ -16,6 +16,7 @@ from .blocks.expression import ExpressionError, compile_expression
 from .blocks.bicycle import bicycle_problem
 from .blocks.kinematics import GEOMETRY, geometry_problem, radius_deviation_problem
 from .blocks.omni import omni_geometry_problem
+from ..values import is_number
 
 AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
 
@@ -68,7 +69,7 @@ def _check_inverse(values: Mapping[str, object], start_time: float) -> list[tupl
     """Center2Wheel: the geometry, and w_max >= 0 (0: no wheel speed limit)."""
     problems = _check_geometry(values, start_time)
     w_max = values.get("w_max")
-    if _is_number(w_max) and not (math.isfinite(w_max) and w_max >= 0):
+    if is_number(w_max) and not (math.isfinite(w_max) and w_max >= 0):
         problems.append(("w_max", f"parameter w_max = {w_max!r} rad/s must be >= 0 "
                                   "(0: no wheel speed limit)"))
     return problems
@@ -79,14 +80,10 @@ def _check_follower(values: Mapping[str, object], start_time: float) -> list[tup
     problems = _check_expressions(values, start_time)
     for name in ("k_pos", "k_theta"):
         gain = values.get(name)
-        if _is_number(gain) and not (math.isfinite(gain) and gain > 0):
+        if is_number(gain) and not (math.isfinite(gain) and gain > 0):
             problems.append((name, f"gain {name} = {gain!r} 1/s must be > 0 (the rate at "
                                    "which the error decays; try 2)"))
     return problems
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:

@@ -14,6 +14,7 @@ import fmpy
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
+from ..errors import did_you_mean
 from ..archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
 from .catalog import MODELS
 from .link import build_link, with_prelude
@@ -115,7 +116,7 @@ def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
     if not exists:
         hint = ""
         if not spec.endswith(".fmu"):
-            hint = f" (bundled FMUs: {', '.join(MODELS)})"
+            hint = f"{did_you_mean(spec, MODELS)} (bundled FMUs: {', '.join(MODELS)})"
         raise ValueError(f"FMU {spec!r} not found (looked for {path}){hint}")
     if not is_file:
         raise ValueError(f"FMU {spec!r} is {'a folder' if is_dir else 'a special file'}, "
