@@ -95,9 +95,10 @@ def check_prepare(path: Any, step_size: Any, stop_time: Any, master_name: Any,
     if not isinstance(path, (str, os.PathLike, dict)):
         problems.append(_problem(call, "path", f"expected a scenario file path or a scenario "
                                                f"mapping, got {show(path)}"))
-    problems += _time_problems(call, {"step_size": step_size, "stop_time": stop_time})
+    problems += _time_problems(call, {"step_size (--step-size)": step_size,
+                                      "stop_time (--stop-time)": stop_time})
     if master_name is not None:
-        problems += master_problems(call, "master_name", master_name)
+        problems += master_problems(call, "master_name (--master)", master_name)
     if fmu_dir is not None and not isinstance(fmu_dir, (str, os.PathLike)):
         problems.append(_problem(call, "fmu_dir", f"expected a folder path, got {show(fmu_dir)}"))
     if parameters is not None and not isinstance(parameters, dict):

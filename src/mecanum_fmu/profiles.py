@@ -92,12 +92,30 @@ def segments_table(raw: Any, start_time: float, place: str,
             ok = False
         if ok:
             rows.append((t, *values[1:]))
-            t += float(values[0])
+            t, ok = _segment_end(t, float(values[0]), f"{where}.duration", report, label)
     if not ok:
         return None
     rows.append((t, 0.0, 0.0, 0.0))
     return ",".join(TABLE_COLUMNS) + "\n" + "".join(
         ",".join(repr(float(v)) for v in row) + "\n" for row in rows)
+
+
+def _segment_end(t: float, duration: float, place: str, report: Callable[[Problem], None],
+                 label: str) -> tuple[float, bool]:
+    """The end time of a segment starting at t, and whether it is usable: the sum of the
+    durations must stay finite, and each segment must move time on (a duration far below
+    t's precision adds nothing: t + duration == t)."""
+    end = t + duration
+    if not math.isfinite(end):
+        report(Problem(label, place, f"the segments up to here end at {end} s: the sum of the "
+                                     "durations must be a finite number of seconds"))
+        return t, False
+    if not end > t:
+        report(Problem(label, place, f"duration {duration!r} s does not advance time from "
+                                     f"t = {t!r} s (it is below that time's precision); give "
+                                     "a longer duration or drop the segment"))
+        return t, False
+    return end, True
 
 
 def _finite(value: Any) -> bool:

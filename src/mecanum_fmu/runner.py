@@ -13,7 +13,8 @@ from typing import Callable
 import numpy as np
 
 from .arguments import check_prepare, check_run
-from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
+from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
+                     SimulationError)
 from .graph import Graph, compile_graph
 from .models.catalog import MODELS, find_roles
 from .report.ground_truth import Truth, ground_truth
@@ -21,7 +22,8 @@ from .output import OutputFolder
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
 from .results import Results
-from .scenario import MASTERS, Scenario, load_scenario, override_experiment
+from .scenario import (MAPPING_LABEL, Scenario, override_experiment, read_scenario,
+                       scenario_from_doc)
 
 
 @dataclass
@@ -35,28 +37,51 @@ class RunOutcome:
     files: list[Path]
 
 
-def prepare(path: str | Path, *, step_size: float | None = None, stop_time: float | None = None,
-            master_name: str | None = None, fmu_dir: Path | None = None,
-            build: bool = True) -> Graph:
-    """Load and check a scenario (with command-line overrides) and compile its graph. With
-    build (the default), the bundled FMUs it uses are built first when missing or stale;
-    without (validate), such an FMU is reported as a problem with the command that builds it."""
-    if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
-        from .interop.ssp_read import load_ssp
-        scenario = load_ssp(path)
-    else:
-        scenario = load_scenario(path)
+def prepare(path: str | Path | dict, *, step_size: float | None = None,
+            stop_time: float | None = None, master_name: str | None = None,
+            fmu_dir: Path | None = None, build: bool = True,
+            parameters: dict | None = None) -> Graph:
+    """Load and check a scenario (a file, or a mapping of a file's keys whose relative paths
+    are taken from the working folder) with command-line overrides and `parameters`
+    ({"w2c.R": 0.061}, or a shared {"R": 0.061}), and compile its graph. Every problem is
+    raised at once (ScenarioError; errors.ArgumentError for an argument of the wrong kind),
+    the file's own together with the graph's. With build (the default), the bundled FMUs it
+    uses are built first when missing or stale; without (validate), such an FMU is reported
+    as a problem with the command that builds it."""
+    check_prepare(path, step_size, stop_time, master_name, fmu_dir, parameters)
+    scenario, problems = _read(path, parameters)
     changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
                                  ("master", master_name)) if v is not None}
-    if changes:
-        if "master" in changes and changes["master"] not in MASTERS:
-            raise ScenarioError([Problem(scenario.label, "--master", f"unknown master "
-                                 f"{changes['master']!r} (choose one of {', '.join(MASTERS)})")])
-        scenario = override_experiment(scenario, changes, scenario.label,
-                                       " (with the command-line options)")
+    if scenario is not None and changes:
+        try:
+            scenario = override_experiment(scenario, changes, scenario.label,
+                                           " (from the command line or prepare's arguments)")
+        except ScenarioError as err:
+            problems += err.problems
+    if problems:
+        if scenario is not None:        # what the graph would add: every problem at once
+            try:
+                compile_graph(scenario, fmu_dir)
+            except ScenarioError as err:
+                problems += [p for p in err.problems if p not in problems]
+        raise ScenarioError(problems)
     if build:
         build_bundled(scenario, fmu_dir)
     return compile_graph(scenario, fmu_dir)
+
+
+def _read(path: str | Path | dict, parameters: dict | None) -> tuple[Scenario | None, list]:
+    """The scenario of a file, an SSP archive or a mapping, and the problems found."""
+    if isinstance(path, dict):
+        return scenario_from_doc(path, Path(MAPPING_LABEL), parameters)
+    if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
+        from .interop.ssp_read import load_ssp
+        if parameters:
+            raise ArgumentError([Problem("runner.prepare()", "argument parameters", "is for "
+                                 "YAML scenarios and mappings; set an SSP's parameters in its "
+                                 "SSD, or export-ssp the scenario with them")])
+        return load_ssp(path), []
+    return read_scenario(path, parameters)
 
 
 def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:

@@ -86,23 +86,53 @@ def is_identifier(name: Any) -> bool:
     return isinstance(name, str) and _NAME.fullmatch(name) is not None
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and check a scenario file. Raises ScenarioError listing every problem found."""
+MAPPING_LABEL = "<scenario mapping>"    # the "file" of a scenario given as a mapping
+
+
+def load_scenario(path: str | Path, parameters: dict | None = None) -> Scenario:
+    """Read and check a scenario file; `parameters` ({"w2c.R": 0.061} or a shared {"R": ...})
+    are set on its components first and checked by the same rules. Raises ScenarioError
+    listing every problem found."""
+    scenario, problems = read_scenario(path, parameters)
+    if problems:
+        raise ScenarioError(problems)
+    return scenario
+
+
+def load_scenario_dict(doc: Any, base_dir: str | Path = ".",
+                       parameters: dict | None = None) -> Scenario:
+    """A scenario given as a mapping (the keys of a scenario file), checked as a file is;
+    relative FMU and table paths are taken from base_dir. Raises ScenarioError."""
+    scenario, problems = scenario_from_doc(doc, Path(base_dir) / MAPPING_LABEL, parameters)
+    if problems:
+        raise ScenarioError(problems)
+    return scenario
+
+
+def read_scenario(path: str | Path, parameters: dict | None = None
+                  ) -> tuple[Scenario | None, list[Problem]]:
+    """The scenario (its valid parts, when some are wrong) and every problem of the file."""
     path = Path(path)
+    return scenario_from_doc(read_yaml(path, str(path)), path, parameters)
+
+
+def scenario_from_doc(doc: Any, path: Path, parameters: dict | None = None
+                      ) -> tuple[Scenario | None, list[Problem]]:
+    """The Scenario of a parsed document and every problem; None when nothing usable is left."""
     label = str(path)
     problems: list[Problem] = []
 
     def bad(place: str, message: str) -> None:
         problems.append(Problem(label, place, message))
 
-    doc = read_yaml(path, label)
     if doc is None:
-        raise ScenarioError([Problem(label, "file", "is empty: a scenario needs at least "
-                                     "components (instance name: {fmu: NAME_OR_PATH})")])
+        return None, [Problem(label, "file", "is empty: a scenario needs at least "
+                                             "components (instance name: {fmu: NAME_OR_PATH})")]
     if not isinstance(doc, dict):
-        raise ScenarioError([Problem(label, "top level", (
-            f"expected a mapping with keys {', '.join(_TOP_KEYS)}, got {_type_name(doc)}"))])
-
+        return None, [Problem(label, "top level", f"expected a mapping with keys "
+                              f"{', '.join(_TOP_KEYS)}, got {_type_name(doc)}")]
+    if parameters:
+        doc = with_parameters(doc, parameters, bad)
     _unknown_keys(doc, _TOP_KEYS, "top level", bad)
     name = doc.get("name", usable_name(path.stem) or "scenario")
     if (problem := name_problem(name)) is not None:
@@ -112,7 +142,6 @@ def load_scenario(path: str | Path) -> Scenario:
     if not isinstance(description, str):
         bad("description", f"expected text, got {_type_name(description)}")
         description = ""
-
     experiment = parse_experiment(doc.get("experiment", {}), bad)
     shared = _parameters(doc.get("parameters", {}), "parameters", bad)
     components = _components(doc.get("components"), bad)
@@ -120,11 +149,41 @@ def load_scenario(path: str | Path) -> Scenario:
                            problems)
     connections = _connections(doc.get("connections", []), bad)
     outputs = _outputs(doc.get("outputs"), bad)
-
-    if problems:
-        raise ScenarioError(problems)
     return Scenario(path, name, description, experiment, components, connections, outputs,
-                    shared)
+                    shared), problems
+
+
+def with_parameters(doc: dict, parameters: dict, bad) -> dict:
+    """doc with `instance.parameter: value` set in that component's parameters and a bare
+    `name: value` in the shared ones (copies only what changes). A key naming no component
+    goes to bad(place, message); the values are checked afterwards with the file's."""
+    doc = dict(doc)
+    components = doc.get("components")
+    components = dict(components) if isinstance(components, dict) else {}
+    for key, value in parameters.items():
+        place = f"parameters[{show(key)}] (an argument, not in the file)"
+        instance, dot, name = key.partition(".") if isinstance(key, str) else ("", "", "")
+        if not isinstance(key, str) or not key or (dot and not (instance and name)):
+            bad(place, "expected 'instance.parameter' (e.g. 'w2c.R') or a shared name ('R')")
+        elif not dot:
+            doc["parameters"] = _merged(doc.get("parameters"), key, value)
+        elif instance not in components:
+            bad(place, f"no component '{instance}'{did_you_mean(instance, components)}")
+        else:
+            spec = components[instance]
+            spec = dict(spec) if isinstance(spec, dict) else {"fmu": spec}
+            spec["parameters"] = _merged(spec.get("parameters"), name, value)
+            components[instance] = spec
+    if isinstance(doc.get("components"), dict):
+        doc["components"] = components
+    return doc
+
+
+def _merged(mapping: Any, key: str, value: Any) -> Any:
+    """mapping (a dict or nothing) with key set; anything else is left for its own message."""
+    if mapping is None:
+        return {key: value}
+    return {**mapping, key: value} if isinstance(mapping, dict) else mapping
 
 
 def read_yaml(path: Path, label: str) -> Any:

@@ -41,7 +41,39 @@ def _numbers_rule(names: tuple[str, ...], problem: Callable):
     return check
 
 
-_check_geometry = _numbers_rule(GEOMETRY, geometry_problem)
+def _mecanum_problem(alpha, L, W, R):
+    found = geometry_problem(alpha, L, W, R)
+    if found is not None:
+        return found
+    c = 1.0 / math.tan(alpha)
+    k = L + W * c
+    return _coefficient_problem({"alpha": alpha, "L": L, "W": W, "R": R}, (
+        ("alpha", c, "cot(alpha)"), ("L" if L >= W * c else "W", k, "L + W cot(alpha)"),
+        ("R", 1.0 / R, "1/R"), ("R", k / R, "(L + W cot(alpha))/R"),
+        ("R", R * math.tan(alpha) / 4.0, "R tan(alpha)/4"), ("R", R / (4.0 * k), "R/(4 k)")))
+
+
+def _omni_problem(L, R):
+    found = omni_geometry_problem(L, R)
+    if found is not None:
+        return found
+    return _coefficient_problem({"L": L, "R": R}, (
+        ("R", 1.0 / R, "1/R"), ("L", L / R, "L/R"), ("R", R / (4.0 * L), "R/(4 L)")))
+
+
+def _coefficient_problem(values: dict, coefficients) -> tuple[str, str] | None:
+    """Geometry in range whose kinematic coefficients overflow (or underflow to 0), e.g.
+    R = 5e-324 (1/R = inf) or L = W = 1e308 (L + W = inf): every step would give inf or nan,
+    so it is bad input, refused before the run (docs/spec.md, Kinematics)."""
+    for name, coefficient, what in coefficients:
+        if not (math.isfinite(coefficient) and coefficient > 0.0):
+            return name, (f"parameter {name} = {values[name]!r} makes {what} = {coefficient!r}, "
+                          "not a finite number > 0: the kinematics overflow on the first step; "
+                          "give lengths in metres and the roller angle in radians")
+    return None
+
+
+_check_geometry = _numbers_rule(GEOMETRY, _mecanum_problem)
 
 
 def _check_expressions(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
@@ -98,9 +130,9 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("PathFollower", "path_follower", "follower", _check_follower),
     # the other two chassis of the original documents (docs/chassis.md)
     Model("OmniCenter2Wheel", "omni_center2wheel", "omni-inverse",
-          _numbers_rule(("L", "R"), omni_geometry_problem)),
+          _numbers_rule(("L", "R"), _omni_problem)),
     Model("OmniWheel2Center", "omni_wheel2center", "omni-forward",
-          _numbers_rule(("L", "R"), omni_geometry_problem)),
+          _numbers_rule(("L", "R"), _omni_problem)),
     Model("FieldToBody", "field_to_body", "frame", _no_rules),
     Model("Bicycle", "bicycle", "forward", _numbers_rule(("l", "reference"), bicycle_problem)),
     Model("SteeringSource", "steering_source", "steering", _check_expressions),
