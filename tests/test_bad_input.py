@@ -94,6 +94,7 @@ def make_helper_fmus(folder: Path) -> None:
     _zip(folder / "vr32.fmu", {"modelDescription.xml": md.replace('valueReference="0"',
                                                                   'valueReference="4294967296"')})
     _zip(folder / "bomb.fmu", {"modelDescription.xml": md, "resources/bomb.bin": "\0" * 1000})
+    _zip(folder / "dot.fmu", {"modelDescription.xml": md, ".": "x"})      # issue 23, old set
     _declare_size(folder / "bomb.fmu", "resources/bomb.bin", 0xFFFF_FFF0)
 
 

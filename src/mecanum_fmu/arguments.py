@@ -11,6 +11,7 @@ from typing import Any
 
 from .errors import ArgumentError, Problem
 from .graph import Graph
+from .models.library import fmu_guid
 from .scenario import MASTERS, Experiment, check_experiment, did_you_mean, is_number, show
 
 
@@ -28,6 +29,39 @@ def _graph_problems(call: str, graph: Any) -> list[Problem]:
         return []
     return [_problem(call, "graph", f"expected a Graph, got {show(graph)}; make one with "
                                     "runner.prepare('scenario.yaml')")]
+
+
+def _fmu_problems(call: str, graph: Graph) -> list[Problem]:
+    """Each FMU the graph was compiled from must still be there with the same GUID: deleted or
+    replaced by another model since prepare(), it is reported before anything is extracted."""
+    problems = []
+    for inst in graph.instances:
+        guid = _guid(inst.fmu_path)
+        if guid == inst.model.guid:
+            continue
+        what = ("is gone or unreadable" if guid is None else
+                f"was replaced by another model (GUID {show(guid, 60)}, not {inst.model.guid})")
+        problems.append(_problem(call, "graph", f"the FMU {inst.fmu_path} of component "
+                                 f"'{inst.name}' {what} since prepare() read it; call "
+                                 "prepare() again"))
+    return problems
+
+
+_GUIDS: dict[tuple, str | None] = {}     # (path, inode, size, mtime) -> GUID: read once
+
+
+def _guid(path) -> str | None:
+    """fmu_guid, read again only when the file's identity or size or time changed."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    key = (str(path), st.st_ino, st.st_size, st.st_mtime_ns)
+    if key not in _GUIDS:
+        if len(_GUIDS) > 1000:
+            _GUIDS.clear()
+        _GUIDS[key] = fmu_guid(path)
+    return _GUIDS[key]
 
 
 def _callable_problems(call: str, **functions: Any) -> list[Problem]:
@@ -111,7 +145,8 @@ def check_simulate(graph: Any, experiment: Any, progress: Any, sink: Any,
                    keep_rows: Any) -> None:
     """master.simulate's arguments."""
     call = "master.simulate"
-    _raise(_graph_problems(call, graph) + experiment_problems(call, experiment)
+    problems = _graph_problems(call, graph)
+    _raise((problems or _fmu_problems(call, graph)) + experiment_problems(call, experiment)
            + _callable_problems(call, progress=progress, sink=sink)
            + keep_rows_problems(call, keep_rows))
 
