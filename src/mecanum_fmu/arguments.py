@@ -5,14 +5,14 @@ written (nothing is left in TMPDIR), instead of a TypeError or ZeroDivisionError
 inside."""
 from __future__ import annotations
 
-import math
 import os
 from typing import Any
 
-from .errors import ArgumentError, Problem
+from .errors import ArgumentError, Problem, did_you_mean
 from .graph import Graph
 from .models.library import fmu_guid
-from .scenario import MASTERS, Experiment, check_experiment, did_you_mean, is_number, show
+from .scenario import MASTERS, Experiment, check_experiment
+from .values import is_finite, is_number, show
 
 
 def _problem(call: str, name: str, message: str) -> Problem:
@@ -86,17 +86,10 @@ def _time_problems(call: str, values: dict[str, Any]) -> list[Problem]:
         if not is_number(value):
             problems.append(_problem(call, name, f"expected a number of seconds, got "
                                                  f"{show(value)}"))
-        elif not _finite(value):
+        elif not is_finite(value):
             problems.append(_problem(call, name, f"{show(value)} is not a finite number of "
                                                  "seconds"))
     return problems
-
-
-def _finite(value: Any) -> bool:
-    try:
-        return math.isfinite(value)
-    except OverflowError:           # an int too large for a float
-        return False
 
 
 def master_problems(call: str, name: str, master: Any) -> list[Problem]:

@@ -25,6 +25,7 @@ import numpy as np
 from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, parse_table, \
     table_sampler
 from .errors import Problem
+from .values import is_finite
 
 SEGMENT_KEYS = ("duration", "vx", "vy", "w")
 MAX_TABLE_BYTES = 50_000_000
@@ -83,11 +84,11 @@ def segments_table(raw: Any, start_time: float, place: str,
                 ok = False
         values = [seg.get(k, 0.0) for k in SEGMENT_KEYS]
         for key, value in zip(SEGMENT_KEYS, values):
-            if not _finite(value):
+            if not is_finite(value):
                 report(Problem(label, f"{where}.{key}", f"expected a finite number, got "
                                                         f"{str(value)[:40]!r}"))
                 ok = False
-        if "duration" not in seg or (_finite(values[0]) and not values[0] > 0):
+        if "duration" not in seg or (is_finite(values[0]) and not values[0] > 0):
             report(Problem(label, f"{where}.duration", "needs a duration > 0 [s]"))
             ok = False
         if ok:
@@ -116,15 +117,6 @@ def _segment_end(t: float, duration: float, place: str, report: Callable[[Proble
                                      "a longer duration or drop the segment"))
         return t, False
     return end, True
-
-
-def _finite(value: Any) -> bool:
-    if not isinstance(value, (int, float)) or isinstance(value, bool):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:          # an int too large for a float
-        return False
 
 
 def resolve_profile(spec: dict, params: dict, scenario_dir: Path, start_time: float,

@@ -16,7 +16,7 @@ import yaml
 
 from .errors import Problem, ScenarioError, did_you_mean
 from .storage import NotARegularFile, read_regular
-from .values import (MAX_NAME, is_finite, is_number, name_problem, scalar_problem, show,
+from .values import (is_finite, is_number, name_problem, scalar_problem, show,
                      type_name as _type_name, unknown_keys as _unknown_keys, usable_name)
 
 MASTERS = ("quadratic", "trapezoidal", "gauss-seidel", "jacobi")
