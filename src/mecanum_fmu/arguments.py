@@ -77,11 +77,12 @@ def keep_rows_problems(call: str, keep_rows: Any) -> list[Problem]:
                                         "number >= 1, or None to keep every row")]
 
 
-def _time_problems(call: str, values: dict[str, Any]) -> list[Problem]:
-    """Numbers of seconds (None: unchanged) given as keyword arguments."""
+def _time_problems(call: str, values: dict[str, Any], none_unchanged: bool = True
+                   ) -> list[Problem]:
+    """Numbers of seconds (None: unchanged, when none_unchanged) given as arguments."""
     problems = []
     for name, value in values.items():
-        if value is None:
+        if value is None and none_unchanged:
             continue
         if not is_number(value):
             problems.append(_problem(call, name, f"expected a number of seconds, got "
@@ -106,7 +107,7 @@ def experiment_problems(call: str, experiment: Any) -> list[Problem]:
         return [_problem(call, "experiment", f"expected an Experiment, got {show(experiment)}; "
                                              "pass graph.scenario.experiment")]
     times = {k: getattr(experiment, k) for k in ("start_time", "stop_time", "step_size")}
-    problems = _time_problems(call, {f"experiment.{k}": v for k, v in times.items()})
+    problems = _time_problems(call, {f"experiment.{k}": v for k, v in times.items()}, False)
     if not problems:
         problems = [_problem(call, place, message) for place, message in
                     check_experiment(experiment)]
