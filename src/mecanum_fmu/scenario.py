@@ -149,6 +149,9 @@ def scenario_from_doc(doc: Any, path: Path, parameters: dict | None = None
                            problems)
     connections = _connections(doc.get("connections", []), bad)
     outputs = _outputs(doc.get("outputs"), bad)
+    declared = doc.get("components")
+    if problems and not (isinstance(declared, dict) and len(declared) == len(components)):
+        return None, problems      # a component is missing: the graph's checks would mislead
     return Scenario(path, name, description, experiment, components, connections, outputs,
                     shared), problems
 
