@@ -94,6 +94,7 @@ def make_helper_fmus(folder: Path) -> None:
     _zip(folder / "vr32.fmu", {"modelDescription.xml": md.replace('valueReference="0"',
                                                                   'valueReference="4294967296"')})
     _zip(folder / "bomb.fmu", {"modelDescription.xml": md, "resources/bomb.bin": "\0" * 1000})
+    _zip(folder / "dot.fmu", {"modelDescription.xml": md, ".": "x"})      # issue 23, old set
     _declare_size(folder / "bomb.fmu", "resources/bomb.bin", 0xFFFF_FFF0)
 
 
@@ -270,3 +271,16 @@ def test_subprocess_run(name, corpus, tmp_path):
     for text in [path.name] + meta["expect"] + meta["place"] + meta["also"]:
         assert text in proc.stderr, f"{text!r} not in:\n{proc.stderr}"
     assert not out_dir.exists()
+
+
+def test_a_root_folder_entry_is_harmless(tmp_path):
+    """Issue 23, old set: a './' folder entry (the archive's own folder, written by some zip
+    tools) names nothing to extract; it is skipped, not refused. A file named '.' is."""
+    from mecanum_fmu.archive import ArchiveError, checked_members
+    path = tmp_path / "root.zip"
+    _zip(path, {"./": "", "modelDescription.xml": "<x/>"})
+    with zipfile.ZipFile(path) as zf:
+        assert [i.filename for i in checked_members(zf)] == ["modelDescription.xml"]
+    _zip(path, {".": "x", "modelDescription.xml": "<x/>"})
+    with zipfile.ZipFile(path) as zf, pytest.raises(ArchiveError, match="names the extraction"):
+        checked_members(zf)

@@ -404,3 +404,12 @@ def test_generated_expressions_match_a_python_reference(tree, t):
     else:
         with pytest.raises(ExpressionError):
             f(t)
+
+
+@pytest.mark.parametrize("text, hint", [("2^t", "use ** for a power"), ("t & 1", "use and"),
+                                        ("t | 1", "use or"), ("~t", "use not or -")])
+def test_bitwise_operators_suggest_what_was_meant(text, hint):
+    """Issue 24: `^` is refused with the power operator suggested (Python's ^ is xor)."""
+    with pytest.raises(ExpressionError) as info:
+        compile_expression(text)
+    assert f"is not allowed; {hint}" in str(info.value), str(info.value)

@@ -158,23 +158,23 @@ def test_a_full_disk_fails_cleanly_and_leaves_nothing_that_looks_complete(tmpfs,
 
 # --- 3. non-finite values stop the run ------------------------------------------------------
 
-@pytest.mark.parametrize("geometry, value", [
-    ({"  L: 0.16 ": "  L: 1.0e+308 ", "  W: 0.12 ": "  W: 1.0e+308 "}, "nan"),  # inf * 0
-    ({"  R: 0.06 ": "  R: 1.0e-320 "}, "inf")])                             # 1 / tiny
-def test_geometry_that_overflows_stops_the_run_at_t0(tmp_path, capsys, fmu_dir, geometry, value):
+@pytest.mark.parametrize("geometry, expect", [
+    ({"  L: 0.16 ": "  L: 1.0e+308 ", "  W: 0.12 ": "  W: 1.0e+308 "},
+     "parameters.W: parameter W = 1e+308 makes L + W cot(alpha) = inf"),
+    ({"  R: 0.06 ": "  R: 1.0e-320 "}, "parameters.R: parameter R = 1e-320 makes 1/R = inf")])
+def test_geometry_that_overflows_is_bad_input(tmp_path, capsys, fmu_dir, geometry, expect):
     """Inside the parameter ranges, yet Center2Wheel's wheel speeds (docs/spec.md,
-    Kinematics: (vx -+ vy -+ (L + W) w) / R) are not finite from the first value on."""
+    Kinematics: (vx -+ vy -+ (L + W) w) / R) could not be finite on any step: the
+    parameters alone decide it, so it is bad input (docs/spec.md, Parameters), refused
+    before the run (exit 2), nothing written."""
     scenario = variant(tmp_path, "overflow", **geometry)
     out = tmp_path / "out"
     code, stdout, err = run_main(capsys, "run", scenario, "--out", out, "--no-plots",
                                  "--fmu-dir", fmu_dir)
-    assert code == 1, err
+    assert code == 2, err
     no_traceback(err)
-    assert re.match(rf"error: simulation failed: component 'c2w', t = 0 s: output w1 = "
-                    rf"{value} is not a finite number", err), err
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["complete"] is False and "w1" in summary["error_message"]
-    assert "end_pose" not in summary and "match" not in summary
+    assert expect in err and "the kinematics overflow on the first step" in err, err
+    assert not out.exists()
 
 
 def test_a_value_that_overflows_mid_run_stops_at_that_step(tmp_path, fmu_dir):

@@ -33,3 +33,35 @@ def test_a_shared_parameter_problem_is_reported_once(tmp_path, fmu_dir):
     with pytest.raises(ScenarioError) as info:
         prepare(path, fmu_dir=fmu_dir, build=False)
     assert [p.place for p in info.value.problems] == ["parameters.L"]
+
+
+@pytest.mark.parametrize("name, choices, expect", [
+    ("w5", ["w", "w1", "w2", "w3", "w4", "vx"], "w4"),        # the nearest number, not 'w'
+    ("w0", ["w", "w1", "w2", "w3", "w4"], "w1"),
+    ("dR7", ["R", "dR1", "dR2", "dR3", "dR4"], "dR4"),
+    ("Centre2Wheel", ["VelocitySource", "Center2Wheel", "Wheel2Center"], "Center2Wheel"),
+    ("POSEINTEGRATOR", ["PoseIntegrator", "PathFollower"], "PoseIntegrator"),   # any case
+    ("quadratc", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"], "quadratic"),
+])
+def test_did_you_mean(name, choices, expect):
+    from mecanum_fmu.errors import did_you_mean
+    assert did_you_mean(name, choices) == f"; did you mean '{expect}'?"
+
+
+def test_did_you_mean_stays_quiet_when_nothing_is_close():
+    from mecanum_fmu.errors import did_you_mean
+    assert did_you_mean("zzz", ["vx", "vy", "w"]) == ""
+    assert did_you_mean(5, ["w5"]) == ""
+
+
+def test_a_mapping_takes_relative_paths_from_base_dir(tmp_path):
+    """load_scenario_dict: a table path is found in base_dir, as next to a scenario file."""
+    from mecanum_fmu.scenario import load_scenario_dict
+    (tmp_path / "log.csv").write_text("time,vx,vy,w\n0,0,1,0\n1,0,1,0\n")
+    doc = {"name": "from_dict", "components": {
+        "source": {"fmu": "VelocitySource", "parameters": {"table": "log.csv"}}}}
+    scenario = load_scenario_dict(doc, base_dir=tmp_path)
+    assert scenario.name == "from_dict"
+    assert scenario.components[0].parameters["table"].startswith("time,vx,vy,w")
+    with pytest.raises(ScenarioError, match="log.csv"):
+        load_scenario_dict(doc, base_dir=tmp_path / "elsewhere")

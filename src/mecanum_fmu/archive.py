@@ -43,6 +43,8 @@ def name_problem(name: str) -> str | None:
         return "has an empty name, a NUL or a backslash"
     if name.startswith("/") or re.match(r"^[A-Za-z]:", name):
         return "is an absolute path"
+    if name == ".":
+        return "names the extraction folder itself, not a file in it"
     parts = name.rstrip("/").split("/")
     if any(part in ("", ".", "..") for part in parts):
         return "has an empty, '.' or '..' path part (it could leave the extraction folder)"
@@ -58,6 +60,8 @@ def checked_members(zf: zipfile.ZipFile, max_member: int | None = None,
     infos = zf.infolist()
     if len(infos) > MAX_MEMBERS:
         raise ArchiveError(f"has {len(infos)} members (limit {MAX_MEMBERS})")
+    # "./" is the archive's own folder (some zip writers add it): nothing to extract
+    infos = [info for info in infos if info.filename != "./"]
     files, folders, total = set(), set(), 0
     for info in infos:
         name = info.filename

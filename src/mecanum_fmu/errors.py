@@ -1,7 +1,9 @@
 """The project's exceptions. Only the CLI turns them into messages and exit codes."""
 from __future__ import annotations
 
+import difflib
 import re
+from typing import Any
 from dataclasses import dataclass
 
 # C0/C1 controls, line/paragraph separators and bidirectional overrides: printed raw they can
@@ -12,6 +14,35 @@ _UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u
 def printable(text: str) -> str:
     """text with every control or direction-changing character escaped."""
     return _UNPRINTABLE.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
+
+
+_NUMBERED = re.compile(r"^(.*?)(\d+)$")
+
+
+def did_you_mean(name: Any, choices) -> str:
+    """'; did you mean X?' for the closest choice, or ''. A numbered name (w5) is matched to
+    the nearest number of the same stem (w4) before anything else; case is ignored."""
+    if not isinstance(name, str) or len(name) > 100:
+        return ""
+    choices = [c for c in choices if isinstance(c, str)]
+    close = _same_stem(name, choices) or difflib.get_close_matches(name, choices, n=1,
+                                                                   cutoff=0.6)
+    if not close:
+        folded = {c.lower(): c for c in choices}
+        close = [folded[c] for c in difflib.get_close_matches(name.lower(), list(folded), n=1,
+                                                              cutoff=0.6)]
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def _same_stem(name: str, choices: list[str]) -> list[str]:
+    """The choice with name's stem and the nearest number (w5 -> w4), if there is one."""
+    match = _NUMBERED.match(name)
+    if match is None or not match.group(1):
+        return []
+    stem, number = match.group(1), int(match.group(2))
+    numbered = [(abs(int(m.group(2)) - number), c) for c in choices
+                if (m := _NUMBERED.match(c)) and m.group(1) == stem and c != name]
+    return [min(numbered)[1]] if numbered else []
 
 
 class MecanumError(Exception):
@@ -48,6 +79,11 @@ class ScenarioError(MecanumError):
     @property
     def places(self) -> list[str]:
         return [p.place for p in self.problems]
+
+
+class ArgumentError(ScenarioError, ValueError):
+    """A Python API call got an argument it cannot use (exit code 2 like any bad input): each
+    problem is placed as `function(): argument NAME: what is wrong and the fix`."""
 
 
 class SimulationError(MecanumError):

@@ -25,6 +25,7 @@ import numpy as np
 from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, parse_table, \
     table_sampler
 from .errors import Problem
+from .values import is_finite
 
 SEGMENT_KEYS = ("duration", "vx", "vy", "w")
 MAX_TABLE_BYTES = 50_000_000
@@ -83,16 +84,16 @@ def segments_table(raw: Any, start_time: float, place: str,
                 ok = False
         values = [seg.get(k, 0.0) for k in SEGMENT_KEYS]
         for key, value in zip(SEGMENT_KEYS, values):
-            if not _finite(value):
+            if not is_finite(value):
                 report(Problem(label, f"{where}.{key}", f"expected a finite number, got "
                                                         f"{str(value)[:40]!r}"))
                 ok = False
-        if "duration" not in seg or (_finite(values[0]) and not values[0] > 0):
+        if "duration" not in seg or (is_finite(values[0]) and not values[0] > 0):
             report(Problem(label, f"{where}.duration", "needs a duration > 0 [s]"))
             ok = False
         if ok:
             rows.append((t, *values[1:]))
-            t += float(values[0])
+            t, ok = _segment_end(t, float(values[0]), f"{where}.duration", report, label)
     if not ok:
         return None
     rows.append((t, 0.0, 0.0, 0.0))
@@ -100,13 +101,22 @@ def segments_table(raw: Any, start_time: float, place: str,
         ",".join(repr(float(v)) for v in row) + "\n" for row in rows)
 
 
-def _finite(value: Any) -> bool:
-    if not isinstance(value, (int, float)) or isinstance(value, bool):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:          # an int too large for a float
-        return False
+def _segment_end(t: float, duration: float, place: str, report: Callable[[Problem], None],
+                 label: str) -> tuple[float, bool]:
+    """The end time of a segment starting at t, and whether it is usable: the sum of the
+    durations must stay finite, and each segment must move time on (a duration far below
+    t's precision adds nothing: t + duration == t)."""
+    end = t + duration
+    if not math.isfinite(end):
+        report(Problem(label, place, f"the segments up to here end at {end} s: the sum of the "
+                                     "durations must be a finite number of seconds"))
+        return t, False
+    if not end > t:
+        report(Problem(label, place, f"duration {duration!r} s does not advance time from "
+                                     f"t = {t!r} s (it is below that time's precision); give "
+                                     "a longer duration or drop the segment"))
+        return t, False
+    return end, True
 
 
 def resolve_profile(spec: dict, params: dict, scenario_dir: Path, start_time: float,

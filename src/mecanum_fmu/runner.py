@@ -12,16 +12,19 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
+from .arguments import check_prepare, check_run
+from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
+                     SimulationError)
 from .graph import Graph, compile_graph
 from .models.catalog import MODELS, find_roles
 from .report.ground_truth import Truth, ground_truth
 from .output import OutputFolder
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
-from .results import Results, error_estimate_lines
 from .masters import tolerance_master
-from .scenario import MASTERS, Scenario, load_scenario, override_experiment
+from .results import Results, error_estimate_lines
+from .scenario import (MAPPING_LABEL, Scenario, override_experiment, read_scenario,
+                       scenario_from_doc)
 
 
 @dataclass
@@ -35,31 +38,55 @@ class RunOutcome:
     files: list[Path]
 
 
-def prepare(path: str | Path, *, step_size: float | None = None, stop_time: float | None = None,
-            master_name: str | None = None, fmu_dir: Path | None = None,
-            tolerance: float | None = None,
-            build: bool = True) -> Graph:
-    """Load and check a scenario (with command-line overrides) and compile its graph. With
-    build (the default), the bundled FMUs it uses are built first when missing or stale;
-    without (validate), such an FMU is reported as a problem with the command that builds it."""
-    if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
-        from .interop.ssp_read import load_ssp
-        scenario = load_ssp(path)
-    else:
-        scenario = load_scenario(path)
+def prepare(path: str | Path | dict, *, step_size: float | None = None,
+            stop_time: float | None = None, master_name: str | None = None,
+            fmu_dir: Path | None = None, build: bool = True,
+            parameters: dict | None = None, tolerance: float | None = None) -> Graph:
+    """Load and check a scenario (a file, or a mapping of a file's keys whose relative paths
+    are taken from the working folder) with command-line overrides and `parameters`
+    ({"w2c.R": 0.061}, or a shared {"R": 0.061}) and `tolerance` (the adaptive master), and
+    compile its graph. Every problem is
+    raised at once (ScenarioError; errors.ArgumentError for an argument of the wrong kind),
+    the file's own together with the graph's. With build (the default), the bundled FMUs it
+    uses are built first when missing or stale; without (validate), such an FMU is reported
+    as a problem with the command that builds it."""
+    check_prepare(path, step_size, stop_time, master_name, fmu_dir, parameters)
+    scenario, problems = _read(path, parameters)
     changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
-                                 ("master", master_name), ("tolerance", tolerance),
-                                 ("master", tolerance_master(master_name, tolerance,
-                                                             scenario.label))) if v is not None}
-    if changes:
-        if "master" in changes and changes["master"] not in MASTERS:
-            raise ScenarioError([Problem(scenario.label, "--master", f"unknown master "
-                                 f"{changes['master']!r} (choose one of {', '.join(MASTERS)})")])
-        scenario = override_experiment(scenario, changes, scenario.label,
-                                       " (with the command-line options)")
+                                 ("master", master_name), ("tolerance", tolerance))
+               if v is not None}
+    if scenario is not None and changes:
+        try:
+            if (picked := tolerance_master(master_name, tolerance, scenario.label)):
+                changes["master"] = picked      # a tolerance chooses the adaptive master
+            scenario = override_experiment(scenario, changes, scenario.label,
+                                           " (from the command line or prepare's arguments)")
+        except ScenarioError as err:
+            problems += err.problems
+    if problems:
+        if scenario is not None:        # what the graph would add: every problem at once
+            try:
+                compile_graph(scenario, fmu_dir)
+            except ScenarioError as err:
+                problems += [p for p in err.problems if p not in problems]
+        raise ScenarioError(problems)
     if build:
         build_bundled(scenario, fmu_dir)
     return compile_graph(scenario, fmu_dir)
+
+
+def _read(path: str | Path | dict, parameters: dict | None) -> tuple[Scenario | None, list]:
+    """The scenario of a file, an SSP archive or a mapping, and the problems found."""
+    if isinstance(path, dict):
+        return scenario_from_doc(path, Path(MAPPING_LABEL), parameters)
+    if Path(path).suffix.lower() in (".ssp", ".ssd"):   # SSP 1.0 archive or bare SSD
+        from .interop.ssp_read import load_ssp
+        if parameters:
+            raise ArgumentError([Problem("runner.prepare()", "argument parameters", "is for "
+                                 "YAML scenarios and mappings; set an SSP's parameters in its "
+                                 "SSD, or export-ssp the scenario with them")])
+        return load_ssp(path), []
+    return read_scenario(path, parameters)
 
 
 def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:
@@ -97,6 +124,7 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     stepping loop (ground truth, plots) costs only itself: the tables are written first.
     `plotter`: a plot worker started earlier (the CLI starts it before loading, to hide
     matplotlib's import); without one, one is started here when plots are wanted."""
+    check_run(graph, out_dir, progress, log, keep_rows)
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(graph.scenario)
     plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
     try:

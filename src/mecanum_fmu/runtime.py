@@ -13,6 +13,7 @@ to repeat is done once per process and kept here:
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
 import hashlib
 import shutil
@@ -70,6 +71,14 @@ class Runtime:
         if digest not in self._extracted:
             self._extracted[digest] = extract_all(path, f"mecanum_{Path(path).stem[:40]}_")
         return self._extracted[digest]
+
+    def forget_extractions(self) -> None:
+        """Delete the extraction folders and forget them: the next run extracts anew (its
+        libraries load as new ones; those loaded stay mapped). Kept instances are freed first:
+        they read their resources from these folders."""
+        self.release_instances()
+        self.remove_extractions()
+        self._extracted.clear()
 
     def remove_extractions(self) -> None:
         """Delete the extraction folders. Only for a process about to leave (libraries stay
@@ -133,4 +142,22 @@ class Runtime:
 
 
 RUNTIME = Runtime()
-release_instances = RUNTIME.release_instances
+
+
+def release_instances(remove_extractions: bool = False) -> int:
+    """Free every kept instance (the next run instantiates afresh); with remove_extractions,
+    also delete the extraction folders (a notebook done with simulating: TMPDIR is left as
+    it was; a later run extracts again). Returns how many instances were freed."""
+    freed = RUNTIME.release_instances()
+    if remove_extractions:
+        RUNTIME.forget_extractions()
+    return freed
+
+
+@atexit.register
+def _leave() -> None:
+    """A script that used the API and ends normally: the kept instances are freed while the
+    interpreter is still whole, and TMPDIR is left as the script found it. (The CLI leaves
+    through process.exit_now, which does the same without interpreter shutdown.)"""
+    RUNTIME.release_instances()
+    RUNTIME.remove_extractions()

@@ -6,22 +6,21 @@ Every problem is collected and raised together as one ScenarioError.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import re
-import reprlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Union
 
 import yaml
 
-from .errors import Problem, ScenarioError
+from .errors import Problem, ScenarioError, did_you_mean
 from .masters import ADAPTIVE, DEFAULT as DEFAULT_MASTER, MASTERS, entry as master_entry
 from .storage import NotARegularFile, read_regular
+from .values import (is_finite, is_number, name_problem, scalar_problem, show,
+                     type_name as _type_name, unknown_keys as _unknown_keys, usable_name)
 
 MAX_FILE_BYTES = 1_000_000
-MAX_NAME = 100          # characters of a scenario name (it names the results folder)
 DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
                       "master": DEFAULT_MASTER, "tolerance": None}
 
@@ -83,77 +82,67 @@ class Scenario:
         return str(self.path)
 
 
-_REPR = reprlib.Repr()
-_REPR.maxlevel, _REPR.maxstring, _REPR.maxother = 3, 60, 60
-_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
-
-
-def show(value: Any, limit: int = 80) -> str:
-    """A short repr for messages: bounded even for huge or deeply shared (alias bomb) values."""
-    text = _REPR.repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def did_you_mean(name: str, choices) -> str:
-    if not isinstance(name, str) or len(name) > 100:
-        return ""
-    close = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.6)
-    return f"; did you mean '{close[0]}'?" if close else ""
-
-
 def is_identifier(name: Any) -> bool:
     """The rule for instance names: letters, digits and _, not starting with a digit."""
     return isinstance(name, str) and _NAME.fullmatch(name) is not None
 
 
-def usable_name(text: str) -> str | None:
-    """text made safe to name a results folder (letters, digits, _ . -; runs of anything else
-    become _; at most MAX_NAME characters), or None when nothing usable is left (empty, or
-    only dots such as '..': results/<name> must stay inside results/)."""
-    name = re.sub(r"[^\w.-]+", "_", text).strip("_")[:MAX_NAME]
-    return name if name.strip(".") else None
+MAPPING_LABEL = "<scenario mapping>"    # the "file" of a scenario given as a mapping
 
 
-def is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+def load_scenario(path: str | Path, parameters: dict | None = None) -> Scenario:
+    """Read and check a scenario file; `parameters` ({"w2c.R": 0.061} or a shared {"R": ...})
+    are set on its components first and checked by the same rules. Raises ScenarioError
+    listing every problem found."""
+    scenario, problems = read_scenario(path, parameters)
+    if problems:
+        raise ScenarioError(problems)
+    return scenario
 
 
-def is_finite(value: Any) -> bool:
-    """A number that is a finite float (an int too large for a float is not)."""
-    try:
-        return is_number(value) and math.isfinite(value)
-    except OverflowError:
-        return False
+def load_scenario_dict(doc: Any, base_dir: str | Path = ".",
+                       parameters: dict | None = None) -> Scenario:
+    """A scenario given as a mapping (the keys of a scenario file), checked as a file is;
+    relative FMU and table paths are taken from base_dir. Raises ScenarioError."""
+    scenario, problems = scenario_from_doc(doc, Path(base_dir) / MAPPING_LABEL, parameters)
+    if problems:
+        raise ScenarioError(problems)
+    return scenario
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and check a scenario file. Raises ScenarioError listing every problem found."""
+def read_scenario(path: str | Path, parameters: dict | None = None
+                  ) -> tuple[Scenario | None, list[Problem]]:
+    """The scenario (its valid parts, when some are wrong) and every problem of the file."""
     path = Path(path)
+    return scenario_from_doc(read_yaml(path, str(path)), path, parameters)
+
+
+def scenario_from_doc(doc: Any, path: Path, parameters: dict | None = None
+                      ) -> tuple[Scenario | None, list[Problem]]:
+    """The Scenario of a parsed document and every problem; None when nothing usable is left."""
     label = str(path)
     problems: list[Problem] = []
 
     def bad(place: str, message: str) -> None:
         problems.append(Problem(label, place, message))
 
-    doc = read_yaml(path, label)
     if doc is None:
-        raise ScenarioError([Problem(label, "file", "is empty: a scenario needs at least "
-                                     "components (instance name: {fmu: NAME_OR_PATH})")])
+        return None, [Problem(label, "file", "is empty: a scenario needs at least "
+                                             "components (instance name: {fmu: NAME_OR_PATH})")]
     if not isinstance(doc, dict):
-        raise ScenarioError([Problem(label, "top level", (
-            f"expected a mapping with keys {', '.join(_TOP_KEYS)}, got {_type_name(doc)}"))])
-
+        return None, [Problem(label, "top level", f"expected a mapping with keys "
+                              f"{', '.join(_TOP_KEYS)}, got {_type_name(doc)}")]
+    if parameters:
+        doc = with_parameters(doc, parameters, bad)
     _unknown_keys(doc, _TOP_KEYS, "top level", bad)
     name = doc.get("name", usable_name(path.stem) or "scenario")
-    if not isinstance(name, str) or usable_name(name) != name:
-        bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only, not "
-                    f"only dots, at most {MAX_NAME} characters; it names the results folder)")
+    if (problem := name_problem(name)) is not None:
+        bad("name", problem)
         name = usable_name(path.stem) or "scenario"
     description = doc.get("description", "")
     if not isinstance(description, str):
         bad("description", f"expected text, got {_type_name(description)}")
         description = ""
-
     experiment = parse_experiment(doc.get("experiment", {}), bad)
     shared = _parameters(doc.get("parameters", {}), "parameters", bad)
     components = _components(doc.get("components"), bad)
@@ -161,11 +150,44 @@ def load_scenario(path: str | Path) -> Scenario:
                            problems)
     connections = _connections(doc.get("connections", []), bad)
     outputs = _outputs(doc.get("outputs"), bad)
-
-    if problems:
-        raise ScenarioError(problems)
+    declared = doc.get("components")
+    if problems and not (isinstance(declared, dict) and len(declared) == len(components)):
+        return None, problems      # a component is missing: the graph's checks would mislead
     return Scenario(path, name, description, experiment, components, connections, outputs,
-                    shared)
+                    shared), problems
+
+
+def with_parameters(doc: dict, parameters: dict, bad) -> dict:
+    """doc with `instance.parameter: value` set in that component's parameters and a bare
+    `name: value` in the shared ones (copies only what changes). A key naming no component
+    goes to bad(place, message); the values are checked afterwards with the file's."""
+    doc = dict(doc)
+    components = doc.get("components")
+    components = dict(components) if isinstance(components, dict) else {}
+    for key, value in parameters.items():
+        place = f"parameters[{show(key)}] (an argument, not in the file)"
+        instance, dot, name = key.partition(".") if isinstance(key, str) else ("", "", "")
+        if not isinstance(key, str) or not key or (dot and not (instance and name)):
+            bad(place, "expected 'instance.parameter' (e.g. 'w2c.R') or a shared name ('R')")
+        elif not dot:
+            doc["parameters"] = _merged(doc.get("parameters"), key, value)
+        elif instance not in components:
+            bad(place, f"no component '{instance}'{did_you_mean(instance, components)}")
+        else:
+            spec = components[instance]
+            spec = dict(spec) if isinstance(spec, dict) else {"fmu": spec}
+            spec["parameters"] = _merged(spec.get("parameters"), name, value)
+            components[instance] = spec
+    if isinstance(doc.get("components"), dict):
+        doc["components"] = components
+    return doc
+
+
+def _merged(mapping: Any, key: str, value: Any) -> Any:
+    """mapping (a dict or nothing) with key set; anything else is left for its own message."""
+    if mapping is None:
+        return {key: value}
+    return {**mapping, key: value} if isinstance(mapping, dict) else mapping
 
 
 def read_yaml(path: Path, label: str) -> Any:
@@ -228,19 +250,6 @@ UniqueKeyLoader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
     list("-+0123456789"))
-
-
-def _type_name(value: Any) -> str:
-    names = {dict: "a mapping", list: "a list", str: "text", bool: "true/false",
-             int: "a number", float: "a number", type(None): "nothing"}
-    return names.get(type(value), type(value).__name__)
-
-
-def _unknown_keys(mapping: dict, allowed, place: str, bad) -> None:
-    for key in mapping:
-        if key not in allowed:
-            bad(place, f"unknown key {show(key)}{did_you_mean(str(key), allowed)} "
-                       f"(allowed: {', '.join(allowed)})")
 
 
 def parse_experiment(raw: Any, bad) -> Experiment:
@@ -348,10 +357,8 @@ def _parameters(raw: Any, place: str, bad) -> dict[str, Scalar]:
     for key, value in raw.items():
         if not isinstance(key, str):
             bad(place, f"parameter name {show(key)} must be text")
-        elif not isinstance(value, (bool, int, float, str)):
-            bad(f"{place}.{key}", f"expected a number, true/false or text, got {_type_name(value)}")
-        elif is_number(value) and not is_finite(value):
-            bad(f"{place}.{key}", f"{show(value)} is not a finite number")
+        elif (problem := scalar_problem(value)) is not None:
+            bad(f"{place}.{key}", problem)
         else:
             out[key] = value
     return out

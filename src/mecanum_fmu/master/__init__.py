@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..arguments import check_simulate
 from ..errors import Interrupted, Problem, ScenarioError, SimulationError
 from ..graph import Graph
 from ..masters import DEFAULT, DEFAULT_TOLERANCE, Master, entry as master_entry
@@ -41,7 +42,9 @@ def simulate(graph: Graph, experiment: Experiment,
     `sink` gets the recorded rows as they come, in chunks (structured arrays; every row has
     reached it when simulate returns or raises, except when the sink itself raises, which
     ends the run with that exception). `keep_rows`: the returned Results hold every row
-    (None, the default) or about that many evenly spaced rows plus the exact last one."""
+    (None, the default) or about that many evenly spaced rows plus the exact last one.
+    Wrong arguments raise errors.ArgumentError before anything is extracted."""
+    check_simulate(graph, experiment, progress, sink, keep_rows)
     how = master_entry(experiment.master)
     buffers = Buffers(graph, freeze=how.freezes_inputs)
     recorder = Recorder(graph, experiment, buffers, step_count(experiment), sink, keep_rows)

@@ -16,6 +16,7 @@ from .blocks.expression import ExpressionError, compile_expression
 from .blocks.bicycle import bicycle_problem
 from .blocks.kinematics import GEOMETRY, geometry_problem, radius_deviation_problem
 from .blocks.omni import omni_geometry_problem
+from ..values import is_number
 
 AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
 
@@ -40,7 +41,39 @@ def _numbers_rule(names: tuple[str, ...], problem: Callable):
     return check
 
 
-_check_geometry = _numbers_rule(GEOMETRY, geometry_problem)
+def _mecanum_problem(alpha, L, W, R):
+    found = geometry_problem(alpha, L, W, R)
+    if found is not None:
+        return found
+    c = 1.0 / math.tan(alpha)
+    k = L + W * c
+    return _coefficient_problem({"alpha": alpha, "L": L, "W": W, "R": R}, (
+        ("alpha", c, "cot(alpha)"), ("L" if L >= W * c else "W", k, "L + W cot(alpha)"),
+        ("R", 1.0 / R, "1/R"), ("R", k / R, "(L + W cot(alpha))/R"),
+        ("R", R * math.tan(alpha) / 4.0, "R tan(alpha)/4"), ("R", R / (4.0 * k), "R/(4 k)")))
+
+
+def _omni_problem(L, R):
+    found = omni_geometry_problem(L, R)
+    if found is not None:
+        return found
+    return _coefficient_problem({"L": L, "R": R}, (
+        ("R", 1.0 / R, "1/R"), ("L", L / R, "L/R"), ("R", R / (4.0 * L), "R/(4 L)")))
+
+
+def _coefficient_problem(values: dict, coefficients) -> tuple[str, str] | None:
+    """Geometry in range whose kinematic coefficients overflow (or underflow to 0), e.g.
+    R = 5e-324 (1/R = inf) or L = W = 1e308 (L + W = inf): every step would give inf or nan,
+    so it is bad input, refused before the run (docs/spec.md, Kinematics)."""
+    for name, coefficient, what in coefficients:
+        if not (math.isfinite(coefficient) and coefficient > 0.0):
+            return name, (f"parameter {name} = {values[name]!r} makes {what} = {coefficient!r}, "
+                          "not a finite number > 0: the kinematics overflow on the first step; "
+                          "give lengths in metres and the roller angle in radians")
+    return None
+
+
+_check_geometry = _numbers_rule(GEOMETRY, _mecanum_problem)
 
 
 def _check_expressions(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
@@ -68,7 +101,7 @@ def _check_inverse(values: Mapping[str, object], start_time: float) -> list[tupl
     """Center2Wheel: the geometry, and w_max >= 0 (0: no wheel speed limit)."""
     problems = _check_geometry(values, start_time)
     w_max = values.get("w_max")
-    if _is_number(w_max) and not (math.isfinite(w_max) and w_max >= 0):
+    if is_number(w_max) and not (math.isfinite(w_max) and w_max >= 0):
         problems.append(("w_max", f"parameter w_max = {w_max!r} rad/s must be >= 0 "
                                   "(0: no wheel speed limit)"))
     return problems
@@ -79,14 +112,10 @@ def _check_follower(values: Mapping[str, object], start_time: float) -> list[tup
     problems = _check_expressions(values, start_time)
     for name in ("k_pos", "k_theta"):
         gain = values.get(name)
-        if _is_number(gain) and not (math.isfinite(gain) and gain > 0):
+        if is_number(gain) and not (math.isfinite(gain) and gain > 0):
             problems.append((name, f"gain {name} = {gain!r} 1/s must be > 0 (the rate at "
                                    "which the error decays; try 2)"))
     return problems
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
@@ -101,9 +130,9 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("PathFollower", "path_follower", "follower", _check_follower),
     # the other two chassis of the original documents (docs/chassis.md)
     Model("OmniCenter2Wheel", "omni_center2wheel", "omni-inverse",
-          _numbers_rule(("L", "R"), omni_geometry_problem)),
+          _numbers_rule(("L", "R"), _omni_problem)),
     Model("OmniWheel2Center", "omni_wheel2center", "omni-forward",
-          _numbers_rule(("L", "R"), omni_geometry_problem)),
+          _numbers_rule(("L", "R"), _omni_problem)),
     Model("FieldToBody", "field_to_body", "frame", _no_rules),
     Model("Bicycle", "bicycle", "forward", _numbers_rule(("l", "reference"), bicycle_problem)),
     Model("SteeringSource", "steering_source", "steering", _check_expressions),

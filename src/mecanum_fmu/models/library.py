@@ -14,6 +14,7 @@ import fmpy
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
+from ..errors import did_you_mean
 from ..archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
 from .catalog import MODELS
 from .link import build_link, with_prelude
@@ -78,12 +79,18 @@ def bundled_fmu_path(model_name: str, fmu_dir: Path) -> Path:
 
 def is_current(model_name: str, fmu_path: Path) -> bool:
     """True when fmu_path exists and was built from the current sources (GUID match)."""
+    guid = fmu_guid(fmu_path)
+    return guid is not None and guid == slave_source(model_name).guid
+
+
+def fmu_guid(fmu_path: Path) -> str | None:
+    """The GUID an FMU's model description declares; None when it cannot be read."""
     try:
         with zipfile.ZipFile(fmu_path) as zf:
-            root = ElementTree.fromstring(zf.read("modelDescription.xml"))
-    except (OSError, KeyError, zipfile.BadZipFile, ElementTree.ParseError):
-        return False
-    return root.get("guid") == slave_source(model_name).guid
+            root = ElementTree.fromstring(read_member(zf, "modelDescription.xml", MAX_DESCRIPTION_BYTES))
+    except (ArchiveError, *ZIP_ERRORS, KeyError, ElementTree.ParseError):
+        return None
+    return root.get("guid")
 
 
 def stale_warning(spec: str, fmu_dir: Path) -> str | None:
@@ -115,7 +122,7 @@ def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
     if not exists:
         hint = ""
         if not spec.endswith(".fmu"):
-            hint = f" (bundled FMUs: {', '.join(MODELS)})"
+            hint = f"{did_you_mean(spec, MODELS)} (bundled FMUs: {', '.join(MODELS)})"
         raise ValueError(f"FMU {spec!r} not found (looked for {path}){hint}")
     if not is_file:
         raise ValueError(f"FMU {spec!r} is {'a folder' if is_dir else 'a special file'}, "

@@ -25,12 +25,14 @@ from typing import Callable
 
 import numpy as np
 
+from ..arguments import check_execute, check_sweep_file
 from ..errors import Interrupted, Problem, ScenarioError
 from ..graph import Graph
 from ..report.ground_truth import find_roles, ground_truth
 from ..results import format_value
 from ..runner import prepare
-from .spec import Run, Sweep, apply_experiment, load_sweep, plan_runs
+from . import spec
+from .spec import Run, Sweep
 from .worker import CleanUp, RunResult, run_batch, with_values
 
 BATCHES_PER_WORKER = 4        # tasks per worker: load balance and little lost on a dead worker
@@ -50,12 +52,8 @@ class Execution:
 
 def prepare_sweep(path: str | Path, fmu_dir: Path | None = None) -> tuple[Sweep, Graph, list[Run]]:
     """Load and check the sweep file, its scenario and every value. Raises ScenarioError."""
-    sweep = load_sweep(path)
-    if not sweep.scenario_path.is_file():
-        raise ScenarioError([Problem(str(sweep.path), "scenario", f"{sweep.scenario_path} not "
-                                     "found; give the scenario path relative to the sweep file")])
-    graph = apply_experiment(sweep, prepare(sweep.scenario_path, fmu_dir=fmu_dir))
-    return sweep, graph, plan_runs(sweep, graph)
+    check_sweep_file(path)
+    return spec.prepare_sweep(path, lambda scenario: prepare(scenario, fmu_dir=fmu_dir))
 
 
 def execute(graph: Graph, runs: list[Run], *, workers: int | None = None,
@@ -63,6 +61,7 @@ def execute(graph: Graph, runs: list[Run], *, workers: int | None = None,
             progress: Callable[[int, int], None] | None = None,
             log: Callable[[str], None] = lambda line: None) -> Execution:
     """Run every planned run (those with a problem are failed rows without running)."""
+    check_execute(graph, runs, workers, scheduler, progress, log)
     tick = time.perf_counter()
     with cluster(workers, scheduler) as (client, n_workers, address):
         startup = time.perf_counter() - tick
@@ -320,6 +319,7 @@ def run_sweep(path: str | Path, out_dir: Path | None = None, *, workers: int | N
               progress: Callable[[int, int], None] | None = None,
               log: Callable[[str], None] = print) -> dict:
     """The whole command. Returns the summary; raises Interrupted after writing on Ctrl-C."""
+    check_execute(None, None, workers, scheduler, progress, log)
     sweep, graph, runs = prepare_sweep(path, fmu_dir)
     out_dir = Path(out_dir) if out_dir is not None else Path("results") / sweep.name
     log(f"{sweep.name}: {len(runs)} runs of {graph.scenario.name}, "

@@ -23,14 +23,16 @@ import itertools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from ..errors import Problem, ScenarioError
 from ..graph import Graph, check_start_values, settable_parameters
-from ..scenario import (Scalar, VarRef, did_you_mean, experiment_values, is_finite, is_number,
-                        override_experiment, parse_ref, read_yaml, show, usable_name)
+from ..errors import did_you_mean
+from ..scenario import (Scalar, VarRef, experiment_values, override_experiment, parse_ref,
+                        read_yaml)
+from ..values import is_finite, name_problem, scalar_problem, show, unknown_keys
 
 _TOP_KEYS = ("name", "description", "scenario", "experiment", "grid", "random")
 MAX_RUNS = 1_000_000            # grid points x samples; more is surely a typo
@@ -62,6 +64,40 @@ class Run:
 
 def load_sweep(path: str | Path) -> Sweep:
     """Read and check the file's own structure (no FMU needed). Raises ScenarioError."""
+    sweep, problems, _ = read_sweep(path)
+    if problems:
+        raise ScenarioError(problems)
+    return sweep
+
+
+def prepare_sweep(path: str | Path, load_graph: Callable[[Path], Graph]) -> tuple[Sweep, Graph,
+                                                                                  list[Run]]:
+    """The sweep file, its scenario's graph (load_graph(scenario path)) and the planned runs.
+    Every problem is reported at once: those of the file's own structure together with those
+    of its scenario and of every parameter name it varies (even one with a bad distribution).
+    Raises ScenarioError."""
+    sweep, problems, named = read_sweep(path)
+    graph = None
+    if sweep.scenario_path == sweep.path.parent:      # no scenario given: reported already
+        pass
+    elif not sweep.scenario_path.is_file():
+        problems.append(Problem(str(sweep.path), "scenario", f"{sweep.scenario_path} not found; "
+                                "give the scenario path relative to the sweep file"))
+    else:
+        try:
+            graph = apply_experiment(sweep, load_graph(sweep.scenario_path))
+        except ScenarioError as err:
+            problems += [p for p in err.problems if p not in problems]
+    if graph is not None:
+        problems += [p for p in parameter_problems(sweep, graph, named) if p not in problems]
+    if problems or graph is None:
+        raise ScenarioError(problems)
+    return sweep, graph, plan_runs(sweep, graph)
+
+
+def read_sweep(path: str | Path) -> tuple[Sweep, list[Problem], list[tuple[str, VarRef]]]:
+    """The sweep with its valid parts, every problem of the file's own structure, and every
+    (place, parameter) it names."""
     path = Path(path)
     label = str(path)
     problems: list[Problem] = []
@@ -73,21 +109,18 @@ def load_sweep(path: str | Path) -> Sweep:
     if not isinstance(raw, dict):
         raise ScenarioError([Problem(label, "file", "a sweep file is a mapping with keys "
                                      + ", ".join(_TOP_KEYS))])
-    for key in raw:
-        if key not in _TOP_KEYS:
-            bad(str(key), f"unknown key{did_you_mean(str(key), _TOP_KEYS)} (allowed: "
-                          + ", ".join(_TOP_KEYS) + ")")
+    unknown_keys(raw, _TOP_KEYS, "top level", bad)
     name = raw.get("name", path.stem)
-    if not isinstance(name, str) or usable_name(name) != name:     # the scenario's rule
-        bad("name", f"{show(name)} is not a usable name (letters, digits, _ . - only, not "
-                    "only dots; it names the results folder results/<name>/)")
+    if (problem := name_problem(name)) is not None:      # the scenario's rule
+        bad("name", problem)
     scenario = raw.get("scenario")
     if not isinstance(scenario, str) or not scenario:
         bad("scenario", "missing: the scenario file to sweep, relative to this file")
         scenario = ""
     experiment, _ = experiment_values(raw.get("experiment"), bad)
-    grid = _grid(raw.get("grid"), bad)
-    samples, seed, random = _random(raw.get("random"), bad)
+    named: list[tuple[str, VarRef]] = []
+    grid = _grid(raw.get("grid"), bad, named)
+    samples, seed, random = _random(raw.get("random"), bad, named)
     if raw.get("grid") is None and raw.get("random") is None:
         bad("grid", "nothing to sweep: give a `grid:` of value lists and/or `random:` draws")
     seen = [str(ref) for ref, _ in grid] + [str(ref) for ref, _, _ in random]
@@ -97,9 +130,9 @@ def load_sweep(path: str | Path) -> Sweep:
     if total > MAX_RUNS:
         bad("grid" if grid else "random.samples", f"{total} runs (grid points x samples) is "
             f"more than {MAX_RUNS:,}; split the study")
-    if problems:
-        raise ScenarioError(problems)
-    return Sweep(path, name, (path.parent / scenario), experiment, grid, samples, seed, random)
+    sweep = Sweep(path, name if isinstance(name, str) else path.stem, path.parent / scenario,
+                  experiment, grid, samples, seed, random)
+    return sweep, problems, named
 
 
 def _ref(key, place: str, bad) -> VarRef | None:
@@ -109,7 +142,7 @@ def _ref(key, place: str, bad) -> VarRef | None:
     return ref
 
 
-def _grid(raw, bad) -> tuple:
+def _grid(raw, bad, named: list) -> tuple:
     if raw is None:
         return ()
     if not isinstance(raw, dict) or not raw:
@@ -120,18 +153,18 @@ def _grid(raw, bad) -> tuple:
     for key, values in raw.items():
         place = f"grid.{key}"
         ref = _ref(key, place, bad)
+        if ref is not None:
+            named.append((place, ref))
         if not isinstance(values, list) or not values:
             bad(place, f"expected a non-empty list of values, got {show(values)}")
-        elif any(not isinstance(v, (bool, int, float, str)) for v in values):
-            bad(place, "values must be numbers, true/false or text")
-        elif any(is_number(v) and not is_finite(v) for v in values):
-            bad(place, "values must be finite numbers (no .nan or .inf)")
+        elif (problem := next(filter(None, map(scalar_problem, values)), None)) is not None:
+            bad(place, f"every value must be a finite number, true/false or text: {problem}")
         elif ref is not None:
             grid.append((ref, tuple(values)))
     return tuple(grid)
 
 
-def _random(raw, bad) -> tuple[int, int, tuple]:
+def _random(raw, bad, named: list) -> tuple[int, int, tuple]:
     if raw is None:
         return 0, 0, ()
     if not isinstance(raw, dict):
@@ -150,6 +183,8 @@ def _random(raw, bad) -> tuple[int, int, tuple]:
             continue
         place = f"random.{key}"
         ref = _ref(key, place, bad)
+        if ref is not None:
+            named.append((place, ref))
         kind, args = _distribution(spec, place, bad)
         if ref is not None and kind is not None:
             draws.append((ref, kind, args))
@@ -207,31 +242,40 @@ def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
     return runs
 
 
-def _check_parameters(sweep: Sweep, graph: Graph) -> None:
+def parameter_problems(sweep: Sweep, graph: Graph,
+                       named: list[tuple[str, VarRef]] | None = None) -> list[Problem]:
+    """A Problem for each varied parameter (or each one named, valid or not) the graph has not
+    got, or cannot set, or (random draws) that is not Real."""
     problems = []
     names = [i.name for i in graph.instances]
-    kinds = {**{str(ref): ("grid", None) for ref, _ in sweep.grid},
-             **{str(ref): ("random", kind) for ref, kind, _ in sweep.random}}
-    for ref in sweep.varied:
-        place = f"{kinds[str(ref)][0]}.{ref}"
+    drawn = {str(ref) for ref, _, _ in sweep.random}
+    if named is None:
+        named = [(f"grid.{ref}", ref) for ref, _ in sweep.grid] + [
+            (f"random.{ref}", ref) for ref, _, _ in sweep.random]
+    for place, ref in named:
         if ref.instance not in names:
-            problems.append(f"{place}: unknown instance '{ref.instance}'"
-                            f"{did_you_mean(ref.instance, names)}")
+            problems.append((place, f"unknown instance '{ref.instance}'"
+                                    f"{did_you_mean(ref.instance, names)}"))
             continue
         inst = graph.instance(ref.instance)
         settable = settable_parameters(inst)
         var = next((v for v in inst.model.modelVariables if v.name == ref.variable), None)
         if var is None:
-            problems.append(f"{place}: {inst.model_name} instance '{ref.instance}' has no "
-                            f"parameter '{ref.variable}'{did_you_mean(ref.variable, settable)}")
+            problems.append((place, f"{inst.model_name} instance '{ref.instance}' has no "
+                             f"parameter '{ref.variable}'{did_you_mean(ref.variable, settable)}"))
         elif ref.variable not in settable:
-            problems.append(f"{place}: '{ref.variable}' is {var.causality} ({var.variability}) "
-                            f"and cannot be set; settable: {', '.join(settable)}")
-        elif kinds[str(ref)][1] and var.type != "Real":
-            problems.append(f"{place}: '{ref}' is {var.type}; random draws are real numbers "
-                            "(sweep it with `grid:` instead)")
+            problems.append((place, f"'{ref.variable}' is {var.causality} ({var.variability}) "
+                                    f"and cannot be set; settable: {', '.join(settable)}"))
+        elif place.startswith("random.") and str(ref) in drawn and var.type != "Real":
+            problems.append((place, f"'{ref}' is {var.type}; random draws are real numbers "
+                                    "(sweep it with `grid:` instead)"))
+    return [Problem(str(sweep.path), place, message) for place, message in problems]
+
+
+def _check_parameters(sweep: Sweep, graph: Graph) -> None:
+    problems = parameter_problems(sweep, graph)
     if problems:
-        raise ScenarioError([Problem(str(sweep.path), *p.split(": ", 1)) for p in problems])
+        raise ScenarioError(problems)
 
 
 def _check_grid_points(sweep: Sweep, graph: Graph, refs, points) -> None:

@@ -60,6 +60,11 @@ _EXPR_BAD_CONSTS = {bool: "boolean literal", str: "string", bytes: "bytes",
                     complex: "complex number"}
 
 
+# What a user most likely meant by an operator that is not allowed.
+_EXPR_OP_HINTS = {ast.BitXor: "; use ** for a power (2**t, t**2)", ast.BitAnd: "; use and",
+                  ast.BitOr: "; use or", ast.Invert: "; use not or -"}
+
+
 def _expr_quote(text):
     return repr(text) if len(text) <= _EXPR_MAX_LENGTH else repr(text[:40]) + "..."
 
@@ -213,7 +218,8 @@ def _expr_node(text, node, depth):
     if tp is ast.BinOp or tp is ast.UnaryOp:
         op = _EXPR_OPS.get(type(node.op))
         if op is None:
-            raise _expr_reject(text, node, "operator '%s' in" % _EXPR_BAD_OPS.get(type(node.op)))
+            raise _expr_reject(text, node, "operator '%s' in" % _EXPR_BAD_OPS.get(type(node.op)),
+                               _EXPR_OP_HINTS.get(type(node.op), ""))
         operands = [node.left, node.right] if tp is ast.BinOp else [node.operand]
         return _expr_apply(op, [sub(n) for n in operands])
     if tp is ast.Compare:
