@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,6 +19,11 @@ from mecanum_fmu.report import plots
 from mecanum_fmu.report.plot_worker import PlotFailed, PlotWorker
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
+
+
+def judged(roles, truth):
+    """What the worker reads of a run's Evaluation: its roles and the single pose's truth."""
+    return SimpleNamespace(roles=roles, truth=truth)
 
 
 def find_in(big: np.ndarray, small: np.ndarray) -> list[tuple[int, int]]:
@@ -82,7 +88,7 @@ def test_the_dashboard_is_not_blank_and_has_the_panels(written):
 def test_worker_writes_the_same_files_as_drawing_here(tmp_path):
     results, truth = make_run()
     here = plots.write_plots(results, ROLES, truth, tmp_path / "here", title="circle")
-    there = PlotWorker.start().finish(results, ROLES, truth, tmp_path / "there", title="circle")
+    there = PlotWorker.start().finish(results, judged(ROLES, truth), tmp_path / "there", title="circle")
     assert [p.name for p in there] == [p.name for p in here]
     for a, b in zip(here, there):
         assert a.read_bytes() == b.read_bytes(), a.name
@@ -109,7 +115,7 @@ def test_worker_failure_is_reported_with_its_reason(tmp_path):
     results, truth = make_run()
     (tmp_path / "dashboard.png").mkdir()                    # cannot be written
     with pytest.raises(PlotFailed, match="dashboard.png"):
-        PlotWorker.start().finish(results, ROLES, truth, tmp_path)
+        PlotWorker.start().finish(results, judged(ROLES, truth), tmp_path)
 
 
 def test_cancelled_worker_ends(tmp_path):
@@ -168,16 +174,15 @@ def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
     from mecanum_fmu.report.plot_worker import _frame_hint
     from mecanum_fmu.runner import prepare, run
     graph = prepare(CIRCLE, fmu_dir=next(iter(built_fmus.values())).parent)
-    stand_in, roles, title = _frame_hint(graph)
-    outcome = run(graph, tmp_path / "run", plots=False, log=lambda line: None)
+    outcome = run(graph, tmp_path / "run", plots=False)
+    stand_in, roles, title = _frame_hint(graph, outcome.evaluation.roles)
     frame = plots.dashboard_frame(stand_in, roles, title)
     assert frame.keys == plots.available_panels(outcome.results, roles) == PANEL_KEYS + ["icr"]
     assert frame.figure.get_suptitle() == "circle - quadratic, step 0.05 s"
     here = plots.write_plots(outcome.results, roles, outcome.truth, tmp_path / "here", title)
     worker = PlotWorker.start()
-    worker.expect(graph)
-    there = worker.finish(outcome.results, roles, outcome.truth,
-                          tmp_path / "there", title)
+    worker.expect(graph, roles)
+    there = worker.finish(outcome.results, outcome.evaluation, tmp_path / "there", title)
     assert [p.name for p in there] == [p.name for p in here]
     for a, b in zip(here, there):
         assert a.read_bytes() == b.read_bytes(), a.name
@@ -186,6 +191,6 @@ def test_the_frame_drawn_before_the_run_ends_fits_the_run(built_fmus, tmp_path):
 def test_without_a_worker_the_plots_are_drawn_here(tmp_path):
     """No worker process (it could not start): finish() draws in this process instead."""
     results, truth = make_run()
-    paths = PlotWorker(None).finish(results, ROLES, truth, tmp_path, title="circle")
+    paths = PlotWorker(None).finish(results, judged(ROLES, truth), tmp_path, title="circle")
     assert sorted(p.name for p in paths) == sorted(f"{k}.png" for k in ["dashboard"] + PANEL_KEYS)
     assert all(p.stat().st_size > 1000 for p in paths)

@@ -22,6 +22,10 @@ import sys
 import weakref
 from pathlib import Path
 
+import numpy as np
+
+from ..results import Results
+
 PACKAGE_PARENT = Path(__file__).resolve().parents[1]     # so the child finds this package
 
 
@@ -54,9 +58,10 @@ class PlotWorker:
         except OSError:
             return cls(None)
 
-    def expect(self, graph) -> None:
-        """Tell the worker what the run records, so it prepares the dashboard's frame."""
-        self._send(_frame_hint(graph))
+    def expect(self, graph, roles) -> None:
+        """Tell the worker what the run records (and the roles: topology(graph).roles), so it
+        prepares the dashboard's frame."""
+        self._send(_frame_hint(graph, roles))
 
     def _send(self, obj) -> None:
         if self._proc is None or self._sent_hint:
@@ -68,9 +73,10 @@ class PlotWorker:
         except OSError:         # it died: draw here instead
             self.cancel()
 
-    def finish(self, results, roles, truth, out_dir: Path, title: str = "") -> list[Path]:
-        """Have the worker write the plots (or draw them here without one); the PNG paths."""
-        job = (results, roles, truth, str(out_dir), title)
+    def finish(self, results, evaluation, out_dir: Path, title: str = "") -> list[Path]:
+        """Have the worker write the plots of the run and its Evaluation (or draw them here
+        without a worker); the PNG paths."""
+        job = (results, evaluation.roles, evaluation.truth, str(out_dir), title)
         self._send(None)        # no frame was asked for: the worker only warms up
         if self._proc is None:
             return _draw(*job)
@@ -102,19 +108,16 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.communicate()
 
 
-def _frame_hint(graph) -> tuple | None:
+def _frame_hint(graph, roles) -> tuple | None:
     """What the dashboard's frame needs before the run ends: a one-row stand-in for the
     results (the recorded column names and the run's settings), the roles and the title."""
     if graph is None:
         return None
-    import numpy as np
-    from .ground_truth import find_roles
-    from ..results import Results
     names = tuple(str(port.ref) for port in graph.recorded)
     exp = graph.scenario.experiment
     stand_in = Results(names, np.zeros(1, dtype=[("time", "f8")] + [(n, "f8") for n in names]),
                        exp.master, exp.start_time, exp.stop_time, exp.step_size, 0, 0.0)
-    return stand_in, find_roles(graph), graph.scenario.name
+    return stand_in, roles, graph.scenario.name
 
 
 def _draw(results, roles, truth, out_dir: str, title: str, frame=None,

@@ -20,7 +20,8 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .ground_truth import Roles, Truth
+from .truth import Truth
+from ..models.catalog import Roles
 from ..results import Results
 
 MAX_POINTS = 5000                 # more rows than this are decimated before drawing
