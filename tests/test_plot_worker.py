@@ -94,23 +94,6 @@ def test_worker_writes_the_same_files_as_drawing_here(tmp_path):
         assert a.read_bytes() == b.read_bytes(), a.name
 
 
-def test_two_processes_draw_the_same_bytes_as_one(tmp_path):
-    """report.halves: the left column here, the right one in a forked child, pasted together:
-    every PNG is byte for byte what one draw gives; a panel the child cannot write fails the
-    call, naming the child."""
-    results, truth = make_run()
-    one = plots.write_plots(results, ROLES, truth, tmp_path / "one", title="circle")
-    two = plots.write_plots(results, ROLES, truth, tmp_path / "two", title="circle", halves=True)
-    assert [p.name for p in two] == [p.name for p in one]
-    for a, b in zip(one, two):
-        assert a.read_bytes() == b.read_bytes(), a.name
-    right = plots.available_panels(results, ROLES)[1]           # the right column's first
-    (tmp_path / "bad").mkdir()
-    (tmp_path / "bad" / f"{right}.png").mkdir()                 # cannot be written
-    with pytest.raises(RuntimeError, match="right column"):
-        plots.write_plots(results, ROLES, truth, tmp_path / "bad", title="circle", halves=True)
-
-
 def test_worker_failure_is_reported_with_its_reason(tmp_path):
     results, truth = make_run()
     (tmp_path / "dashboard.png").mkdir()                    # cannot be written
@@ -118,12 +101,15 @@ def test_worker_failure_is_reported_with_its_reason(tmp_path):
         PlotWorker.start().finish(results, judged(ROLES, truth), tmp_path)
 
 
-def test_cancelled_worker_ends(tmp_path):
+def test_cancelled_worker_ends():
+    """cancel() ends the worker process and reaps it: nothing is left running."""
     worker = PlotWorker.start()
     proc = worker._proc
+    assert proc.poll() is None                  # it runs, waiting for its hint
     worker.cancel()
-    assert proc.returncode is not None
-    assert not any(tmp_path.iterdir())
+    assert proc.returncode is not None and worker._proc is None
+    with pytest.raises(ProcessLookupError):
+        os.kill(proc.pid, 0)
 
 
 def test_failed_run_keeps_the_tables_and_writes_no_plots(tmp_path, tmp_path_factory):

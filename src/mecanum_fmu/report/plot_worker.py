@@ -6,8 +6,7 @@ plotting code at once; `expect(graph)` sends it the run's column names and setti
 builds and draws the dashboard's frame (axes, titles: fonts, ticks, caches) while the parent
 simulates, then waits on its stdin.
 `finish()` sends it the results (pickled: parent to its own child, never user text) and returns
-the PNG paths it wrote; the worker draws the two columns of the dashboard in two processes
-(report.halves). `cancel()` lets it go. On a machine with a free core the import is hidden.
+the PNG paths it wrote. `cancel()` lets it go. On a machine with a free core the import is hidden.
 A worker that cannot start (no interpreter executable, e.g. embedded Python) falls back to
 drawing in this process.
 """
@@ -50,8 +49,6 @@ class PlotWorker:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_PARENT),
                                                           env.get("PYTHONPATH")]))
         env.setdefault("MPLBACKEND", "Agg")
-        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):   # one thread: it forks
-            env.setdefault(name, "1")
         try:
             return cls(subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=env))
@@ -120,11 +117,9 @@ def _frame_hint(graph, roles) -> tuple | None:
     return stand_in, roles, graph.scenario.name
 
 
-def _draw(results, roles, truth, out_dir: str, title: str, frame=None,
-          halves: bool = False) -> list[Path]:
-    from .plots import write_plots
-    return write_plots(results, roles, truth, Path(out_dir), title=title, frame=frame,
-                       halves=halves)
+def _draw(results, roles, truth, out_dir: str, title: str, frame=None) -> list[Path]:
+    from .plots import write_plots     # startup: matplotlib, in the worker only
+    return write_plots(results, roles, truth, Path(out_dir), title=title, frame=frame)
 
 
 def _prepare(hint: tuple | None):
@@ -165,7 +160,7 @@ def main() -> int:
     if not data:                # cancelled: the parent closed our stdin
         return 0
     try:
-        paths = _draw(*pickle.loads(data), frame=frame, halves=True)   # our own process: it forks
+        paths = _draw(*pickle.loads(data), frame=frame)
     except Exception as err:    # reported by the parent with the files it kept
         answer, code = {"error": f"{type(err).__name__}: {err}"}, 1
     else:
