@@ -12,6 +12,7 @@ from typing import Callable
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .graph import Graph, compile_graph
 from .models.catalog import MODELS
+from .models.library import bundled_fmu_path, default_fmu_dir, is_current
 from .models.topology import Topology, topology
 from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines
 from .report.truth import Truth
@@ -71,8 +72,7 @@ def prepare(path: str | Path, *, step_size: float | None = None, stop_time: floa
 
 def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:
     """Build the bundled FMUs the scenario names that are missing or stale."""
-    from .models.build import build_fmu
-    from .models.library import bundled_fmu_path, default_fmu_dir, is_current
+    from .models.build import build_fmu     # startup: pythonfmu, only when building
     fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
     for comp in scenario.components:
         if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):

@@ -91,9 +91,11 @@ def graph_geometry(graph, roles: Roles | None = None) -> dict[str, float]:
     return geometry_of(graph.instance(name).start_values if name else None)
 
 
-def constant_twist_signs(graph, results, roles: Roles, tol: float = 1e-12) -> str | None:
+def constant_twist_signs(graph, results, roles: Roles, geometry: Mapping[str, float],
+                         tol: float = 1e-12) -> str | None:
     """The wheel-sign pattern of a run whose commanded twist is constant; None otherwise
-    (no source, twist not recorded, empty run, or a twist that changes)."""
+    (no source, twist not recorded, empty run, or a twist that changes). geometry: alpha,
+    L, W, R of its kinematics (graph_geometry)."""
     if roles.source is None or len(results.time) == 0:
         return None
     cols = [f"{roles.source}.{v}" for v in ("vx", "vy", "w")]
@@ -108,7 +110,7 @@ def constant_twist_signs(graph, results, roles: Roles, tol: float = 1e-12) -> st
     if (omni := graph.find_model("OmniCenter2Wheel")) is not None and roles.inverse is None:
         return omni_constant_twist_signs(graph, omni, roles.source, twist)
     try:
-        return wheel_signs(*twist, **graph_geometry(graph, roles))
+        return wheel_signs(*twist, **geometry)
     except (ArithmeticError, ValueError):
         return None
 

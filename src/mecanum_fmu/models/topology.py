@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .catalog import Roles, find_roles
+from .modes import graph_geometry
 
 # blocks a body twist passes through unchanged: model -> the input to follow upstream
 PASS_THROUGH = {"Wheel2Center": "w1", "OmniWheel2Center": "w1",
@@ -26,12 +27,14 @@ class Drive:
     model: str | None           # the origin's model name
     chain: tuple[str, ...]      # the kinematics blocks in between, pose side first
     limiter: str | None         # a Center2Wheel in the chain (its w_max may saturate the wheels)
+    w_max: float = 0.0          # the limiter's wheel speed limit [rad/s]; 0: none
 
 
 @dataclass(frozen=True)
 class Topology:
     roles: Roles                # the single instance of each bundled role (the plots' view)
     drives: tuple[Drive, ...]   # one per PoseIntegrator, in the scenario's order
+    geometry: dict[str, float]  # alpha, L, W, R of the kinematics (modes.graph_geometry)
 
 
 def upstream(graph, instance: str, var: str) -> tuple[str, str] | None:
@@ -53,12 +56,14 @@ def drive_of(graph, pose: str) -> Drive:
         found = upstream(graph, found[0], PASS_THROUGH[model])
     origin = found[0] if found is not None and found[0] not in chain else None
     limiter = next((n for n in chain if graph.instance(n).model_name == LIMITER), None)
+    w_max = float(graph.instance(limiter).value("w_max") or 0.0) if limiter else 0.0
     return Drive(pose, origin, graph.instance(origin).model_name if origin else None,
-                 tuple(chain), limiter)
+                 tuple(chain), limiter, w_max)
 
 
 def topology(graph) -> Topology:
     """The roles and, for every PoseIntegrator (in the scenario's order), what drives it."""
     poses = [c.name for c in graph.scenario.components
              if graph.instance(c.name).model_name == "PoseIntegrator"]
-    return Topology(find_roles(graph), tuple(drive_of(graph, p) for p in poses))
+    roles = find_roles(graph)
+    return Topology(roles, tuple(drive_of(graph, p) for p in poses), graph_geometry(graph, roles))

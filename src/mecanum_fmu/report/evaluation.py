@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..models.modes import constant_twist_signs, graph_geometry
+from ..models.modes import constant_twist_signs
 from ..models.topology import Drive, Topology, topology
 from ..results import Results
-from .ground_truth import pose_truth, wheel_limit
+from .ground_truth import pose_truth
 from .truth import Truth
 
 AXES = ("x", "y", "theta")
@@ -66,11 +66,15 @@ class Evaluation:
     topology: Topology
     poses: tuple[PoseEvaluation, ...]
     wheel_signs: str | None
-    geometry: dict[str, float]      # alpha, L, W, R of the kinematics (the animation's car)
 
     @property
     def roles(self):
         return self.topology.roles
+
+    @property
+    def geometry(self) -> dict[str, float]:
+        """alpha, L, W, R of the kinematics (the animation's car)."""
+        return self.topology.geometry
 
     @property
     def single(self) -> PoseEvaluation | None:
@@ -119,9 +123,10 @@ def evaluate(graph, results: Results, *, topo: Topology | None = None,
             truth, failure = truths[drive.pose], None
         else:
             truth, failure = solve_truth(graph, drive, results.time)
-        poses.append(_compare(graph, results, drive, end, truth, failure))
-    signs = constant_twist_signs(graph, results, topo.roles) if len(results.time) else None
-    return Evaluation(topo, tuple(poses), signs, graph_geometry(graph, topo.roles))
+        poses.append(_compare(results, drive, end, truth, failure))
+    signs = (constant_twist_signs(graph, results, topo.roles, topo.geometry)
+             if len(results.time) else None)
+    return Evaluation(topo, tuple(poses), signs)
 
 
 def solve_truth(graph, drive: Drive, times: np.ndarray) -> tuple[Truth | None, str | None]:
@@ -143,9 +148,9 @@ def _end_pose(results: Results, pose: str) -> dict[str, float] | None:
     return {k: results.final(c) for k, c in zip(AXES, cols)}
 
 
-def _compare(graph, results: Results, drive: Drive, end: dict, truth: Truth | None,
+def _compare(results: Results, drive: Drive, end: dict, truth: Truth | None,
              failure: str | None) -> PoseEvaluation:
-    saturation = _saturation(graph, results, drive)
+    saturation = _saturation(results, drive)
     if truth is None:
         return PoseEvaluation(drive.pose, drive, end, None, None, None, saturation, failure)
     ref = dict(zip(AXES, truth.end))
@@ -155,9 +160,9 @@ def _compare(graph, results: Results, drive: Drive, end: dict, truth: Truth | No
     return PoseEvaluation(drive.pose, drive, end, truth, error, match, saturation)
 
 
-def _saturation(graph, results: Results, drive: Drive) -> Saturation | None:
+def _saturation(results: Results, drive: Drive) -> Saturation | None:
     """When the drive's Center2Wheel held its wheels at w_max (read from its recorded outputs)."""
-    w_max = wheel_limit(graph, drive)
+    w_max = drive.w_max
     cols = [f"{drive.limiter}.w{i}" for i in range(1, 5)]
     if not w_max > 0 or not all(c in results.names for c in cols):
         return None

@@ -20,11 +20,6 @@ from .commanded import INPUTS, commanded_twist
 from .truth import Truth, bounded_grid, integrate
 
 
-def wheel_limit(graph, drive: Drive) -> float:
-    """The w_max of the drive's Center2Wheel [rad/s]; 0: none (no limiter, or no limit)."""
-    return float(graph.instance(drive.limiter).value("w_max") or 0.0) if drive.limiter else 0.0
-
-
 def limited(twist, alpha: float, L: float, W: float, R: float, w_max: float):
     """The twist the chassis makes when its wheel speeds (1/R) A (vx, vy, w) are scaled down
     together to max |wi| <= w_max, back through A's least-squares inverse (docs/spec.md)."""
@@ -53,9 +48,10 @@ def pose_truth(graph, drive: Drive, times: np.ndarray, rtol: float = 1e-10,
     if found is None or len(times) == 0:
         return None
     twist, breaks = found
-    if (w_max := wheel_limit(graph, drive)) > 0:
+    if drive.w_max > 0:
         c2w = graph.instance(drive.limiter)
-        twist = limited(twist, *(float(c2w.value(k)) for k in ("alpha", "L", "W", "R")), w_max)
+        twist = limited(twist, *(float(c2w.value(k)) for k in ("alpha", "L", "W", "R")),
+                        drive.w_max)
     pose = graph.instance(drive.pose)
     start = tuple(float(pose.value(k)) for k in ("x0", "y0", "theta0"))
     t0 = float(times[0])

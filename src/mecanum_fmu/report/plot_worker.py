@@ -125,7 +125,7 @@ def _draw(results, roles, truth, out_dir: str, title: str, frame=None) -> list[P
 def _prepare(hint: tuple | None):
     """Draw the dashboard's frame once (or, without a hint, a small figure): the first draw
     loads fonts and fills caches, and the frame's axes and ticks are then ready."""
-    import matplotlib
+    import matplotlib       # startup: the worker's own import, never the parent's
     from .plots import DRAW_RC, dashboard_frame, new_figure
     if hint is not None:
         frame = dashboard_frame(*hint)

@@ -192,10 +192,9 @@ def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult],
     Evaluation (report.evaluation), with one truth solved per distinct set of the values it
     reads (report.ground_truth.truth_inputs). A truth that fails costs only its runs' errors
     (logged)."""
-    topo = topology(graph)
-    if len(topo.drives) != 1:
+    if len(topology(graph).drives) != 1:
         return {}
-    drive, times = topo.drives[0], time_grid(graph.scenario.experiment)
+    times = time_grid(graph.scenario.experiment)
     truths: dict[tuple, tuple] = {}
     errors, failures = {}, {}
     for run in runs:
@@ -203,6 +202,8 @@ def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult],
         if row is None or row.status != "ok":
             continue
         variant = with_values(graph, run.values)
+        topo = topology(variant)            # the run's own values (a swept w_max, say)
+        drive = topo.drives[0]
         key = tuple(tuple(sorted(variant.instance(n).start_values.items()))
                     for n in truth_inputs(variant, drive))
         if key not in truths:
