@@ -21,7 +21,6 @@ sys.path.insert(0, str(ROOT / "src"))
 from mecanum_fmu import runner  # noqa: E402
 from mecanum_fmu.report.animation import write_animation  # noqa: E402
 from mecanum_fmu.models.modes import graph_geometry  # noqa: E402
-from mecanum_fmu.models.catalog import find_roles  # noqa: E402
 
 MODES = ("forward", "backward", "left", "right", "diagonal", "spin_ccw", "spin_cw",
          "showcase", "figure_eight")
@@ -66,8 +65,7 @@ def main() -> None:
 
         graph = runner.prepare(ROOT / "scenarios" / "circle.yaml")
         out = runner.run(graph, Path(tmp) / "circle", plots=False, log=lambda line: None)
-        gif = write_animation(out.results, find_roles(graph), out.truth, graph_geometry(graph),
-                              IMG / "circle.gif")
+        gif = write_animation(out.results, out.evaluation, IMG / "circle.gif")
     for path in (IMG / "modes.png", gif):
         print(f"wrote {path.relative_to(ROOT)} ({path.stat().st_size // 1024} KiB)")
 

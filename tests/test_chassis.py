@@ -177,7 +177,7 @@ def test_bicycle_circle(name, reference, fmu_dir, tmp_path):
     np.testing.assert_allclose(res["pose.theta"], th, atol=1e-9)
     # the ICR, drawn by the icr panel: on the rear-axle line, at the circle's centre
     from mecanum_fmu.report.plots import _icr_world, available_panels
-    roles = runner.find_roles(out.graph)
+    roles = out.evaluation.roles
     assert "icr" in available_panels(res, roles)
     wx, wy = _icr_world(res, roles)
     assert len(wx) == len(t)
@@ -205,7 +205,7 @@ def test_compare_three_chassis(fmu_dir, tmp_path):
     gap = np.hypot(res["car_pose.x"] - res["omni_pose.x"], res["car_pose.y"] - res["omni_pose.y"])
     assert gap[-1] > 0.05                 # it cannot follow the sway
     from mecanum_fmu.report.chassis_compare import compare_figure
-    fig = compare_figure(out.graph, res)
+    fig = compare_figure(res, out.evaluation)
     fig.savefig(tmp_path / "cmp.png")
     assert len(fig.axes[0].lines) == 3 and (tmp_path / "cmp.png").stat().st_size > 10_000
 

@@ -153,7 +153,7 @@ def test_constant_twist_arc(v, w, stop, step, fmu_dir, tmp_path):
     np.testing.assert_allclose(res["w2c.icr_x"], -v / w, atol=1e-12)
     np.testing.assert_allclose(res["w2c.icr_y"], 0.0, atol=1e-12)
     from mecanum_fmu.report.plots import _icr_world
-    wx, wy = _icr_world(res, runner.find_roles(outcome.graph))
+    wx, wy = _icr_world(res, outcome.evaluation.roles)
     np.testing.assert_allclose(wx, cx, atol=1e-9)
     np.testing.assert_allclose(wy, cy, atol=1e-9)
 
@@ -212,13 +212,11 @@ def test_animation(max_frames, fmu_dir, tmp_path):
     from PIL import Image
 
     from mecanum_fmu.report.animation import write_animation
-    from mecanum_fmu.models.modes import graph_geometry
     outcome = run_scenario(ROOT / "scenarios" / "circle.yaml", tmp_path, fmu_dir)
-    roles = runner.find_roles(outcome.graph)
-    geometry = graph_geometry(outcome.graph)
+    geometry = outcome.evaluation.geometry
     assert (geometry["L"], geometry["W"]) == (0.16, 0.12)
-    path = write_animation(outcome.results, roles, outcome.truth, geometry,
-                           tmp_path / "a.gif", max_frames=max_frames)
+    path = write_animation(outcome.results, outcome.evaluation, tmp_path / "a.gif",
+                           max_frames=max_frames)
     assert path.is_file() and path.stat().st_size < 2_000_000
     with Image.open(path) as im:
         assert 2 <= im.n_frames <= max_frames
@@ -235,7 +233,7 @@ def test_run_animate_flag(fmu_dir, tmp_path):
 def test_icr_panel(mode_runs, fmu_dir, tmp_path):
     from mecanum_fmu.report import plots
     outcome = mode_runs["spin_ccw"]
-    roles = runner.find_roles(outcome.graph)
+    roles = outcome.evaluation.roles
     figures = plots.build_figures(outcome.results, roles, outcome.truth)
     assert list(figures)[-1] == "icr"
     lines = {line.get_label(): line for line in figures["icr"].axes[0].get_lines()}

@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -19,6 +20,11 @@ from mecanum_fmu.report import plots
 from mecanum_fmu.report.plot_worker import PlotFailed, PlotWorker
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
+
+
+def judged(roles, truth):
+    """What the worker reads of a run's Evaluation: its roles and the single pose's truth."""
+    return SimpleNamespace(roles=roles, truth=truth)
 
 
 def find_in(big: np.ndarray, small: np.ndarray) -> list[tuple[int, int]]:
@@ -83,34 +89,17 @@ def test_the_dashboard_is_not_blank_and_has_the_panels(written):
 def test_worker_writes_the_same_files_as_drawing_here(tmp_path):
     results, truth = make_run()
     here = plots.write_plots(results, ROLES, truth, tmp_path / "here", title="circle")
-    there = PlotWorker.start().finish(results, ROLES, truth, tmp_path / "there", title="circle")
+    there = PlotWorker.start().finish(results, judged(ROLES, truth), tmp_path / "there", title="circle")
     assert [p.name for p in there] == [p.name for p in here]
     for a, b in zip(here, there):
         assert a.read_bytes() == b.read_bytes(), a.name
-
-
-def test_two_processes_draw_the_same_bytes_as_one(tmp_path):
-    """report.halves: the left column here, the right one in a forked child, pasted together:
-    every PNG is byte for byte what one draw gives; a panel the child cannot write fails the
-    call, naming the child."""
-    results, truth = make_run()
-    one = plots.write_plots(results, ROLES, truth, tmp_path / "one", title="circle")
-    two = plots.write_plots(results, ROLES, truth, tmp_path / "two", title="circle", halves=True)
-    assert [p.name for p in two] == [p.name for p in one]
-    for a, b in zip(one, two):
-        assert a.read_bytes() == b.read_bytes(), a.name
-    right = plots.available_panels(results, ROLES)[1]           # the right column's first
-    (tmp_path / "bad").mkdir()
-    (tmp_path / "bad" / f"{right}.png").mkdir()                 # cannot be written
-    with pytest.raises(RuntimeError, match="right column"):
-        plots.write_plots(results, ROLES, truth, tmp_path / "bad", title="circle", halves=True)
 
 
 def test_worker_failure_is_reported_with_its_reason(tmp_path):
     results, truth = make_run()
     (tmp_path / "dashboard.png").mkdir()                    # cannot be written
     with pytest.raises(PlotFailed, match="dashboard.png"):
-        PlotWorker.start().finish(results, ROLES, truth, tmp_path)
+        PlotWorker.start().finish(results, judged(ROLES, truth), tmp_path)
 
 
 def test_cancelled_worker_ends():
@@ -173,16 +162,15 @@ def test_the_frame_drawn_before_the_run_ends_fits_the_run(fmu_dir, tmp_path):
     from mecanum_fmu.report.plot_worker import _frame_hint
     from mecanum_fmu.runner import prepare, run
     graph = prepare(CIRCLE, fmu_dir=fmu_dir)
-    stand_in, roles, title = _frame_hint(graph)
-    outcome = run(graph, tmp_path / "run", plots=False, log=lambda line: None)
+    outcome = run(graph, tmp_path / "run", plots=False)
+    stand_in, roles, title = _frame_hint(graph, outcome.evaluation.roles)
     frame = plots.dashboard_frame(stand_in, roles, title)
     assert frame.keys == plots.available_panels(outcome.results, roles) == PANEL_KEYS + ["icr"]
     assert frame.figure.get_suptitle() == "circle - quadratic, step 0.05 s"
     here = plots.write_plots(outcome.results, roles, outcome.truth, tmp_path / "here", title)
     worker = PlotWorker.start()
-    worker.expect(graph)
-    there = worker.finish(outcome.results, roles, outcome.truth,
-                          tmp_path / "there", title)
+    worker.expect(graph, roles)
+    there = worker.finish(outcome.results, outcome.evaluation, tmp_path / "there", title)
     assert [p.name for p in there] == [p.name for p in here]
     for a, b in zip(here, there):
         assert a.read_bytes() == b.read_bytes(), a.name
@@ -191,6 +179,6 @@ def test_the_frame_drawn_before_the_run_ends_fits_the_run(fmu_dir, tmp_path):
 def test_without_a_worker_the_plots_are_drawn_here(tmp_path):
     """No worker process (it could not start): finish() draws in this process instead."""
     results, truth = make_run()
-    paths = PlotWorker(None).finish(results, ROLES, truth, tmp_path, title="circle")
+    paths = PlotWorker(None).finish(results, judged(ROLES, truth), tmp_path, title="circle")
     assert sorted(p.name for p in paths) == sorted(f"{k}.png" for k in ["dashboard"] + PANEL_KEYS)
     assert all(p.stat().st_size > 1000 for p in paths)

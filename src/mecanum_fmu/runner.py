@@ -5,19 +5,19 @@ plots last; a run that fails mid-way still writes every row recorded up to the f
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
-
-import numpy as np
 
 from .arguments import check_prepare, check_run
 from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
                      SimulationError)
 from .graph import Graph, compile_graph
-from .models.catalog import MODELS, find_roles
-from .report.ground_truth import Truth, ground_truth
+from .models.catalog import MODELS
+from .models.library import bundled_fmu_path, default_fmu_dir, is_current
+from .models.topology import Topology, topology
+from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines
+from .report.truth import Truth
 from .output import OutputFolder
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
@@ -27,15 +27,27 @@ from .scenario import (MAPPING_LABEL, Scenario, override_experiment, read_scenar
                        scenario_from_doc)
 
 
-@dataclass
+@dataclass(repr=False)
 class RunOutcome:
     scenario: Scenario
     graph: Graph
     results: Results
-    truth: Truth | None
+    evaluation: Evaluation
     summary: dict
     out_dir: Path
     files: list[Path]
+
+    @property
+    def truth(self) -> Truth | None:
+        """The single pose's ground truth (None: none, or several poses)."""
+        return self.evaluation.truth
+
+    def __repr__(self) -> str:
+        match = self.summary.get("match")
+        return (f"RunOutcome({self.scenario.name!r}, out_dir={str(self.out_dir)!r}, "
+                f"complete={self.results.complete}, steps={self.results.steps}"
+                + (f", match={match}" if match is not None else "")
+                + f", files={len(self.files)})")
 
 
 def prepare(path: str | Path | dict, *, step_size: float | None = None,
@@ -91,8 +103,7 @@ def _read(path: str | Path | dict, parameters: dict | None) -> tuple[Scenario | 
 
 def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:
     """Build the bundled FMUs the scenario names that are missing or stale."""
-    from .models.build import build_fmu
-    from .models.library import bundled_fmu_path, default_fmu_dir, is_current
+    from .models.build import build_fmu     # startup: pythonfmu, only when building
     fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
     for comp in scenario.components:
         if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):
@@ -115,68 +126,79 @@ KEEP_ROWS = 10_000
 
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
-        log: Callable[[str], None] = print, animate: bool = False,
+        log: Callable[[str], None] | None = None, quiet: bool = True, animate: bool = False,
         keep_rows: int | None = KEEP_ROWS, plotter: PlotWorker | None = None) -> RunOutcome:
     """Simulate, write results.csv, summary.json and the plots into out_dir.
 
     results.csv is written during the run; the outcome's Results hold `keep_rows` rows (None:
     every row). The folder is checked and locked first (ScenarioError). A failure after the
     stepping loop (ground truth, plots) costs only itself: the tables are written first.
+    The report lines go to `log`; without one they are printed unless `quiet` (the default).
     `plotter`: a plot worker started earlier (the CLI starts it before loading, to hide
     matplotlib's import); without one, one is started here when plots are wanted."""
     check_run(graph, out_dir, progress, log, keep_rows)
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(graph.scenario)
+    log = log if log is not None else (_silent if quiet else print)
+    topo = topology(graph)
     plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
     try:
         with sigterm_raises(), OutputFolder(out_dir) as out:
             if plotter is not None:
-                plotter.expect(graph)
-            return _run_in(graph, out, plotter=plotter, progress=progress, log=log,
+                plotter.expect(graph, topo.roles)
+            return _run_in(graph, topo, out, plotter=plotter, progress=progress, log=log,
                            animate=animate, keep_rows=keep_rows)
     finally:
         if plotter is not None:
             plotter.cancel()        # stops the worker if the plots were not drawn
 
 
-def _run_in(graph: Graph, out: OutputFolder, *, plotter: PlotWorker | None, progress, log,
-            animate: bool, keep_rows: int | None) -> RunOutcome:
-    scenario, out_dir = graph.scenario, out.path
-    results, files = _simulate_into(graph, out, progress, keep_rows)
-    truth, truth_error = _ground_truth(graph, results)
-    summary = summarize(graph, results, truth)
-    from .master import estimate_error  # here: light start-up (validate)
-    summary |= estimate_error(graph, results)    # the run again at 2h and 4h
-    if truth is not None or truth_error or "error_estimate_method" in summary:
-        if truth_error:
-            summary["ground_truth_error"] = truth_error
+def _silent(line: str) -> None:
+    pass
+
+
+def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWorker | None,
+            progress, log, animate: bool, keep_rows: int | None) -> RunOutcome:
+    results, summary, files = _simulate_into(graph, topo, out, progress, keep_rows)
+    evaluation = evaluate(graph, results, topo=topo)    # after the tables: it costs only itself
+    if added := evaluation.summary() | _estimate(graph, results):
+        summary.update(added)
         _rewrite_summary(out, summary, files)
     for line in report_lines(summary):
         log(line)
+    _draw(results, evaluation, out, summary, files, plotter, animate, graph.scenario.name)
+    if evaluation.failure:
+        raise MecanumError(f"the ground truth could not be computed ({evaluation.failure}); "
+                           f"the run itself is complete", files=files)
+    return RunOutcome(graph.scenario, graph, results, evaluation, summary, out.path, files)
+
+
+def _estimate(graph: Graph, results: Results) -> dict:
+    """The coupling error estimate (the run again at 2h and 4h; the adaptive master's own)."""
+    from .master import estimate_error  # here: `validate` needs no FMI runtime
+    return estimate_error(graph, results)
+
+
+def _draw(results: Results, evaluation: Evaluation, out: OutputFolder, summary: dict,
+          files: list[Path], plotter: PlotWorker | None, animate: bool, title: str) -> None:
+    """The plots and the animation; a failure is reported with the files kept."""
     stage = "plots"
     try:
         if plotter is not None:
-            files += plotter.finish(results, find_roles(graph), truth, out_dir,
-                                    title=scenario.name)
+            files += plotter.finish(results, evaluation, out.path, title=title)
         stage = "animation"
         if animate:
-            from .report.animation import write_animation
-            from .models.modes import graph_geometry
-            files.append(write_animation(results, find_roles(graph), truth,
-                                         graph_geometry(graph), out_dir / "animation.gif"))
+            from .report.animation import write_animation   # startup: matplotlib
+            files.append(write_animation(results, evaluation, out.path / "animation.gif"))
     except Exception as err:    # the results are written: report the figure, keep the rest
-        failed = MecanumError(f"writing the {stage} into {out_dir} failed: "
+        failed = MecanumError(f"writing the {stage} into {out.path} failed: "
                               f"{type(err).__name__}: {err}", files=files)
         summary[f"{stage}_error"] = str(failed)
         _rewrite_summary(out, summary, [])
         raise failed from err
-    if truth_error:
-        raise MecanumError(f"the ground truth could not be computed ({truth_error}); the "
-                           f"run itself is complete", files=files)
-    return RunOutcome(scenario, graph, results, truth, summary, out_dir, files)
 
 
 def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> None:
-    """The summary again, now with the ground truth (or why it failed)."""
+    """The summary again, now with the evaluation (or why a stage failed)."""
     try:
         with signals_deferred():
             out.write_json(summary)
@@ -185,11 +207,11 @@ def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> Non
         raise
 
 
-def _simulate_into(graph: Graph, out: OutputFolder, progress,
-                   keep_rows: int | None) -> tuple[Results, list[Path]]:
-    """Run with results.csv streamed into `out`; write the summary (without the ground truth).
-    A failed or interrupted run still keeps its tables and raises; a write error
-    (output.WriteError) leaves no results.csv."""
+def _simulate_into(graph: Graph, topo: Topology, out: OutputFolder, progress,
+                   keep_rows: int | None) -> tuple[Results, dict, list[Path]]:
+    """Run with results.csv streamed into `out`; write the summary (without the evaluation).
+    A failed or interrupted run still keeps its tables (with its end poses) and raises; a
+    write error (output.WriteError) leaves no results.csv."""
     from . import master  # here: `validate` needs neither the FMI runtime nor matplotlib
     stream = None
     try:
@@ -200,34 +222,24 @@ def _simulate_into(graph: Graph, out: OutputFolder, progress,
         except (SimulationError, Interrupted) as err:
             if err.results is not None:
                 with signals_deferred():
-                    summary = summarize(graph, err.results, None)
+                    summary = summarize(graph, err.results)
+                    summary.update(evaluate(graph, err.results, topo=topo,
+                                            with_truth=False).summary())
                     summary["error_message"] = str(err)
                     err.files.extend(out.write_tables(stream, summary))
             raise
         with signals_deferred():
-            return results, out.write_tables(stream, summarize(graph, results, None))
+            summary = summarize(graph, results)
+            return results, summary, out.write_tables(stream, summary)
     finally:                    # a write failed (output.WriteError) or a bug: no half file
         if stream is not None and stream.temp.exists():
             stream.abort()
 
 
-def _ground_truth(graph: Graph, results: Results) -> tuple[Truth | None, str | None]:
-    """The ground truth on the (bounded) times kept, or why it failed."""
-    if not results.steps:
-        return None, None
-    try:
-        truth = ground_truth(graph, results.time)
-    except Exception as err:    # e.g. an expression that fails between the recorded times
-        return None, f"{type(err).__name__}: {err}"
-    if truth is not None and not np.all(np.isfinite(truth.end)):
-        return None, f"its end pose {truth.end} is not finite"
-    return truth, None
-
-
-def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
+def summarize(graph: Graph, results: Results) -> dict:
+    """What the run was and how it went (the evaluation adds its part: Evaluation.summary)."""
     scenario = graph.scenario
-    roles = find_roles(graph)
-    summary = {
+    return {
         "scenario": scenario.name,
         "file": str(scenario.path),
         "description": scenario.description,
@@ -243,43 +255,9 @@ def summarize(graph: Graph, results: Results, truth: Truth | None) -> dict:
         "fmus": {i.name: {"model": i.model_name, "path": str(i.fmu_path), "guid": i.model.guid}
                  for i in graph.instances},
     }
-    pose = roles.pose
-    if pose and all(f"{pose}.{k}" in results.names for k in ("x", "y", "theta")) and len(results.time):
-        end = {k: results.final(f"{pose}.{k}") for k in ("x", "y", "theta")}
-        summary["end_pose"] = end
-        if truth is not None:
-            ref = dict(zip(("x", "y", "theta"), truth.end))
-            summary["reference_end_pose"] = ref
-            err = {f"d{k}": end[k] - ref[k] for k in ("x", "y", "theta")}
-            err["position"] = math.hypot(err["dx"], err["dy"])
-            summary["error"] = err
-            summary["match"] = (round(end["x"], 3) == round(ref["x"], 3)
-                                and round(end["y"], 3) == round(ref["y"], 3))
-    from .report.chassis_compare import pose_summaries
-    if pose is None and (poses := pose_summaries(graph, results)):
-        summary["poses"] = poses          # several chassis in one run, each with its truth
-    from .models.modes import constant_twist_signs
-    if (signs := constant_twist_signs(graph, results)) is not None:
-        summary["wheel_signs"] = signs    # only for a constant commanded twist
-    return summary
 
 
 def report_lines(summary: dict) -> list[str]:
-    lines = [f"{summary['scenario']}: {summary['master']}, step {summary['step_size']:g} s, "
-             f"{summary['steps']} steps, stepping loop {summary['wall_time_s']:.3f} s"]
-    if "end_pose" in summary:
-        end = summary["end_pose"]
-        lines.append(f"end point (co-simulation): x = {end['x']:.3f}, y = {end['y']:.3f}")
-        if "reference_end_pose" in summary:
-            ref, err = summary["reference_end_pose"], summary["error"]
-            lines.append(f"end point (ground truth):  x = {ref['x']:.3f}, y = {ref['y']:.3f}")
-            lines.append(f"error: dx = {err['dx']:.3e}, dy = {err['dy']:.3e}, "
-                         f"|e| = {err['position']:.3e} m")
-            lines.append("match!" if summary["match"] else
-                         "no match (the end points differ at 3 decimals; try a smaller step)")
-    if "poses" in summary:
-        from .report.chassis_compare import pose_report_lines
-        lines += pose_report_lines(summary["poses"])
-    if "wheel_signs" in summary:
-        lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
-    return lines + error_estimate_lines(summary)
+    return [f"{summary['scenario']}: {summary['master']}, step {summary['step_size']:g} s, "
+            f"{summary['steps']} steps, stepping loop {summary['wall_time_s']:.3f} s",
+            *evaluation_lines(summary), *error_estimate_lines(summary)]

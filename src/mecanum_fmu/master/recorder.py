@@ -30,6 +30,21 @@ def step_count(experiment: Experiment) -> int:
     return n_steps
 
 
+def grid_times(experiment: Experiment, index: np.ndarray, n_steps: int) -> np.ndarray:
+    """The communication times of the rows `index`: t_k = start + k*h, computed, not
+    accumulated; the last point (k = n_steps) is stop_time itself."""
+    times = experiment.start_time + index * experiment.step_size
+    if len(index) and index[-1] == n_steps:
+        times[-1] = experiment.stop_time
+    return times
+
+
+def time_grid(experiment: Experiment) -> np.ndarray:
+    """Every communication time of a complete run, as the recorder lays them out."""
+    n_steps = step_count(experiment)
+    return grid_times(experiment, np.arange(n_steps + 1), n_steps)
+
+
 class Recorder:
     """Copies the whole buffers each row (one contiguous copy each) into the current chunk;
     the recorded columns are picked out when a chunk is full (flush)."""
@@ -74,11 +89,7 @@ class Recorder:
         exp, first, n = self.experiment, self.flushed, self.fill
         index = np.arange(first, first + n)
         data = np.empty(n, dtype=self.dtype)
-        # t_k = start + k*h, computed, not accumulated; the last point is stop_time itself.
-        times = exp.start_time + index * exp.step_size
-        if first + n == self.n_steps + 1:
-            times[-1] = exp.stop_time
-        data["time"] = times
+        data["time"] = grid_times(exp, index, self.n_steps)
         for name, port in zip(self.names, self.graph.recorded):
             source = self.real if port.type == "Real" else self.int
             data[name] = source[:n, self.buffers.slot(port)]

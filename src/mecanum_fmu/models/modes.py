@@ -18,6 +18,9 @@ from typing import Mapping
 import numpy as np
 
 from .blocks.kinematics import DEFAULT_GEOMETRY, center_to_wheel
+from .blocks.omni import omni_center_to_wheel
+from .catalog import Roles, find_roles
+
 SIGN_TOL = 1e-9               # |wi| below this (times max(1, max |wj|)) counts as 0
 
 # The mecanum platform analysis (docs/spec.md, Basic motions) numbers its motors M1 front-left,
@@ -80,20 +83,19 @@ def geometry_of(start_values: Mapping | None) -> dict[str, float]:
     return {k: float(values.get(k, v)) for k, v in DEFAULT_GEOMETRY.items()}
 
 
-def graph_geometry(graph) -> dict[str, float]:
+def graph_geometry(graph, roles: Roles | None = None) -> dict[str, float]:
     """alpha, L, W, R of a graph's kinematics instance (inverse first, else forward);
-    defaults where not set or where the graph has neither."""
-    from .catalog import find_roles
-    roles = find_roles(graph)
+    defaults where not set or where the graph has neither. roles: find_roles(graph)."""
+    roles = roles if roles is not None else find_roles(graph)
     name = roles.inverse or roles.forward
     return geometry_of(graph.instance(name).start_values if name else None)
 
 
-def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
+def constant_twist_signs(graph, results, roles: Roles, geometry: Mapping[str, float],
+                         tol: float = 1e-12) -> str | None:
     """The wheel-sign pattern of a run whose commanded twist is constant; None otherwise
-    (no source, twist not recorded, empty run, or a twist that changes)."""
-    from .catalog import find_roles
-    roles = find_roles(graph)
+    (no source, twist not recorded, empty run, or a twist that changes). geometry: alpha,
+    L, W, R of its kinematics (graph_geometry)."""
     if roles.source is None or len(results.time) == 0:
         return None
     cols = [f"{roles.source}.{v}" for v in ("vx", "vy", "w")]
@@ -108,7 +110,7 @@ def constant_twist_signs(graph, results, tol: float = 1e-12) -> str | None:
     if (omni := graph.find_model("OmniCenter2Wheel")) is not None and roles.inverse is None:
         return omni_constant_twist_signs(graph, omni, roles.source, twist)
     try:
-        return wheel_signs(*twist, **graph_geometry(graph))
+        return wheel_signs(*twist, **geometry)
     except (ArithmeticError, ValueError):
         return None
 
@@ -137,7 +139,6 @@ OMNI_GEOMETRY = {"L": 0.2, "R": 0.05}
 def omni_wheel_sign_list(vx: float, vy: float, w: float, L: float = OMNI_GEOMETRY["L"],
                          R: float = OMNI_GEOMETRY["R"], tol: float = SIGN_TOL) -> list[str]:
     """Signs ("+", "-", "0") of the omni X-drive's w1..w4 for the twist (vx, vy, w)."""
-    from .blocks.omni import omni_center_to_wheel
     speeds = omni_center_to_wheel(vx, vy, w, L, R)
     scale = tol * max(1.0, max(abs(s) for s in speeds))
     return [_sign(s, scale) for s in speeds]

@@ -16,7 +16,9 @@ import numpy as np
 from matplotlib.animation import PillowWriter
 from matplotlib.patches import Polygon
 
-from .ground_truth import Roles, Truth
+from .evaluation import Evaluation
+from .truth import Truth
+from ..models.catalog import Roles
 from ..models.modes import geometry_of
 from ..results import Results
 from .plots import new_figure
@@ -45,11 +47,11 @@ def _to_world(points: np.ndarray, x: float, y: float, theta: float) -> np.ndarra
                             y + s * points[:, 0] + c * points[:, 1]))
 
 
-def write_animation(results: Results, roles: Roles, truth: Truth | None,
-                    graph_params: Mapping | None, path: Path | str,
+def write_animation(results: Results, evaluation: Evaluation, path: Path | str,
                     max_frames: int = MAX_FRAMES) -> Path:
-    """Write the animated GIF to path and return it. graph_params: L, W (and R) in metres."""
-    params = geometry_of(graph_params)
+    """Write the animated GIF of the run and its Evaluation (roles, truth, the chassis'
+    geometry) to path and return it."""
+    roles, truth, params = evaluation.roles, evaluation.truth, geometry_of(evaluation.geometry)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     x, y, theta, rim = _track(results, roles, params["R"])

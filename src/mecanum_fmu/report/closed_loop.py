@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.blocks.expression import compile_expression
+from .truth import Truth
 
 REFERENCE = ("x_ref_expr", "y_ref_expr", "theta_ref_expr")
 
@@ -20,7 +21,6 @@ def reference_pose(follower, times: np.ndarray) -> np.ndarray:
 
 
 def reference_truth(follower, times: np.ndarray):
-    from .ground_truth import Truth
     times = np.asarray(times, dtype=float)
     x, y, th = reference_pose(follower, times)
     d = 1e-6 * np.maximum(1.0, np.abs(times))

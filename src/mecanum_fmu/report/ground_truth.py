@@ -1,102 +1,83 @@
-"""The original study's x_desired/y_desired: the commanded twist integrated directly.
+"""The ground truth of each pose: what the commanded twist gives when integrated directly.
 
-The commanded twist comes from the scenario's VelocitySource expressions (evaluated with the
-same safe evaluator), integrated through the pose equations (docs/spec.md, Pose integration)
-with a tight-tolerance ODE solver, so it is independent of the FMUs, the coupling and the step
-size.
+The original study's x_desired/y_desired, generalised: the twist that drives a pose
+(report.commanded: expressions, tables, segments, field-oriented or car-like commands) is
+integrated through the pose equations (docs/spec.md, Pose integration) with a tight-tolerance
+ODE solver, independent of the FMUs, the coupling and the step size. A Center2Wheel with a
+wheel speed limit (w_max > 0) between the command and the pose saturates the truth's wheel
+speeds as the block does (docs/closed-loop.md, Wheel-speed limits), computed here from the
+kinematics' matrix form (docs/spec.md). A closed loop's truth is the PathFollower's reference
+(report.closed_loop).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from ..models.blocks.expression import compile_expression
 from ..models.blocks.pose import pose_rate
-from ..models.catalog import Roles, find_roles  # noqa: F401  (Roles: re-exported for the plots)
-
-if TYPE_CHECKING:       # only for annotations: the plotting process needs Roles, not the graph
-    from ..graph import Graph
-
-
-MAX_POINTS = 20_001     # the ground truth is sampled on at most about this many times
+from ..models.topology import Drive, topology, upstream
+from .closed_loop import reference_truth
+from .commanded import INPUTS, commanded_twist
+from .truth import Truth, bounded_grid, integrate
 
 
-@dataclass(frozen=True)
-class Truth:
-    time: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    theta: np.ndarray
-    vx: np.ndarray
-    vy: np.ndarray
-    w: np.ndarray
+def limited(twist, alpha: float, L: float, W: float, R: float, w_max: float):
+    """The twist the chassis makes when its wheel speeds (1/R) A (vx, vy, w) are scaled down
+    together to max |wi| <= w_max, back through A's least-squares inverse (docs/spec.md)."""
+    c = 1.0 / np.tan(alpha)
+    k = L + W * c
+    A = np.array([[-c, 1.0, k], [c, 1.0, -k], [-c, 1.0, -k], [c, 1.0, k]])
+    back = R * np.linalg.pinv(A)
 
-    @property
-    def end(self) -> tuple[float, float, float]:
-        return float(self.x[-1]), float(self.y[-1]), float(self.theta[-1])
-
-
-def bounded_grid(times: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
-    """`times`, or every k-th of them so that at most about max_points remain, the last kept."""
-    if len(times) <= max_points:
-        return times
-    picked = times[::-(-len(times) // max_points)]
-    return picked if picked[-1] == times[-1] else np.append(picked, times[-1])
+    def saturated(t, theta):
+        wheels = A @ np.asarray(twist(t, theta), dtype=float) / R
+        peak = float(np.max(np.abs(wheels)))
+        if peak <= w_max:
+            return twist(t, theta)
+        return tuple(float(v) for v in back @ (wheels * (w_max / peak)))
+    return saturated
 
 
-def ground_truth(graph: Graph, times: np.ndarray, rtol: float = 1e-10,
-                 atol: float = 1e-12) -> Truth | None:
-    """Integrate the commanded twist; None when the graph has no single VelocitySource.
-    Sampled at `times`, thinned to a bounded grid (bounded_grid) for long runs."""
+def pose_truth(graph, drive: Drive, times: np.ndarray, rtol: float = 1e-10,
+               atol: float = 1e-12) -> Truth | None:
+    """The truth of one pose on `times` (thinned to a bounded grid for long runs); None when
+    what drives it has no truth (another FMU, an unconnected pose)."""
     times = bounded_grid(np.asarray(times, dtype=float))
-    from .chassis_truth import NOT_MINE, chassis_truth   # field-oriented or car-like chassis
-    if (truth := chassis_truth(graph, times, rtol, atol)) is not NOT_MINE:
-        return truth
-    roles = find_roles(graph)
-    if roles.follower is not None:        # closed loop: the path it is asked to follow
-        from .closed_loop import reference_truth
-        return reference_truth(graph.instance(roles.follower), times)
-    if roles.source is None:
+    if drive.model == "PathFollower":     # closed loop: the path it is asked to follow
+        return reference_truth(graph.instance(drive.origin), times)
+    found = commanded_twist(graph, drive) if drive.origin is not None else None
+    if found is None or len(times) == 0:
         return None
-    funcs, breaks = _commanded(graph.instance(roles.source))
-    start = (0.0, 0.0, 0.0)
-    if roles.pose is not None:
-        pose = graph.instance(roles.pose)
-        start = tuple(float(pose.value(k)) for k in ("x0", "y0", "theta0"))
+    twist, breaks = found
+    if drive.w_max > 0:
+        c2w = graph.instance(drive.limiter)
+        twist = limited(twist, *(float(c2w.value(k)) for k in ("alpha", "L", "W", "R")),
+                        drive.w_max)
+    pose = graph.instance(drive.pose)
+    start = tuple(float(pose.value(k)) for k in ("x0", "y0", "theta0"))
     t0 = float(times[0])
 
     def rhs(tau, state):     # in time since the start: the solver's steps stay resolvable
-        t = t0 + float(tau)  # (a start of 1e15 s has a float spacing of 0.125 s)
-        return pose_rate(state[2], funcs[0](t), funcs[1](t), funcs[2](t))
+        return pose_rate(state[2], *twist(t0 + float(tau), state[2]))   # (1e15 s: 0.125 s apart)
 
-    path = integrate(rhs, start, times - t0, np.asarray(breaks, dtype=float) - t0, rtol, atol)
-    twist = np.array([[f(t) for f in funcs] for t in times.tolist()]).reshape(len(times), 3)
-    return Truth(times, path[0], path[1], path[2], twist[:, 0], twist[:, 1], twist[:, 2])
-
-
-def _commanded(source) -> tuple[list, tuple]:
-    """The source's twist as three functions of t, and the times where a table jumps."""
-    funcs = [compile_expression(str(source.value(k))) for k in ("vx_expr", "vy_expr", "w_expr")]
-    if not source.value("table"):
-        return funcs, ()
-    from ..profiles import table_twist     # a table replaces the expressions
-    twist_of, breaks = table_twist(str(source.value("table")), str(source.value("interpolation")))
-    return [lambda t, i=i: float(twist_of(t)[i]) for i in range(3)], breaks
+    path = integrate(rhs, start, times - t0, breaks - t0, rtol, atol)
+    body = np.array([twist(t, th) for t, th in zip(times.tolist(), path[2])]).reshape(-1, 3)
+    return Truth(times, path[0], path[1], path[2], body[:, 0], body[:, 1], body[:, 2])
 
 
-def integrate(rhs, start, taus: np.ndarray, breaks: np.ndarray, rtol: float,
-               atol: float) -> np.ndarray:
-    """The pose at taus (3 x n). max_step keeps the solver from stepping over short segments
-    of piecewise profiles; a table is solved piece by piece between its rows."""
-    from scipy.integrate import solve_ivp     # here: loading and validating need no scipy
-    if len(breaks):
-        from ..profiles import integrate_piecewise
-        return integrate_piecewise(rhs, start, taus, breaks, rtol, atol)
-    span = float(taus[-1]) if len(taus) > 1 else 1.0
-    sol = solve_ivp(rhs, (0.0, taus[-1]), start, t_eval=taus, rtol=rtol, atol=atol,
-                    method="DOP853", max_step=max(span / 2000, 1e-6))
-    if not sol.success:
-        raise ArithmeticError(f"the ODE solver stopped: {sol.message}")
-    return sol.y
+def truth_inputs(graph, drive: Drive) -> tuple[str, ...]:
+    """The instances whose values the pose's truth reads (a sweep solves one truth per
+    distinct set of their start values)."""
+    names = [drive.pose] + ([drive.origin] if drive.origin else [])
+    if drive.limiter:
+        names.append(drive.limiter)
+    for var in INPUTS.get(drive.model, ()):
+        if (found := upstream(graph, drive.origin, var)) is not None:
+            names.append(found[0])
+    return tuple(dict.fromkeys(names))
+
+
+def ground_truth(graph, times: np.ndarray, rtol: float = 1e-10,
+                 atol: float = 1e-12) -> Truth | None:
+    """The truth of a graph's single pose (None without exactly one PoseIntegrator)."""
+    drives = topology(graph).drives
+    return pose_truth(graph, drives[0], times, rtol, atol) if len(drives) == 1 else None

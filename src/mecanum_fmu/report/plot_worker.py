@@ -6,8 +6,7 @@ plotting code at once; `expect(graph)` sends it the run's column names and setti
 builds and draws the dashboard's frame (axes, titles: fonts, ticks, caches) while the parent
 simulates, then waits on its stdin.
 `finish()` sends it the results (pickled: parent to its own child, never user text) and returns
-the PNG paths it wrote; the worker draws the two columns of the dashboard in two processes
-(report.halves). `cancel()` lets it go. On a machine with a free core the import is hidden.
+the PNG paths it wrote. `cancel()` lets it go. On a machine with a free core the import is hidden.
 A worker that cannot start (no interpreter executable, e.g. embedded Python) falls back to
 drawing in this process.
 """
@@ -21,6 +20,10 @@ import subprocess
 import sys
 import weakref
 from pathlib import Path
+
+import numpy as np
+
+from ..results import Results
 
 PACKAGE_PARENT = Path(__file__).resolve().parents[1]     # so the child finds this package
 
@@ -46,17 +49,16 @@ class PlotWorker:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_PARENT),
                                                           env.get("PYTHONPATH")]))
         env.setdefault("MPLBACKEND", "Agg")
-        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):   # one thread: it forks
-            env.setdefault(name, "1")
         try:
             return cls(subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=env))
         except OSError:
             return cls(None)
 
-    def expect(self, graph) -> None:
-        """Tell the worker what the run records, so it prepares the dashboard's frame."""
-        self._send(_frame_hint(graph))
+    def expect(self, graph, roles) -> None:
+        """Tell the worker what the run records (and the roles: topology(graph).roles), so it
+        prepares the dashboard's frame."""
+        self._send(_frame_hint(graph, roles))
 
     def _send(self, obj) -> None:
         if self._proc is None or self._sent_hint:
@@ -68,9 +70,10 @@ class PlotWorker:
         except OSError:         # it died: draw here instead
             self.cancel()
 
-    def finish(self, results, roles, truth, out_dir: Path, title: str = "") -> list[Path]:
-        """Have the worker write the plots (or draw them here without one); the PNG paths."""
-        job = (results, roles, truth, str(out_dir), title)
+    def finish(self, results, evaluation, out_dir: Path, title: str = "") -> list[Path]:
+        """Have the worker write the plots of the run and its Evaluation (or draw them here
+        without a worker); the PNG paths."""
+        job = (results, evaluation.roles, evaluation.truth, str(out_dir), title)
         self._send(None)        # no frame was asked for: the worker only warms up
         if self._proc is None:
             return _draw(*job)
@@ -102,32 +105,27 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.communicate()
 
 
-def _frame_hint(graph) -> tuple | None:
+def _frame_hint(graph, roles) -> tuple | None:
     """What the dashboard's frame needs before the run ends: a one-row stand-in for the
     results (the recorded column names and the run's settings), the roles and the title."""
     if graph is None:
         return None
-    import numpy as np
-    from .ground_truth import find_roles
-    from ..results import Results
     names = tuple(str(port.ref) for port in graph.recorded)
     exp = graph.scenario.experiment
     stand_in = Results(names, np.zeros(1, dtype=[("time", "f8")] + [(n, "f8") for n in names]),
                        exp.master, exp.start_time, exp.stop_time, exp.step_size, 0, 0.0)
-    return stand_in, find_roles(graph), graph.scenario.name
+    return stand_in, roles, graph.scenario.name
 
 
-def _draw(results, roles, truth, out_dir: str, title: str, frame=None,
-          halves: bool = False) -> list[Path]:
-    from .plots import write_plots
-    return write_plots(results, roles, truth, Path(out_dir), title=title, frame=frame,
-                       halves=halves)
+def _draw(results, roles, truth, out_dir: str, title: str, frame=None) -> list[Path]:
+    from .plots import write_plots     # startup: matplotlib, in the worker only
+    return write_plots(results, roles, truth, Path(out_dir), title=title, frame=frame)
 
 
 def _prepare(hint: tuple | None):
     """Draw the dashboard's frame once (or, without a hint, a small figure): the first draw
     loads fonts and fills caches, and the frame's axes and ticks are then ready."""
-    import matplotlib
+    import matplotlib       # startup: the worker's own import, never the parent's
     from .plots import DRAW_RC, dashboard_frame, new_figure
     if hint is not None:
         frame = dashboard_frame(*hint)
@@ -162,7 +160,7 @@ def main() -> int:
     if not data:                # cancelled: the parent closed our stdin
         return 0
     try:
-        paths = _draw(*pickle.loads(data), frame=frame, halves=True)   # our own process: it forks
+        paths = _draw(*pickle.loads(data), frame=frame)
     except Exception as err:    # reported by the parent with the files it kept
         answer, code = {"error": f"{type(err).__name__}: {err}"}, 1
     else:

@@ -20,7 +20,8 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .ground_truth import Roles, Truth
+from .truth import Truth
+from ..models.catalog import Roles
 from ..results import Results
 
 MAX_POINTS = 5000                 # more rows than this are decimated before drawing
@@ -349,35 +350,24 @@ def _save_png(pixels: np.ndarray, path: Path) -> None:
 
 
 def write_plots(results: Results, roles: Roles, truth: Truth | None, out_dir: Path | str,
-                title: str = "", frame: Frame | None = None, halves: bool = False) -> list[Path]:
+                title: str = "", frame: Frame | None = None) -> list[Path]:
     """Write dashboard.png and <panel>.png for each available panel; return the paths.
 
     The dashboard is drawn once (in `frame` if it fits); each panel's PNG is its part of the
-    dashboard's pixels. `halves`: draw the two columns in two processes (report.halves; the
-    plot worker only: it forks)."""
+    dashboard's pixels."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     keys = available_panels(results, roles)
     with matplotlib.rc_context(DRAW_RC):
         fig = build_dashboard(results, roles, truth, title, frame)
-        _draw_and_save(fig, keys, out_dir, halves)
+        _draw_and_save(fig, keys, out_dir)
     return [out_dir / "dashboard.png"] + [out_dir / f"{k}.png" for k in keys]
 
 
-def _draw_and_save(fig: Figure, keys: list[str], out_dir: Path, halves: bool) -> None:
-    def save(pixels: np.ndarray, which: list[int]) -> None:
-        boxes = panel_boxes(fig, pixels)
-        for i in which:
-            top, bottom, left, right = boxes[i]
-            _save_png(pixels[top:bottom, left:right, :3], out_dir / f"{keys[i]}.png")
-
-    def save_whole(pixels: np.ndarray) -> None:
-        _save_png(pixels[..., :3], out_dir / "dashboard.png")     # opaque: no alpha channel
-    if halves:
-        from .halves import draw_in_halves
-        draw_in_halves(fig, save, save_whole)
-        return
+def _draw_and_save(fig: Figure, keys: list[str], out_dir: Path) -> None:
+    """Draw once; each panel's PNG is cut from the dashboard's pixels."""
     fig.canvas.draw()
     pixels = np.asarray(fig.canvas.buffer_rgba())
-    save(pixels, list(range(len(keys))))
-    save_whole(pixels)
+    for key, (top, bottom, left, right) in zip(keys, panel_boxes(fig, pixels)):
+        _save_png(pixels[top:bottom, left:right, :3], out_dir / f"{key}.png")
+    _save_png(pixels[..., :3], out_dir / "dashboard.png")     # opaque: no alpha channel

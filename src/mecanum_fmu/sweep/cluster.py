@@ -28,8 +28,12 @@ import numpy as np
 from ..arguments import check_execute, check_sweep_file
 from ..errors import Interrupted, Problem, ScenarioError
 from ..graph import Graph
-from ..report.ground_truth import find_roles, ground_truth
-from ..results import format_value
+from ..master.recorder import time_grid
+from ..models.catalog import find_roles
+from ..models.topology import topology
+from ..report.evaluation import evaluate, solve_truth
+from ..report.ground_truth import truth_inputs
+from ..results import Results, format_value
 from ..runner import prepare
 from . import spec
 from .spec import Run, Sweep
@@ -181,39 +185,46 @@ def _workers_ignore_ctrl_c():
 
 
 # ---------------------------------------------------------------------------------------------
-def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult]) -> dict[int, dict]:
-    """dx, dy, dtheta and |e| of each ok run's end pose against its ground truth, computed once
-    per distinct commanded profile (the source's expressions and the pose's start values)."""
-    roles = find_roles(graph)
-    if roles.source is None or roles.pose is None:
+def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult],
+               log: Callable[[str], None] = lambda line: None) -> dict[int, dict]:
+    """dx, dy, dtheta and |e| of each ok run's end pose against its ground truth: the run's
+    Evaluation (report.evaluation), with one truth solved per distinct set of the values it
+    reads (report.ground_truth.truth_inputs). A truth that fails costs only its runs' errors
+    (logged)."""
+    if len(topology(graph).drives) != 1:
         return {}
+    times = time_grid(graph.scenario.experiment)
     truths: dict[tuple, tuple] = {}
-    errors = {}
+    errors, failures = {}, {}
     for run in runs:
         row = results.get(run.index)
         if row is None or row.status != "ok":
             continue
         variant = with_values(graph, run.values)
-        key = (tuple(sorted(variant.instance(roles.source).start_values.items())),
-               tuple(sorted(variant.instance(roles.pose).start_values.items())))
+        topo = topology(variant)            # the run's own values (a swept w_max, say)
+        drive = topo.drives[0]
+        key = tuple(tuple(sorted(variant.instance(n).start_values.items()))
+                    for n in truth_inputs(variant, drive))
         if key not in truths:
-            truth = ground_truth(variant, _times(graph))
-            truths[key] = truth.end
-        ref = truths[key]
-        d = [row.ends[f"{roles.pose}.{k}"] - r for k, r in zip(("x", "y", "theta"), ref)]
-        errors[run.index] = dict(zip(ERRORS, d + [math.hypot(d[0], d[1])]))
+            truths[key] = solve_truth(variant, drive, times)
+        truth, failure = truths[key]
+        pose = evaluate(variant, _end_row(row, drive.pose, times), topo=topo,
+                        truths={drive.pose: truth}).single
+        if failure is not None:
+            failures[failure] = failures.get(failure, 0) + 1
+        elif pose.error is not None:
+            errors[run.index] = {f"error.{k}": v for k, v in pose.error.items()}
+    for failure, count in failures.items():
+        log(f"no ground truth for {count} run(s): {failure}")
     return errors
 
 
-def _times(graph: Graph) -> np.ndarray:
-    """The recorded time grid of a complete run (as master.simulate lays it out)."""
-    exp = graph.scenario.experiment
-    n = int(round((exp.stop_time - exp.start_time) / exp.step_size))
-    if exp.start_time + n * exp.step_size < exp.stop_time - 1e-9 * exp.step_size:
-        n += 1
-    times = exp.start_time + np.arange(n + 1) * exp.step_size
-    times[-1] = exp.stop_time
-    return times
+def _end_row(row: RunResult, pose: str, times: np.ndarray) -> Results:
+    """The run's end pose as a one-row Results at the run's end time."""
+    names = tuple(f"{pose}.{k}" for k in ("x", "y", "theta"))
+    data = np.array([(times[-1],) + tuple(row.ends[n] for n in names)],
+                    dtype=[("time", "f8")] + [(n, "f8") for n in names])
+    return Results(names, data, "", float(times[0]), float(times[-1]), 0.0, 0, 0.0)
 
 
 def write_runs_csv(path: Path, sweep: Sweep, graph: Graph, runs: list[Run],
@@ -326,7 +337,7 @@ def run_sweep(path: str | Path, out_dir: Path | None = None, *, workers: int | N
         + (f"scheduler {scheduler}" if scheduler else
            f"{workers or os.cpu_count()} local worker process(es)"))
     ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress, log=log)
-    errors = end_errors(graph, runs, ex.results)
+    errors = end_errors(graph, runs, ex.results, log)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_runs_csv(out_dir / "runs.csv", sweep, graph, runs, ex.results, errors)
     summary = summarize(sweep, graph, runs, ex, errors)

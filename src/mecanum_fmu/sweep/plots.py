@@ -8,7 +8,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..graph import Graph
-from ..report.ground_truth import find_roles, ground_truth
+from ..models.catalog import find_roles
+from ..report.ground_truth import ground_truth
 from ..report.plots import new_figure
 from .spec import Run, Sweep
 from .worker import RunResult
