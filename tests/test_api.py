@@ -119,7 +119,7 @@ class TestRunAndSweepArguments:
     def test_run(self, graph, tmp_path):
         out = tmp_path / "out"
         for kwargs, expect in [({"keep_rows": 0}, "argument keep_rows"),
-                               ({"log": None}, "argument log: expected a function"),
+                               ({"log": 5}, "argument log: expected a function or None"),
                                ({"progress": 1}, "argument progress")]:
             err = refused(run, graph, out, plots=False, **kwargs)
             assert str(err).startswith("runner.run(): ") and expect in str(err), str(err)

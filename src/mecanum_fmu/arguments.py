@@ -153,10 +153,7 @@ def check_run(graph: Any, out_dir: Any, progress: Any, log: Any, keep_rows: Any)
         problems = experiment_problems(call, graph.scenario.experiment)
     if out_dir is not None and not isinstance(out_dir, (str, os.PathLike)):
         problems.append(_problem(call, "out_dir", f"expected a folder path, got {show(out_dir)}"))
-    if log is None or not callable(log):
-        problems.append(_problem(call, "log", f"expected a function such as print, got "
-                                              f"{show(log)} (lambda line: None: silent)"))
-    _raise(problems + _callable_problems(call, progress=progress)
+    _raise(problems + _callable_problems(call, progress=progress, log=log)
            + keep_rows_problems(call, keep_rows))
 
 
