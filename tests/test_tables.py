@@ -288,6 +288,9 @@ def test_a_random_table_gives_its_rows_back(case):
     for row in rows:
         assert sample(row[0]) == pytest.approx(row[1:]) and hold(row[0]) == row[1:]
     times = [r[0] for r in rows]
+    twist, breaks = table_twist(text)       # the ground truth's reader (NumPy's parser)
+    assert breaks.tolist() == times
+    assert np.array(twist(np.array(times))).T.tolist() == [list(r[1:]) for r in rows]
     mid = [(a + b) / 2 for a, b in zip(times, times[1:])]
     for k, column in enumerate(zip(*[r[1:] for r in rows])):
         assert [sample(t)[k] for t in mid] == pytest.approx(

@@ -40,17 +40,12 @@ class TableError(ValueError):
 
 def _table_lines(text):
     """(line number, stripped text) of the lines that carry data, comments skipped; a line
-    longer than MAX_LINE is refused before it is copied."""
-    start, number, size = 0, 0, len(text)
-    while start < size:
-        end = text.find("\n", start)
-        end = size if end < 0 else end
-        number += 1
-        if end - start > MAX_LINE:
+    longer than MAX_LINE is refused."""
+    for number, raw in enumerate(text.split("\n"), start=1):
+        if len(raw) > MAX_LINE:
             raise TableError(number, f"is longer than {MAX_LINE} characters; a table row is "
                              "a few numbers separated by commas (is this the right file?)")
-        line = text[start:end].strip()
-        start = end + 1
+        line = raw.strip()
         if line and not line.startswith("#"):
             yield number, line
 
@@ -72,18 +67,14 @@ def _table_header(number, line, columns, optional, quote):
     return [names.index(c) if c in names else None for c in columns]
 
 
-def _table_row(number, line, where, columns, quote):
+def _table_row(number, line, index, names, quote):
     cells = line.split(",")
-    needed = max(i for i in where if i is not None)
-    if len(cells) <= needed:
+    if len(cells) <= max(index):
         raise TableError(number, f"has {len(cells)} cells, the header needs at least "
-                         f"{needed + 1}")
+                         f"{max(index) + 1}")
     row = []
-    for name, index in zip(columns, where):
-        if index is None:
-            row.append(None)
-            continue
-        cell = cells[index].strip()
+    for name, i in zip(names, index):
+        cell = cells[i].strip()
         try:
             value = float(cell)
         except ValueError:
@@ -94,10 +85,47 @@ def _table_row(number, line, where, columns, quote):
     return row
 
 
+def _fast_row(line, index):
+    """The values of the cells at `index` when each is a finite number, else None."""
+    cells = line.split(",")
+    try:
+        row = [float(cells[i]) for i in index]
+    except (ValueError, IndexError):
+        return None
+    return row if all(map(math.isfinite, row)) else None
+
+
 def _bad_rows(problems, count):
     line, message = problems[0]
     more = f" (and {count - 1} more bad row(s))" if count > 1 else ""
     return TableError(line, message + more, problems, count)
+
+
+def _rows(lines, where, columns, quote):
+    """The good rows (values of the present columns) and the bad ones' (line, message)."""
+    index = [i for i in where if i is not None]
+    present = [c for c, i in zip(columns, where) if i is not None]
+    rows, problems, count, last = [], [], 0, -math.inf
+    for number, line in lines:
+        if len(rows) + count >= _TABLE_MAX_ROWS:
+            raise TableError(number, f"more than {_TABLE_MAX_ROWS} rows")
+        row = _fast_row(line, index)
+        try:
+            if row is None:                   # the careful path names what is wrong
+                row = _table_row(number, line, index, present, quote)
+            if not row[0] > last:
+                raise TableError(number, f"time {row[0]!r} does not increase (the row before "
+                                 f"has {last!r}); times must be strictly increasing")
+        except TableError as err:
+            count += 1
+            if len(problems) < MAX_REPORTED:
+                problems.append((number, str(err).removeprefix(f"line {number}: ")))
+            continue
+        rows.append(row)
+        last = row[0]
+    if problems:
+        raise _bad_rows(problems, count)
+    return rows
 
 
 def parse_table(text, columns=TABLE_COLUMNS, optional=(), quote=True):
@@ -115,29 +143,11 @@ def parse_table(text, columns=TABLE_COLUMNS, optional=(), quote=True):
         raise TableError(0, f"the table is empty; it needs the header {','.join(columns)} "
                          "and at least one row")
     where = _table_header(*first, columns, optional, quote)
-    data = [[] if i is not None else None for i in where]
-    times, problems, count = data[0], [], 0
-    for number, line in lines:
-        if len(times) + count >= _TABLE_MAX_ROWS:
-            raise TableError(number, f"more than {_TABLE_MAX_ROWS} rows")
-        try:
-            row = _table_row(number, line, where, columns, quote)
-            if times and not row[0] > times[-1]:
-                raise TableError(number, f"time {row[0]!r} does not increase (the row before "
-                                 f"has {times[-1]!r}); times must be strictly increasing")
-        except TableError as err:
-            count += 1
-            if len(problems) < MAX_REPORTED:
-                problems.append((number, str(err).removeprefix(f"line {number}: ")))
-            continue
-        for column, value in zip(data, row):
-            if column is not None:
-                column.append(value)
-    if problems:
-        raise _bad_rows(problems, count)
-    if not times:
+    rows = _rows(lines, where, columns, quote)
+    if not rows:
         raise TableError(first[0], "the table has a header but no rows")
-    return data
+    present = iter(list(column) for column in zip(*rows))
+    return [next(present) if i is not None else None for i in where]
 
 
 def table_sampler(text, interpolation="linear"):
