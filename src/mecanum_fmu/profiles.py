@@ -172,7 +172,8 @@ def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
     params = dict(params)
     given = [k for k in PROFILE_KEYS[model] if k in spec]
     if len(given) + ("table" in params) > 1:
-        report(Problem(label, place, "give one of " + ", ".join(PROFILE_KEYS[model])
+        report(Problem(label, f"{place}.{given[0]}", "give one of "
+                       + ", ".join(PROFILE_KEYS[model])
                        + " or a table parameter, not several"))
         return params
     if "interpolation" in params and params["interpolation"] not in INTERPOLATIONS:
