@@ -6,6 +6,7 @@ kinematics from SPEC.md section 3, the pose equations of section 4, and a tight 
 of the same closed-loop ODE.
 """
 import math
+import re
 
 import numpy as np
 import pytest
@@ -213,3 +214,98 @@ def test_quadratic_master_without_state_support_steps_the_loop_once(fmu_dir, tmp
     trap_res = master.simulate(trap, trap.scenario.experiment)
     # the pose's inputs close the loop: held exactly as by the trapezoidal master
     np.testing.assert_array_equal(res["pose.x"], trap_res["pose.x"])
+
+
+# ------------------------------------------------------------------ a recorded path (issue 24)
+
+RECORDED = ROOT / "scenarios" / "closed_loop" / "recorded_path.yaml"
+
+
+def _recorded_reference():
+    """recorded_path.csv read by hand, the heading along the path as docs/closed-loop.md
+    defines it (body +Y along the direction from the row before to the row after), and the
+    reference as a function t -> (pose, rates): linear between rows, the rows' slopes."""
+    rows = [line.split(",") for line in (RECORDED.parent / "recorded_path.csv").read_text()
+            .splitlines() if line and not line.startswith("#")][1:]
+    T, X, Y = (np.array([float(r[i]) for r in rows]) for i in range(3))
+    n = len(T)
+    TH = np.unwrap([math.atan2(Y[min(i + 1, n - 1)] - Y[max(i - 1, 0)],
+                               X[min(i + 1, n - 1)] - X[max(i - 1, 0)]) - math.pi / 2
+                    for i in range(n)])
+
+    def ref(t):
+        i = int(np.searchsorted(T, t, side="right")) - 1
+        if i < 0 or i >= n - 1:
+            j = 0 if i < 0 else n - 1
+            return (X[j], Y[j], TH[j]), (0.0, 0.0, 0.0)
+        s, u = T[i + 1] - T[i], (t - T[i]) / (T[i + 1] - T[i])
+        return (tuple(c[i] + u * (c[i + 1] - c[i]) for c in (X, Y, TH)),
+                tuple((c[i + 1] - c[i]) / s for c in (X, Y, TH)))
+    return T, ref
+
+
+def test_a_recorded_path_is_followed_as_its_closed_loop_ode(fmu_dir, tmp_path):
+    """The PathFollower on recorded_path.csv against a tight scipy solve of the holonomic
+    closed loop p' = r' + k (r - p), theta' = theta_r' + k wrap(theta_r - theta), solved
+    row interval by row interval (the feed-forward jumps at the rows)."""
+    T, ref = _recorded_reference()
+
+    def rhs(t, p):
+        (xr, yr, tr), (dx, dy, dt) = ref(t)
+        return [dx + K_POS * (xr - p[0]), dy + K_POS * (yr - p[1]),
+                dt + K_THETA * math.atan2(math.sin(tr - p[2]), math.cos(tr - p[2]))]
+    stop, p = 15.0, [0.2, -0.15, 0.3]
+    edges = np.unique(np.r_[0.0, T[(T > 0) & (T < stop)], stop])
+    for a, b in zip(edges[:-1], edges[1:]):
+        p = solve_ivp(rhs, (a, b), p, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+    outcome = run(prepare(RECORDED, fmu_dir=fmu_dir), tmp_path, plots=False,
+                  log=lambda line: None)
+    end = [float(outcome.results.final(f"pose.{k}")) for k in ("x", "y", "theta")]
+    assert math.hypot(end[0] - p[0], end[1] - p[1]) < 2e-3 and abs(end[2] - p[2]) < 1e-3
+    (xr, yr, _), _ = ref(stop)
+    error = outcome.summary["error"]
+    assert error["position"] == pytest.approx(math.hypot(end[0] - xr, end[1] - yr), rel=1e-9)
+    assert error["position"] < 5e-3       # the start error (0.25 m) has decayed
+
+
+def test_waypoints_at_a_speed_are_a_path_table(fmu_dir, tmp_path):
+    """Straight waypoints at 0.5 m/s, the car starting on the path facing along it: it stays
+    on the reference x = 0.5 t, heading -pi/2 (body +Y along world +x), and stops at 2 m."""
+    text = ("name: line\nexperiment: {start_time: 0.0, stop_time: 5.0, step_size: 0.05}\n"
+            "components:\n"
+            "  follower: {fmu: PathFollower, waypoints: {points: [[0, 0], [1, 0], [2, 0]], "
+            "speed: 0.5}}\n"
+            "  pose: {fmu: PoseIntegrator, parameters: {theta0: -1.5707963267948966}}\n"
+            "connections:\n  - [pose.x, follower.x]\n  - [pose.y, follower.y]\n"
+            "  - [pose.theta, follower.theta]\n  - [follower.vx, pose.vx]\n"
+            "  - [follower.vy, pose.vy]\n  - [follower.w, pose.w]\n")
+    graph = prepare(write_scenario(tmp_path, "line", text), fmu_dir=fmu_dir)
+    table = graph.instance("follower").start_values["table"]
+    assert table.splitlines() == ["time,x,y", "0.0,0.0,0.0", "2.0,1.0,0.0", "4.0,2.0,0.0"]
+    outcome = run(graph, tmp_path / "out", plots=False, log=lambda line: None)
+    x, y, th = (outcome.results[f"pose.{k}"] for k in ("x", "y", "theta"))
+    t = outcome.results.time
+    moving = t <= 4.0 - 0.05
+    assert np.allclose(x[moving], 0.5 * t[moving], atol=1e-9)
+    assert np.allclose(y, 0.0, atol=1e-9) and np.allclose(th, -math.pi / 2, atol=1e-9)
+    # the stop is a jump of the feed-forward: the master sees it at a communication point,
+    # a lag of at most one step at 0.5 m/s, which then decays as exp(-k_pos (t - 4))
+    after = t >= 4.0
+    assert np.all(np.abs(x[after] - 2.0) <= 0.5 * 0.05 * np.exp(-K_POS * (t[after] - 4.0)))
+    assert x[-1] < 2.0
+
+
+@pytest.mark.parametrize("spec, words", [
+    ("waypoints: {points: [[0, 0]], speed: 1}", "at least two points"),
+    ("waypoints: {points: [[0, 0], [0, 0]], speed: 1}", "repeats the point before"),
+    ("waypoints: {points: [[0, 0], [1, 0]], speed: 0}", "speed along the path [m/s] > 0"),
+    ("waypoints: {points: [[0, 0], [1]], speed: 1}", "expected [x, y] or [x, y, theta]"),
+    ("waypoints: {points: [[0, 0], [1, 0]], speed: 1, sped: 2}", "unknown key"),
+])
+def test_bad_waypoints_are_named(tmp_path, spec, words):
+    from mecanum_fmu.errors import ScenarioError
+    from mecanum_fmu.scenario import load_scenario
+    text = ("experiment: {stop_time: 1.0}\ncomponents:\n"
+            f"  follower: {{fmu: PathFollower, {spec}}}\n")
+    with pytest.raises(ScenarioError, match=re.escape(words)):
+        load_scenario(write_scenario(tmp_path, "bad", text))

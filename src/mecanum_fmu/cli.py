@@ -8,7 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-from . import __version__
+from . import __version__, plausibility
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .masters import DEFAULT as DEFAULT_MASTER, MASTERS
 
@@ -64,6 +64,9 @@ def _add_validate(sub) -> None:
     val = sub.add_parser("validate", help="check a scenario and its FMUs without running",
                          description="Check a scenario and its FMUs; report every problem.")
     val.add_argument("scenario")
+    val.add_argument("--strict", action="store_true",
+                     help="treat plausibility warnings (units, table span, unstable gains) as "
+                          "errors (exit 2)")
     val.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     val.set_defaults(func=cmd_validate)
 
@@ -244,8 +247,12 @@ def cmd_run(args) -> int:
 def cmd_validate(args) -> int:
     from .runner import prepare
     graph = prepare(args.scenario, fmu_dir=args.fmu_dir, build=False)
+    strict = plausibility.problems(graph.scenario, graph.instances) if args.strict else []
     for warning in graph.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+        if warning not in {str(p) for p in strict}:
+            print(f"warning: {warning}", file=sys.stderr)
+    if strict:
+        raise ScenarioError(strict)
     exp = graph.scenario.experiment
     print(f"{graph.scenario.label}: ok - {len(graph.instances)} components, "
           f"{len(graph.links)} connections, {exp.master}, "

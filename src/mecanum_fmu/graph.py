@@ -12,6 +12,7 @@ from pathlib import Path
 
 from fmpy.model_description import ModelDescription, ScalarVariable
 
+from . import plausibility
 from .models import library as fmu_library
 from .models.catalog import bundled_model
 from .errors import Problem, ScenarioError
@@ -97,7 +98,8 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
     order, link_order = _dependency_order(instances, links, scenario.label)
     return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
                  tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
-                       + _rollback_warning(scenario, order, links)))
+                       + _rollback_warning(scenario, order, links)
+                       + plausibility.warnings(scenario, order)))
 
 
 def _rollback_warning(scenario: Scenario, order: list[Instance], links: list[Link]) -> list[str]:

@@ -22,50 +22,61 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, parse_table, \
-    table_sampler
+from .models.blocks.profile_table import INTERPOLATIONS, PATH_COLUMNS, TABLE_COLUMNS, \
+    TableError, parse_table, table_sampler
 from .errors import Problem
 from .values import is_finite
+from .recorded import TableSource, check_options, mapped_table, read_table_file, \
+    report_table_error
 
 SEGMENT_KEYS = ("duration", "vx", "vy", "w")
-MAX_TABLE_BYTES = 50_000_000
+WAYPOINT_KEYS = ("points", "speed")
+# the component keys that make a table, per model (besides its `table` parameter)
+PROFILE_KEYS = {"VelocitySource": ("segments", "table"), "PathFollower": ("table", "waypoints")}
+COLUMNS = {"VelocitySource": (TABLE_COLUMNS, ()), "PathFollower": (PATH_COLUMNS, ("theta",))}
+Report = Callable[[Problem], None]
 
 
-def table_text(value: str, scenario_dir: Path, label: str, place: str,
-               report: Callable[[Problem], None]) -> str | None:
+def table_text(value: str, scenario_dir: Path, label: str, place: str, report: Report,
+               model: str = "VelocitySource") -> str | None:
     """The CSV text behind a `table` parameter (a path or the text itself), checked; None
-    (and a reported problem) when it cannot be used."""
+    (and reported problems) when it cannot be used."""
     if "\n" in value:
-        text, where = value, label
+        source = TableSource(value, label, True)
     else:
-        path = scenario_dir / value
-        where = str(path)
-        try:
-            if path.stat().st_size > MAX_TABLE_BYTES:
-                report(Problem(label, place, f"{value}: larger than {MAX_TABLE_BYTES} bytes"))
-                return None
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            report(Problem(label, place, f"table file {value!r} not found (looked for {path}; "
-                                         "the path is relative to the scenario file)"))
-            return None
-        except (OSError, UnicodeDecodeError) as err:
-            report(Problem(label, place, f"table file {value!r} cannot be read: "
-                                         f"{getattr(err, 'strerror', None) or err}"))
+        source = read_table_file(value, scenario_dir, label, place, report)
+        if source is None:
             return None
     try:
-        parse_table(text)
+        parse_table(source.text, *COLUMNS[model], source.quote)
     except TableError as err:
-        # file:line, as compilers write it
-        report(Problem(f"{where}:{err.line}" if err.line else where, "",
-                       str(err).removeprefix(f"line {err.line}: ")
-                       + f" (the table of {label}: {place})"))
+        report_table_error(err, source, label, place, report)
         return None
-    return text
+    return source.text
+
+
+def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: str,
+            label: str, report: Report) -> str | None:
+    """The text of a `table: {file: ..., columns: ..., units: ...}` mapping (recorded.py)."""
+    columns, optional = COLUMNS[model]
+    if not isinstance(raw, dict):
+        report(Problem(label, place, f"expected a mapping like {{file: log.csv, columns: "
+                                     f"{{{columns[1]}: ...}}}}"))
+        return None
+    if not check_options(raw, columns, place, label, report):
+        return None
+    source = read_table_file(raw["file"], scenario_dir, label, f"{place}.file", report)
+    if source is None:
+        return None
+    try:
+        return mapped_table(source, raw, columns, optional, start_time)
+    except TableError as err:
+        report_table_error(err, source, label, place, report)
+        return None
 
 
 def segments_table(raw: Any, start_time: float, place: str,
-                   report: Callable[[Problem], None], label: str) -> str | None:
+                   report: Report, label: str) -> str | None:
     """The hold-table CSV text for a `segments:` list; None (and problems) when it is bad."""
     if not isinstance(raw, list) or not raw:
         report(Problem(label, place, "expected a list of segments like {duration: 2, vy: 0.3}"))
@@ -119,46 +130,137 @@ def _segment_end(t: float, duration: float, place: str, report: Callable[[Proble
     return end, True
 
 
-def resolve_profile(spec: dict, params: dict, scenario_dir: Path, start_time: float,
-                    place: str, label: str, report: Callable[[Problem], None]) -> dict:
-    """A VelocitySource's parameters with `table` (path or segments) replaced by CSV text."""
+def waypoints_table(raw: Any, start_time: float, place: str, report: Report,
+                    label: str) -> str | None:
+    """The path table (time,x,y[,theta]) of `waypoints: {points: [[x, y], ...], speed: v}`:
+    straight lines between the points at the speed v [m/s], from the start_time on."""
+    if not isinstance(raw, dict) or not isinstance(raw.get("points"), list) \
+            or len(raw["points"]) < 2:
+        report(Problem(label, place, "expected {points: [[x, y], [x, y], ...], speed: v} "
+                                     "with at least two points [m] (or [x, y, theta])"))
+        return None
+    ok = all(key in WAYPOINT_KEYS or _unknown(label, f"{place}.{str(key)[:40]}", report)
+             for key in list(raw))
+    speed = raw.get("speed")
+    if not (is_finite(speed) and speed > 0):
+        report(Problem(label, f"{place}.speed", "needs the speed along the path [m/s] > 0"))
+        ok = False
+    points = raw["points"]
+    width = len(points[0]) if isinstance(points[0], list) else 0
+    for i, point in enumerate(points):
+        if not (isinstance(point, list) and len(point) == width and width in (2, 3)
+                and all(is_finite(v) for v in point)):
+            report(Problem(label, f"{place}.points[{i}]", "expected [x, y] or [x, y, theta] "
+                                                          "of finite numbers, as the first"))
+            return None
+    if not ok:
+        return None
+    t, rows = float(start_time), []
+    for i, point in enumerate(points):
+        if i:
+            step = math.hypot(point[0] - points[i - 1][0], point[1] - points[i - 1][1])
+            if not step > 0:
+                report(Problem(label, f"{place}.points[{i}]", "repeats the point before; "
+                                                              "leave it out"))
+                return None
+            t += step / float(speed)
+        rows.append((t, *point))
+    header = "time,x,y" + (",theta" if width == 3 else "")
+    return header + "\n" + "".join(",".join(repr(float(v)) for v in row) + "\n"
+                                   for row in rows)
+
+
+def _unknown(label: str, place: str, report: Report) -> bool:
+    report(Problem(label, place, f"unknown key (allowed: {', '.join(WAYPOINT_KEYS)})"))
+    return False
+
+
+def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
+                    start_time: float, place: str, label: str, report: Report) -> dict:
+    """A VelocitySource's or PathFollower's parameters with its table (a path, segments,
+    waypoints or a `table:` mapping) replaced by the CSV text."""
     params = dict(params)
-    if "segments" in spec:
-        if "table" in params:
-            report(Problem(label, f"{place}.segments", "give either segments or a table "
-                                                       "parameter, not both"))
-            return params
-        text = segments_table(spec["segments"], start_time, f"{place}.segments", report, label)
-        if text is not None:
-            params["table"] = text
-            params["interpolation"] = "hold"
+    given = [k for k in PROFILE_KEYS[model] if k in spec]
+    if len(given) + ("table" in params) > 1:
+        report(Problem(label, f"{place}.{given[0]}", "give one of "
+                       + ", ".join(PROFILE_KEYS[model])
+                       + " or a table parameter, not several"))
         return params
     if "interpolation" in params and params["interpolation"] not in INTERPOLATIONS:
         report(Problem(label, f"{place}.parameters.interpolation",
                        f"{str(params['interpolation'])[:40]!r} is unknown; use "
                        f"{' or '.join(INTERPOLATIONS)}"))
-    table = params.get("table")
-    if isinstance(table, str) and table:
-        text = table_text(table, scenario_dir, label, f"{place}.parameters.table", report)
+    text = None
+    if given == ["segments"]:
+        text = segments_table(spec["segments"], start_time, f"{place}.segments", report, label)
         if text is not None:
-            params["table"] = text
+            params["interpolation"] = "hold"
+    elif given == ["waypoints"]:
+        text = waypoints_table(spec["waypoints"], start_time, f"{place}.waypoints", report,
+                               label)
+    elif given == ["table"]:
+        text = _mapped(spec["table"], model, scenario_dir, start_time, f"{place}.table", label,
+                       report)
+    elif isinstance(params.get("table"), str) and params["table"]:
+        text = table_text(params["table"], scenario_dir, label, f"{place}.parameters.table",
+                          report, model)
+    if text is not None:
+        params["table"] = text
     return params
+
+
+def _numpy_columns(text: str) -> list[np.ndarray]:
+    """time, vx, vy, w of a checked table text as arrays, read by NumPy's C parser (a 10^6-row
+    table in a fraction of the pure-Python parse); parse_table when NumPy cannot read it."""
+    import io
+    body = text[1:] if text.startswith("\ufeff") else text
+    lines = (line.strip() for line in body.split("\n", 200))
+    header = next((i, line) for i, line in enumerate(lines) if line and not line.startswith("#"))
+    names = [cell.strip().lower() for cell in header[1].split(",")]
+    try:
+        where = [names.index(c) for c in TABLE_COLUMNS]
+        data = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", usecols=where,
+                          skiprows=header[0] + 1, dtype=float, ndmin=2)
+        if data.shape[0] and np.all(np.diff(data[:, 0]) > 0) and np.isfinite(data).all():
+            return [data[:, k].copy() for k in range(len(TABLE_COLUMNS))]
+    except (ValueError, StopIteration):
+        pass
+    return [np.asarray(c, dtype=float) for c in parse_table(text)]
 
 
 def table_twist(text: str, interpolation: str = "linear"):
     """(twist function of t for arrays or scalars, breakpoints) of a table, with NumPy: an
-    implementation independent of the FMU's (blocks/profile_table.py samples row by row)."""
-    times, *cols = (np.asarray(c, dtype=float) for c in parse_table(text))
+    implementation independent of the FMU's (blocks/profile_table.py samples row by row).
+    A scalar t costs one bisection (np.interp's formula, O(log n)); the last one is kept, as
+    the ground truth asks for the three channels of one t in turn."""
+    times, *cols = _numpy_columns(text)
     if interpolation not in INTERPOLATIONS:
         table_sampler(text, interpolation)      # raises the message
     hold = interpolation == "hold"
+    rows, last = np.stack(cols, axis=1).tolist(), [None, None]
+
+    def at(t: float) -> tuple:
+        i = int(np.searchsorted(times, t, side="right")) - 1
+        if i < 0 or hold:
+            return tuple(rows[max(i, 0)])
+        if i >= len(rows) - 1:
+            return tuple(rows[-1])
+        t0, t1 = float(times[i]), float(times[i + 1])
+        return tuple((b - a) / (t1 - t0) * (t - t0) + a for a, b in zip(rows[i], rows[i + 1]))
 
     def twist(t):
+        if isinstance(t, float) or np.ndim(t) == 0:
+            if last[0] != t:
+                last[:] = t, at(float(t))
+            return last[1]
         if hold:
             i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1)
             return tuple(c[i] for c in cols)
         return tuple(np.interp(t, times, c) for c in cols)
     return twist, times
+
+
+MIN_MAX_STEP = 0.05    # [s] a row interval shorter than 8 of these is one solver step or a few
 
 
 def integrate_piecewise(rhs, start, times: np.ndarray, breaks: np.ndarray, rtol: float,
@@ -171,11 +273,11 @@ def integrate_piecewise(rhs, start, times: np.ndarray, breaks: np.ndarray, rtol:
     out = np.empty((3, len(times)))
     out[:, times <= t0] = np.asarray(start, dtype=float)[:, None]
     state = np.asarray(start, dtype=float)
-    for a, b in zip(edges[:-1], edges[1:]):
-        inside = (times > a) & (times <= b)
+    for a, b in zip(edges[:-1], edges[1:]):          # times are sorted: (a, b] is a slice
+        inside = slice(*np.searchsorted(times, (a, b), side="right"))
         wanted = np.union1d(times[inside], [b])
         sol = solve_ivp(rhs, (a, b), state, t_eval=wanted, rtol=rtol, atol=atol,
-                        method="DOP853", max_step=(b - a) / 8)
+                        method="DOP853", max_step=max((b - a) / 8, MIN_MAX_STEP))
         out[:, inside] = sol.y[:, np.searchsorted(wanted, times[inside])]
         state = sol.y[:, -1]
     return out

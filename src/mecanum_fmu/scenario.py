@@ -28,7 +28,7 @@ Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _TOP_KEYS = ("name", "description", "experiment", "components", "connections", "outputs",
              "parameters")
-_COMPONENT_KEYS = ("fmu", "parameters", "description", "segments")
+_COMPONENT_KEYS = ("fmu", "parameters", "description", "segments", "table", "waypoints")
 
 
 @dataclass(frozen=True)
@@ -397,18 +397,20 @@ def _components(raw: Any, bad) -> tuple[Component, ...]:
 
 def _profiles(components: tuple[Component, ...], raw: Any, path: Path, start_time: float,
               problems: list[Problem]) -> tuple[Component, ...]:
-    """VelocitySources get their `table` file or `segments` as CSV text (profiles.py)."""
-    from .profiles import resolve_profile
+    """VelocitySources and PathFollowers get their table as CSV text (profiles.py)."""
+    from .profiles import PROFILE_KEYS, resolve_profile
     out = []
     for comp in components:
         spec = raw[comp.name] if isinstance(raw[comp.name], dict) else {}
-        if comp.fmu == "VelocitySource":
-            params = resolve_profile(spec, comp.parameters, path.parent, start_time,
+        if comp.fmu in PROFILE_KEYS:
+            params = resolve_profile(comp.fmu, spec, comp.parameters, path.parent, start_time,
                                      comp.place, str(path), problems.append)
             comp = Component(comp.name, comp.fmu, params, comp.place)
-        elif "segments" in spec:
-            problems.append(Problem(str(path), f"{comp.place}.segments", "segments are for "
-                                    "a VelocitySource only"))
+        for key in (k for k in ("segments", "table", "waypoints") if k in spec):
+            if key not in PROFILE_KEYS.get(comp.fmu, ()):
+                problems.append(Problem(str(path), f"{comp.place}.{key}", f"{key}: only a "
+                                        + " or ".join(m for m, keys in PROFILE_KEYS.items()
+                                                      if key in keys) + " has one"))
         out.append(comp)
     return tuple(out)
 

@@ -8,7 +8,9 @@ w = theta_r'(t) + k_theta wrap(theta_r(t) - theta), and turns v into the body fr
 measured heading. Because the chassis is holonomic, the closed loop is then exactly linear:
 the position error and the heading error each decay as exp(-k t), independently.
 
-The reference rates r'(t) are central differences of the reference expressions (the safe
+The reference is expressions of t or a recorded path (blocks/profile_table.py, path_sampler:
+linear between rows, its rates the rows' slopes). For expressions, the rates r'(t) are
+central differences of the reference expressions (the safe
 evaluator builds closures, it does not differentiate symbolically): step d = 6e-6 max(1, |t|),
 truncation error d^2/6 |r'''|, about 1e-11 for smooth references. Standard library only: this
 source is inlined verbatim into the standalone FMU script.
@@ -28,14 +30,23 @@ def wrap_angle(a):
     return math.atan2(math.sin(a), math.cos(a))
 
 
-def follow(t, x, y, theta, refs, k_pos, k_theta):
+def expression_reference(refs):
+    """The reference of three functions of t (x_ref, y_ref, theta_ref) as a function
+    t -> ((x, y, theta), (x', y', theta')), the rates by central difference."""
+    def reference(t):
+        return (tuple(f(t) for f in refs), tuple(central_difference(f, t) for f in refs))
+    return reference
+
+
+def follow(t, x, y, theta, reference, k_pos, k_theta):
     """Body twist (vx, vy, w) that steers the pose (x, y, theta) onto the reference.
 
-    refs: three functions of t, (x_ref, y_ref, theta_ref)."""
-    fx, fy, fth = refs
-    vx_world = central_difference(fx, t) + k_pos * (fx(t) - x)
-    vy_world = central_difference(fy, t) + k_pos * (fy(t) - y)
-    w = central_difference(fth, t) + k_theta * wrap_angle(fth(t) - theta)
+    reference: t -> ((x_ref, y_ref, theta_ref), their rates): expression_reference, or
+    profile_table.path_sampler for a recorded path (rates: the table's slopes)."""
+    (xr, yr, thr), (dxr, dyr, dthr) = reference(t)
+    vx_world = dxr + k_pos * (xr - x)
+    vy_world = dyr + k_pos * (yr - y)
+    w = dthr + k_theta * wrap_angle(thr - theta)
     c, s = math.cos(theta), math.sin(theta)
     # world -> body: the transpose of the rotation in the pose equations
     return c * vx_world + s * vy_world, -s * vx_world + c * vy_world, w

@@ -28,6 +28,7 @@ class VelocitySource(Fmi2Slave):
         self.vx = self.vy = self.w = 0.0
         self._start_time = 0.0
         self._profile = None
+        self._parsed = None          # (table, interpolation) the profile was built from
         docs = {"vx_expr": "vx(t) [m/s], body +X (right)",
                 "vy_expr": "vy(t) [m/s], body +Y (forward)",
                 "w_expr": "w(t) [rad/s], counter-clockwise"}
@@ -65,9 +66,12 @@ class VelocitySource(Fmi2Slave):
     def enter_initialization_mode(self):
         # Compile here (not per step): a bad expression is reported at initialization.
         try:
-            if self.table:
+            if self.table and self._parsed == (self.table, self.interpolation):
+                pass                 # parsed at enter_initialization_mode: a large table once
+            elif self.table:
                 sampler = table_sampler(self.table, self.interpolation)
                 self._profile = tuple((lambda t, i=i: sampler(t)[i]) for i in range(3))
+                self._parsed = (self.table, self.interpolation)
             else:
                 self._profile = tuple(compile_expression(getattr(self, name))
                                       for name in _EXPRESSIONS)

@@ -1,0 +1,151 @@
+"""Plausibility: values that are valid but probably not what the user meant. Warnings, not
+errors (`validate --strict` makes them errors, exit 2); compile_graph adds them to
+Graph.warnings.
+
+- Units: a wheel radius, half-track or wheelbase whose size suggests millimetres or
+  centimetres (R: 60), a start heading whose size suggests degrees (theta0: 90).
+- A table (VelocitySource profile, PathFollower path) that does not cover the run's time span:
+  outside it the end rows are held (epoch timestamps hold the first row for the whole run).
+- A follower gain that makes the closed loop unstable at the chosen step: on x' = -k x closed
+  through the integrator the masters are stable for h k below STABILITY_LIMIT (docs/masters.md).
+
+Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
+.value(name), .can_get_set_state; this module imports nothing of graph.py.
+"""
+from __future__ import annotations
+
+import math
+
+from .errors import Problem
+from .models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS
+
+# h k below which the closed loop x' = -k x through the integrator is stable, per way of
+# stepping a loop (docs/masters.md, "The rollback"): the one home of these numbers. Measured
+# on track_circle with a fixed reference and no heading error (tests/test_plausibility.py):
+# the single pass decays at h k = 0.95 and grows at 1.05; the quadratic master's
+# predictor-corrector decays at 1.99 and grows at 2.01 (docs/masters.md said 2.4; 2.0 is what
+# the master with its limiter reaches; a trapezoidal corrector on the extrapolated predictor
+# has its root at z = 1 for h k = 2). A large heading error couples in and lowers it.
+STABILITY_LIMIT = {"extrapolated single pass": 1.0, "predictor-corrector": 2.0}
+LENGTHS = {"R": (0.005, 1.0), "L": (0.01, 5.0), "W": (0.01, 5.0), "l": (0.05, 10.0)}
+LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2Center",
+                 "Bicycle")
+ANGLES = {"PoseIntegrator": ("theta0",)}
+TABLE_MODELS = {"VelocitySource": TABLE_COLUMNS, "PathFollower": PATH_COLUMNS}
+_SMALLER = (("millimetres", 1e-3), ("centimetres", 1e-2))
+
+
+def stability_limit(master: str, can_roll_back: bool) -> float | None:
+    """The largest stable h k of a loop stepped by `master` (None: none stated)."""
+    if master == "quadratic" and can_roll_back:
+        return STABILITY_LIMIT["predictor-corrector"]
+    if master in ("quadratic", "trapezoidal"):
+        return STABILITY_LIMIT["extrapolated single pass"]
+    return None
+
+
+def problems(scenario, instances) -> list[Problem]:
+    """Every plausibility finding of a compiled scenario, as Problems (file, place, message)."""
+    found: list[Problem] = []
+    for inst in instances:
+        for place, message in (_units(scenario, inst) + _table_span(scenario, inst)
+                               + _stability(scenario, inst, instances)):
+            problem = Problem(scenario.label, place, message)
+            if problem not in found:        # a shared parameter is seen by every taker
+                found.append(problem)
+    return found
+
+
+def warnings(scenario, instances) -> list[str]:
+    """problems() as the warning lines Graph.warnings holds."""
+    return [str(p) for p in problems(scenario, instances)]
+
+
+def _place(scenario, inst, name: str) -> str:
+    own = next((c for c in scenario.components if c.name == inst.name), None)
+    if own is not None and name in own.parameters:
+        return f"{inst.declared_at}.parameters.{name}"
+    return f"parameters.{name}" if name in scenario.parameters else inst.declared_at
+
+
+def _given(inst, name: str):
+    value = inst.start_values.get(name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _units(scenario, inst) -> list[tuple[str, str]]:
+    out = []
+    if inst.model_name in LENGTH_MODELS:
+        for name, (low, high) in LENGTHS.items():
+            value = _given(inst, name)
+            if value is None or value <= high:
+                continue
+            fits = [f"{unit} (then give metres, {name}: {value * scale:g})"
+                    for unit, scale in _SMALLER if low <= value * scale <= high]
+            if fits:
+                out.append((_place(scenario, inst, name),
+                            f"{name} = {value:g} m is implausibly large for a "
+                            f"{'wheel radius' if name == 'R' else 'chassis length'}; it looks "
+                            f"like {' or '.join(fits)}"))
+    for name in ANGLES.get(inst.model_name, ()):
+        value = _given(inst, name)
+        if value is not None and 2 * math.pi < abs(value) <= 360:
+            out.append((_place(scenario, inst, name),
+                        f"{name} = {value:g} rad is {abs(value) / (2 * math.pi):.1f} turns; it "
+                        f"looks like degrees (then give radians, {name}: {math.radians(value):.6g})"))
+    return out
+
+
+def _table_span(scenario, inst) -> list[tuple[str, str]]:
+    text = inst.start_values.get("table") if inst.model_name in TABLE_MODELS else None
+    if not isinstance(text, str) or not text:
+        return []
+    span = table_span(text)
+    exp = scenario.experiment
+    if span is None or (span[0] <= exp.start_time and span[1] >= exp.stop_time):
+        return []
+    first, last = span
+    outside = last <= exp.start_time or first >= exp.stop_time
+    held = ("the run sees only its " + ("last" if last <= exp.start_time else "first")
+            + " row" if outside else "outside it its end rows are held")
+    return [(f"{inst.declared_at}.table", f"the table covers t = {first:.10g} to {last:.10g} s, "
+             f"the run {exp.start_time:g} to {exp.stop_time:g} s: {held} (timestamps in "
+             "another unit or epoch? use table: {file: ..., units: {time: ms}, start: "
+             "first_row} or an offset)")]
+
+
+def table_span(text: str) -> tuple[float, float] | None:
+    """(first, last) time of a checked table text, from its first and last data lines only."""
+    lines = [line.strip() for line in text.splitlines()]
+    data = [line for line in lines if line and not line.startswith("#")]
+    if len(data) < 2:
+        return None
+    header = [c.strip().lower() for c in data[0].lstrip("\ufeff").split(",")]
+    if "time" not in header:
+        return None
+    column = header.index("time")
+    try:
+        return float(data[1].split(",")[column]), float(data[-1].split(",")[column])
+    except (ValueError, IndexError):
+        return None
+
+
+def _stability(scenario, inst, instances) -> list[tuple[str, str]]:
+    if inst.model_name != "PathFollower":
+        return []
+    exp = scenario.experiment
+    limit = stability_limit(exp.master, all(i.can_get_set_state for i in instances))
+    if limit is None:
+        return []
+    out = []
+    for name in ("k_pos", "k_theta"):
+        gain = inst.value(name)
+        if isinstance(gain, (int, float)) and math.isfinite(gain) and gain * exp.step_size >= limit:
+            out.append((_place(scenario, inst, name),
+                        f"{name} = {gain:g} 1/s with step {exp.step_size:g} s gives h k = "
+                        f"{gain * exp.step_size:.3g}, at or above the stability limit "
+                        f"{limit:g} of the {exp.master} master on this loop: the run will "
+                        f"diverge; use a step below {limit / gain:.3g} s or a smaller gain"))
+    return out
