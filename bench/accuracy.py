@@ -166,12 +166,15 @@ def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="three tolerances, no 1e-5/1e-6")
     parser.add_argument("--plot", type=Path, default=ROOT / "results" / "bench" / "accuracy.png")
+    parser.add_argument("--scenario", action="append", choices=SCENARIOS,
+                        help="only this one (repeatable; default: all)")
     args = parser.parse_args(argv)
     everything = {}
-    for name in SCENARIOS:
+    for name in args.scenario or SCENARIOS:
         rows, table = scenario_rows(name, args.quick)
         host = zoh_host(prepare(ROOT / "scenarios" / name))
         print_scenario(name, rows, table, host)
+        print(flush=True)
         everything[name] = rows
     plot(everything, args.plot)
     return everything
