@@ -20,6 +20,7 @@ import numpy as np
 
 from .errors import MecanumError, Problem, ScenarioError
 from .results import csv_writer, write_rows
+from .storage import atomic_path
 
 # as long as the longest name a run writes here (".summary.json.part" and the plots are
 # shorter): when the lock can be created, every other file name fits too
@@ -107,20 +108,21 @@ class OutputFolder:
             os.close(self._fd)
             self._fd = None
 
-    def temporary(self, name: str) -> Path:
-        temp = self.path / f".{name}.part"
-        self._temps.add(temp)
-        return temp
+    def atomic(self, name: str) -> atomic_path:
+        """storage.atomic_path for a file of this folder; its temporary name is removed when
+        the folder is left, whatever happened."""
+        atomic = atomic_path(self.path / name)
+        self._temps.add(atomic.temp)
+        return atomic
 
     def write_json(self, data: dict, name: str = "summary.json") -> Path:
         """Written whole under a temporary name, then renamed."""
-        temp, final = self.temporary(name), self.path / name
         try:
-            temp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
-            os.replace(temp, final)
+            with self.atomic(name) as temp:
+                temp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
         except OSError as err:
             raise WriteError(self.path, err) from None
-        return final
+        return self.path / name
 
     def write_tables(self, stream: "CsvStream", summary: dict) -> list[Path]:
         """results.csv (renamed) and summary.json together, or neither: a results.csv
@@ -136,20 +138,21 @@ class OutputFolder:
             raise
 
     def csv_stream(self, names: tuple[str, ...]) -> "CsvStream":
-        return CsvStream(self.temporary("results.csv"), self.path / "results.csv", names)
+        return CsvStream(self.atomic("results.csv"), names)
 
 
 class CsvStream:
     """results.csv written chunk by chunk during the run (a sink for master.simulate) under a
     temporary name; finish() renames it, abort() removes it."""
 
-    def __init__(self, temp: Path, final: Path, names: tuple[str, ...]):
-        self.temp, self.final = temp, final
+    def __init__(self, atomic: atomic_path, names: tuple[str, ...]):
+        self._atomic = atomic
+        self.temp, self.final = atomic.temp, atomic.path
         try:
-            self._fh = open(temp, "w", newline="")
+            self._fh = open(self.temp, "w", newline="")
             self._writer = csv_writer(self._fh, names)
         except OSError as err:
-            raise WriteError(final.parent, err) from None
+            raise WriteError(self.final.parent, err) from None
 
     def __call__(self, chunk: np.ndarray) -> None:
         try:
@@ -160,14 +163,13 @@ class CsvStream:
     def finish(self) -> Path:
         try:
             self._fh.close()
-            os.replace(self.temp, self.final)
+            return self._atomic.commit()
         except OSError as err:
             raise WriteError(self.final.parent, err) from None
-        return self.final
 
     def abort(self) -> None:
         try:
             self._fh.close()
         except OSError:     # the disk is full: what is buffered cannot be written
             pass
-        self.temp.unlink(missing_ok=True)
+        self._atomic.discard()
