@@ -1,5 +1,7 @@
-"""Leaving the process: the one hard exit that every entry point (CLI, pytest, benches, host
-children) uses."""
+"""The process and its signals: the one hard exit that every entry point (CLI, pytest,
+benches, host children) uses, and how Ctrl-C and SIGTERM reach a run (latched while FMUs or a
+sweep's client run, raised as KeyboardInterrupt / Terminated elsewhere, deferred while result
+files are completed). Imports nothing of the package above it."""
 from __future__ import annotations
 
 import os
@@ -28,7 +30,7 @@ def exit_now(code: int) -> NoReturn:
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised like Ctrl-C's KeyboardInterrupt wherever the run does not latch it
-    (master.stepping.ctrl_c_latched does, while the FMUs run): the same clean-up runs, and the
+    (ctrl_c_latched does, while the FMUs run): the same clean-up runs, and the
     CLI exits with 143."""
 
 
@@ -53,11 +55,36 @@ def sigterm_raises() -> Iterator[None]:
 
 
 @contextmanager
+def ctrl_c_latched() -> Iterator[list[int]]:
+    """While the FMUs run, Ctrl-C (and SIGTERM) only set a flag that the stepping loop checks
+    once per step: flag[0] is the signal number, 0 while none came.
+
+    The bundled FMUs run Python code on this thread, so Python's default SIGINT handler would
+    raise KeyboardInterrupt inside an FMU call about 2 times in 3, and pythonfmu turns that
+    into fmi2Fatal (the run fails instead of stopping, the instance cannot even be freed);
+    SIGTERM would end the process with nothing kept. Only on the main thread and for a signal
+    whose handler is the default one (or sigterm_raises'); elsewhere the flag stays 0
+    and the signals behave as usual."""
+    flag = [0]
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum, defaults in ((signal.SIGINT, (signal.default_int_handler,)),
+                                 (signal.SIGTERM, (signal.SIG_DFL, raise_terminated))):
+            if signal.getsignal(signum) in defaults:
+                previous[signum] = signal.signal(
+                    signum, lambda number, frame: flag.__setitem__(0, flag[0] or number))
+    try:
+        yield flag
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+@contextmanager
 def signals_deferred() -> Iterator[None]:
     """Ctrl-C and SIGTERM wait until the block has finished (a few result files being
     completed), then raise KeyboardInterrupt or Terminated. Main thread only; elsewhere the
     block runs as it is."""
-    from .master.stepping import ctrl_c_latched
     with ctrl_c_latched() as flag:
         yield
     if flag[0] == signal.SIGTERM:

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import Interrupted, SimulationError
 from ..graph import Graph
+from ..process import ctrl_c_latched
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
@@ -25,8 +26,7 @@ from .plan import Buffers, Holds, plan_transfers
 HOLD = {"quadratic": "quadratic", "trapezoidal": "trapezoidal", "gauss-seidel": "zoh",
         "jacobi": "zoh"}
 from .recorder import Recorder, step_count
-from .stepping import (NonFinite, StepFailure, check_finite, ctrl_c_latched, initialise,
-                       step_all)
+from .stepping import NonFinite, StepFailure, check_finite, initialise, step_all
 
 __all__ = ["simulate", "release_instances", "RUNTIME"]
 
