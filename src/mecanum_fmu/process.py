@@ -54,10 +54,35 @@ def sigterm_raises() -> Iterator[None]:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+class SignalFlag(list):
+    """What ctrl_c_latched yields: flag[0] is the signal number (0 while none came). Inside
+    `with flag.raising():` a signal also raises (KeyboardInterrupt, SIGTERM Terminated), for
+    work that may simply stop (an evaluation, plots); flag[0] is set either way, so a signal
+    that lands as the block ends is still seen."""
+
+    def __init__(self):
+        super().__init__([0])
+        self.raises = False
+
+    def __call__(self, number, frame) -> None:
+        self[0] = self[0] or number
+        if self.raises:
+            self.raises = False
+            raise Terminated() if number == signal.SIGTERM else KeyboardInterrupt()
+
+    @contextmanager
+    def raising(self) -> Iterator[None]:
+        self.raises = True
+        try:
+            yield
+        finally:
+            self.raises = False
+
+
 @contextmanager
-def ctrl_c_latched() -> Iterator[list[int]]:
+def ctrl_c_latched() -> Iterator[SignalFlag]:
     """While the FMUs run, Ctrl-C (and SIGTERM) only set a flag that the stepping loop checks
-    once per step: flag[0] is the signal number, 0 while none came.
+    once per step: flag[0] is the signal number, 0 while none came (see SignalFlag).
 
     The bundled FMUs run Python code on this thread, so Python's default SIGINT handler would
     raise KeyboardInterrupt inside an FMU call about 2 times in 3, and pythonfmu turns that
@@ -65,14 +90,13 @@ def ctrl_c_latched() -> Iterator[list[int]]:
     SIGTERM would end the process with nothing kept. Only on the main thread and for a signal
     whose handler is the default one (or sigterm_raises'); elsewhere the flag stays 0
     and the signals behave as usual."""
-    flag = [0]
+    flag = SignalFlag()
     previous = {}
     if threading.current_thread() is threading.main_thread():
         for signum, defaults in ((signal.SIGINT, (signal.default_int_handler,)),
                                  (signal.SIGTERM, (signal.SIG_DFL, raise_terminated))):
             if signal.getsignal(signum) in defaults:
-                previous[signum] = signal.signal(
-                    signum, lambda number, frame: flag.__setitem__(0, flag[0] or number))
+                previous[signum] = signal.signal(signum, flag)
     try:
         yield flag
     finally:

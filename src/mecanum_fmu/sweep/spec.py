@@ -29,11 +29,12 @@ import numpy as np
 
 from ..errors import Problem, ScenarioError
 from ..graph import Graph, check_start_values, settable_parameters
+from ..models.blocks.profile_table import INTERPOLATIONS
 from ..scenario import (Scalar, VarRef, did_you_mean, experiment_values, is_finite, is_number,
                         override_experiment, parse_ref, read_yaml, show, usable_name)
 
 _TOP_KEYS = ("name", "description", "scenario", "experiment", "grid", "random")
-MAX_RUNS = 1_000_000            # grid points x samples; more is surely a typo
+MAX_RUNS = 100_000              # grid points x samples; more is likely a typo (--max-runs)
 DISTRIBUTIONS = {"normal": "[mean, sd] with sd >= 0", "uniform": "[low, high] with low <= high"}
 
 
@@ -60,8 +61,9 @@ class Run:
     problem: str | None = None      # a draw the scenario's rules refuse: a failed row
 
 
-def load_sweep(path: str | Path) -> Sweep:
-    """Read and check the file's own structure (no FMU needed). Raises ScenarioError."""
+def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
+    """Read and check the file's own structure (no FMU needed). Raises ScenarioError.
+    max_runs: the most runs accepted (grid points x samples), checked before any is planned."""
     path = Path(path)
     label = str(path)
     problems: list[Problem] = []
@@ -94,9 +96,10 @@ def load_sweep(path: str | Path) -> Sweep:
     for dup in sorted({r for r in seen if seen.count(r) > 1}):
         bad(f"random.{dup}", f"'{dup}' is varied in both grid and random; vary it in one")
     total = math.prod(len(v) for _, v in grid) * max(samples, 1)
-    if total > MAX_RUNS:
-        bad("grid" if grid else "random.samples", f"{total} runs (grid points x samples) is "
-            f"more than {MAX_RUNS:,}; split the study")
+    if total > max_runs:
+        bad("grid" if grid else "random.samples", f"{total:,} runs (grid points x samples) "
+            f"is more than the limit of {max_runs:,} (each run is a row held in memory); "
+            f"split the study, or give --max-runs {total} to run them all")
     if problems:
         raise ScenarioError(problems)
     return Sweep(path, name, (path.parent / scenario), experiment, grid, samples, seed, random)
@@ -189,6 +192,7 @@ def apply_experiment(sweep: Sweep, graph: Graph) -> Graph:
 def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
     """Check every varied parameter against the graph, then list the runs in index order."""
     _check_parameters(sweep, graph)
+    _check_profile_grid(sweep, graph)
     points = list(itertools.product(*(values for _, values in sweep.grid)))
     refs = [ref for ref, _ in sweep.grid]
     _check_grid_points(sweep, graph, refs, points)
@@ -232,6 +236,26 @@ def _check_parameters(sweep: Sweep, graph: Graph) -> None:
                             "(sweep it with `grid:` instead)")
     if problems:
         raise ScenarioError([Problem(str(sweep.path), *p.split(": ", 1)) for p in problems])
+
+
+def _check_profile_grid(sweep: Sweep, graph: Graph) -> None:
+    """A VelocitySource's `table` and `interpolation` are text its FMU takes as they are:
+    the scenario loader reads a table's file into CSV text, which a grid value would skip
+    (every run would fail), and an interpolation must be one the FMU knows."""
+    problems = []
+    for ref, values in sweep.grid:
+        if graph.instance(ref.instance).model_name != "VelocitySource":
+            continue
+        if ref.variable == "table":
+            problems.append(Problem(str(sweep.path), f"grid.{ref}", "a table is read from its "
+                            "file when the scenario is loaded, not per run; sweep one scenario "
+                            "per table (or vary the expressions, e.g. source.vx_expr)"))
+        elif ref.variable == "interpolation" and (
+                unknown := [v for v in values if v not in INTERPOLATIONS]):
+            problems.append(Problem(str(sweep.path), f"grid.{ref}", f"{show(unknown[0])} is "
+                            f"unknown; use {' or '.join(INTERPOLATIONS)}"))
+    if problems:
+        raise ScenarioError(problems)
 
 
 def _check_grid_points(sweep: Sweep, graph: Graph, refs, points) -> None:
