@@ -5,6 +5,7 @@ files are completed). Imports nothing of the package above it."""
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import sys
 import threading
@@ -25,6 +26,10 @@ def exit_now(code: int) -> NoReturn:
     if "mecanum_fmu.runtime" in sys.modules:       # nothing was extracted otherwise
         from .runtime import RUNTIME
         RUNTIME.remove_extractions()
+    if "multiprocessing" in sys.modules:   # its pymp-* folder (the sweep's fork server socket)
+        folder = sys.modules["multiprocessing"].current_process()._config.get("tempdir")
+        if folder:
+            shutil.rmtree(folder, ignore_errors=True)
     os._exit(code)
 
 

@@ -18,13 +18,13 @@ from __future__ import annotations
 import csv
 import logging
 import math
+import multiprocessing.forkserver
 import os
 import shutil
 import signal
 import tempfile
 import threading
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -192,15 +192,17 @@ class cluster:
         n = self.workers or os.cpu_count() or 1
         self.scratch = tempfile.mkdtemp(prefix="mecanum_sweep_")
         self.config = dask.config.set({"temporary-directory": self.scratch,
-                                       "distributed.worker.profile.enabled": False})
-        with _workers_ignore_ctrl_c():
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, local_directory=self.scratch,
-                                        silence_logs=logging.CRITICAL, host="127.0.0.1",
-                                        env={"TMPDIR": self.scratch},
-                                        # its HTTP server (health checks) on any free port,
-                                        # not 8787: several sweeps may run at once
-                                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+                                       "distributed.worker.profile.enabled": False,
+                                       "distributed.worker.multiprocessing-method":
+                                           "forkserver"})
+        _forkserver_ignoring_ctrl_c()
+        self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                    dashboard_address=None, local_directory=self.scratch,
+                                    silence_logs=logging.CRITICAL, host="127.0.0.1",
+                                    env={"TMPDIR": self.scratch},
+                                    # its HTTP server (health checks) on any free port,
+                                    # not 8787: several sweeps may run at once
+                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
         self.client = self.cluster.get_client()
         return n
 
@@ -218,24 +220,21 @@ class cluster:
         return False
 
 
-@contextmanager
-def _workers_ignore_ctrl_c():
-    """Worker processes started in here ignore SIGINT (an ignored signal stays ignored in a
-    child, and Python keeps it so): Ctrl-C at a terminal reaches the whole process group, and
-    the client, not each worker, is the one to stop the sweep and cancel what is left.
-    SIGINT is blocked meanwhile as well, so that a Ctrl-C during the start is not lost: Linux
-    keeps a blocked signal pending even while it is ignored, and it reaches the client's
-    handler when unblocked at the end (threads started in here, Dask's, keep it blocked)."""
-    main = threading.current_thread() is threading.main_thread()
-    if main:
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+def _forkserver_ignoring_ctrl_c() -> None:
+    """Local workers are forked by multiprocessing's fork server, started here (once per
+    process) with SIGINT blocked: a signal mask survives fork and exec, so the server and the
+    workers it forks never receive SIGINT. The Ctrl-C that a terminal sends to the whole
+    process group reaches only the client, which stops the sweep and cancels what is left.
+    Only this thread blocks it, and only while the server is spawned; the disposition stays
+    the client's handler, so a Ctrl-C meanwhile is taken by another thread (OpenBLAS's) and
+    handled as usual: none is lost (SIG_IGN here would drop it)."""
+    from distributed.utils import get_mp_context
+    get_mp_context()                      # sets Dask's preload list for the server
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        yield
+        multiprocessing.forkserver.ensure_running()
     finally:
-        if main:
-            signal.signal(signal.SIGINT, previous)
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 # ---------------------------------------------------------------------------------------------
