@@ -45,6 +45,8 @@ from .worker import CleanUp, RunResult, run_batch, with_values
 BATCHES_PER_WORKER = 4        # tasks per worker: load balance and little lost on a dead worker
 MAX_BATCH = 25
 ERRORS = ("error.dx", "error.dy", "error.dtheta", "error.position")
+PRELOAD = "mecanum_fmu.sweep.forkserver_preload"
+UNIX_PATH_ROOM = 70           # TMPDIR bytes that leave room for "/pymp-*/listener-*"
 POLL_S = 0.05                 # how often the client looks for results and signals
 SIGNAL_NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
 
@@ -222,19 +224,38 @@ class cluster:
 
 def _forkserver_ignoring_ctrl_c() -> None:
     """Local workers are forked by multiprocessing's fork server, started here (once per
-    process) with SIGINT blocked: a signal mask survives fork and exec, so the server and the
-    workers it forks never receive SIGINT. The Ctrl-C that a terminal sends to the whole
+    process) with sweep.forkserver_preload first in its preload list: the server ignores
+    SIGINT, and so does every worker it forks. The Ctrl-C that a terminal sends to the whole
     process group reaches only the client, which stops the sweep and cancels what is left.
-    Only this thread blocks it, and only while the server is spawned; the disposition stays
-    the client's handler, so a Ctrl-C meanwhile is taken by another thread (OpenBLAS's) and
-    handled as usual: none is lost (SIG_IGN here would drop it)."""
+    This thread blocks SIGINT while the server is spawned (the mask is inherited: a Ctrl-C
+    before the preload runs waits, then is dropped); the client's own disposition never
+    changes, so a Ctrl-C meanwhile is taken by another thread of the client (OpenBLAS's) and
+    handled as usual: none is lost."""
     from distributed.utils import get_mp_context
     get_mp_context()                      # sets Dask's preload list for the server
+    server = multiprocessing.forkserver._forkserver
+    if PRELOAD not in server._preload_modules:
+        server.set_forkserver_preload([PRELOAD, *server._preload_modules])
+    _socket_folder()
     signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        multiprocessing.forkserver.ensure_running()
+        server.ensure_running()
     finally:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _socket_folder() -> None:
+    """The fork server listens on a Unix socket in multiprocessing's pymp-* folder, made in
+    TMPDIR; a socket path has at most 107 bytes, so under a TMPDIR too long for it the folder
+    is made in /tmp instead (removed at exit, process.exit_now too)."""
+    from multiprocessing import current_process, util
+    if "tempdir" in current_process()._config or len(tempfile.gettempdir()) <= UNIX_PATH_ROOM:
+        return
+    saved, tempfile.tempdir = tempfile.tempdir, "/tmp"
+    try:
+        util.get_temp_dir()
+    finally:
+        tempfile.tempdir = saved
 
 
 # ---------------------------------------------------------------------------------------------
