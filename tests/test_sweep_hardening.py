@@ -486,3 +486,38 @@ def test_a_summary_naming_other_files_removes_only_plain_files_of_the_folder(tmp
     assert code == 0, err
     assert sorted(os.listdir(out)) == ["link.png", "results.csv", "sub", "summary.json"]
     assert outside.read_text() == "keep\n"
+
+
+def test_a_full_disk_is_reported_as_run_reports_it_before_the_first_run(tmp_path, capsys,
+                                                                       fmu_dir):
+    """A tmpfs filled up: the first summary.json (complete: false) cannot be written, so the
+    sweep stops before starting a worker: exit 1 with run's message, nothing left."""
+    disk = tmp_path / "full"
+    disk.mkdir()
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        if os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1":
+            pytest.fail(f"cannot mount a tmpfs (needed for this test): {proc.stderr}")
+        pytest.skip(f"cannot mount a tmpfs (not root, or no permission): {proc.stderr}")
+    try:
+        out = disk / "out"
+        out.mkdir()
+        fd = os.open(disk / "ballast", os.O_WRONLY | os.O_CREAT)
+        try:
+            while os.write(fd, b"\0" * 4096):
+                pass
+        except OSError:           # ENOSPC: full
+            pass
+        finally:
+            os.close(fd)
+        path = write_sweep(tmp_path, DRAWS.format(n=2))
+        code, stdout, err = run_main(capsys, "sweep", path, "--out", out, "--fmu-dir", fmu_dir)
+        assert code == 1, err
+        assert "Traceback" not in err
+        assert err.startswith(f"error: writing the results into {out} failed: "
+                              "No space left on device"), err
+        assert "worker(s) ready" not in stdout                 # no cluster was started
+        assert sorted(os.listdir(out)) == []
+    finally:
+        subprocess.run(["umount", str(disk)], check=False)

@@ -31,9 +31,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import Interrupted, Problem, ScenarioError
+from ..errors import Interrupted, MecanumError, Problem, ScenarioError
 from ..graph import Graph
-from ..output import OutputFolder
+from ..output import OutputFolder, WriteError
 from ..process import SignalFlag, ctrl_c_latched, sigterm_raises
 from ..report.ground_truth import find_roles, ground_truth
 from ..results import format_value
@@ -301,20 +301,27 @@ def write_runs_csv(out: OutputFolder, sweep: Sweep, graph: Graph, runs: list[Run
     has_truth = bool(errors) or (find_roles(graph).source is not None
                                  and find_roles(graph).pose is not None)
     header = ["run"] + varied + ["status", "message"] + outputs + (list(ERRORS) if has_truth else [])
-    with out.atomic("runs.csv") as temp, open(temp, "w", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(header)
-        for run in runs:
-            row = results.get(run.index)
-            if row is None:
-                continue           # not run (interrupted): summary.json counts it
-            err = errors.get(run.index, {})
-            writer.writerow([run.index] + [format_value(run.values[ref]) for ref in sweep.varied]
-                            + [row.status, row.message]
-                            + [format_value(row.ends[o]) if o in row.ends else "" for o in outputs]
-                            + ([format_value(err[e]) if e in err else "" for e in ERRORS]
-                               if has_truth else []))
+    try:
+        with out.atomic("runs.csv") as temp, open(temp, "w", newline="") as fh:
+            _write_rows(csv.writer(fh, lineterminator="\n"), header, sweep, outputs, runs,
+                        results, errors, has_truth)
+    except OSError as err:                        # a full disk: exit 1, as `run`
+        raise WriteError(out.path, err) from None
     return out.path / "runs.csv"
+
+
+def _write_rows(writer, header, sweep, outputs, runs, results, errors, has_truth) -> None:
+    writer.writerow(header)
+    for run in runs:
+        row = results.get(run.index)
+        if row is None:
+            continue           # not run (interrupted): summary.json counts it
+        err = errors.get(run.index, {})
+        writer.writerow([run.index] + [format_value(run.values[ref]) for ref in sweep.varied]
+                        + [row.status, row.message]
+                        + [format_value(row.ends[o]) if o in row.ends else "" for o in outputs]
+                        + ([format_value(err[e]) if e in err else "" for e in ERRORS]
+                           if has_truth else []))
 
 
 def summarize(sweep: Sweep, graph: Graph, runs: list[Run], ex: Execution,
@@ -420,18 +427,37 @@ def _sweep_into(out: OutputFolder, flag: SignalFlag, sweep: Sweep, graph: Graph,
     out.write_json(summarize(sweep, graph, runs, started, {}))      # complete: false
     ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress,
                  log=log, stop=flag)
-    errors = _interruptible(flag, lambda: end_errors(graph, runs, ex.results), {})
+    try:
+        errors, failures = _interruptible(flag, lambda: end_errors(graph, runs, ex.results),
+                                          {}), {}
+    except Exception as err:       # a failing ground truth costs only itself, as in `run`
+        errors, failures = {}, {"ground_truth_error": f"{type(err).__name__}: {err}"}
     write_runs_csv(out, sweep, graph, runs, ex.results, errors)
-    if plots and ex.results:
-        from .plots import write_sweep_plots   # here: matplotlib's import is slow
-        out.record(_interruptible(flag, lambda: write_sweep_plots(
-            out.path, sweep, graph, runs, ex.results, errors), []))
-    summary = summarize(sweep, graph, runs, ex, errors, flag[0])
+    plots_error = _plots(out, flag, sweep, graph, runs, ex, errors) if plots else None
+    if plots_error:
+        failures["plots_error"] = plots_error
+    summary = {**summarize(sweep, graph, runs, ex, errors, flag[0]), **failures}
     out.write_json(summary)
     if flag[0] and "interrupted" not in summary:      # came while it was written
-        summary = summarize(sweep, graph, runs, ex, errors, flag[0])
+        summary = {**summarize(sweep, graph, runs, ex, errors, flag[0]), **failures}
         out.write_json(summary)
+    if plots_error:
+        raise MecanumError(f"writing the plots into {out.path} failed: {plots_error}",
+                           files=[out.path / name for name in sorted(out.written)])
     return {**summary, "files": sorted(out.written)}
+
+
+def _plots(out: OutputFolder, flag: SignalFlag, sweep, graph, runs, ex, errors) -> str | None:
+    """Draw the plots (stopped by a signal); what went wrong, if anything (a full disk)."""
+    if not ex.results:
+        return None
+    from .plots import write_sweep_plots   # here: matplotlib's import is slow
+    try:
+        out.record(_interruptible(flag, lambda: write_sweep_plots(
+            out.path, sweep, graph, runs, ex.results, errors), []))
+    except Exception as err:       # the runs are written: report the figure, keep the rest
+        return f"{type(err).__name__}: {err}"
+    return None
 
 
 def _interruptible(flag: SignalFlag, action: Callable, nothing):
