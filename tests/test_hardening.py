@@ -109,7 +109,7 @@ def leftovers(tmp: Path) -> list[str]:
     """Temporary folders and partial files not owned by the runtime's extraction cache."""
     kept = {Path(p).name for p in RUNTIME._extracted.values()}
     return sorted(p.name for p in tmp.iterdir() if p.name not in kept) + sorted(
-        str(p) for p in tmp.parent.rglob(".part-*"))
+        str(p) for p in tmp.parent.rglob(".*.part"))
 
 
 def assert_clean(code: int, err: str, *names: str) -> None:
@@ -415,4 +415,4 @@ def test_damaged_ssp_never_crashes(damage, circle_ssp, sandbox, capsys):
         assert "Traceback" not in err and code in (0, 2), err
         if code == 2:
             assert err.startswith("error:") and "d.ssp" in err, err
-        assert not list((sandbox / "cache").rglob(".part-*"))
+        assert not list((sandbox / "cache").rglob(".*.part"))

@@ -10,7 +10,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -272,34 +271,8 @@ def test_one_worn_wheel_turns_the_car_by_the_integrated_wheel_speed(built_fmus):
         assert theta == pytest.approx(d / (4 * k * R) * integral, rel=1e-3)
 
 
-def test_ctrl_c_writes_what_finished(tmp_path, built_fmus):
-    """Ctrl-C at a terminal signals the whole process group: the sweep stops, cancels the
-    rest, writes the finished rows with complete: false, exits 130 and leaves no TMPDIR files."""
-    import json
-    path = write_sweep(tmp_path, "random:\n  samples: 400\n  seed: 1\n"
-                                 "  w2c.dR1: {normal: [0.0, 0.0003]}\n")
-    scratch = tmp_path / "tmp"
-    scratch.mkdir()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "mecanum_fmu", "sweep", str(path), "--out", str(tmp_path / "out"),
-         "--workers", "2", "--no-plots", "--fmu-dir", str(built_fmus["Wheel2Center"].parent)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-        env={**os.environ, "TMPDIR": str(scratch), "PYTHONUNBUFFERED": "1"})
-    for line in proc.stdout:                    # wait for the workers, then let some runs go
-        if "ready" in line:
-            break
-    time.sleep(3)
-    os.killpg(proc.pid, signal.SIGINT)
-    out, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130, err
-    assert "Traceback" not in err and "interrupted" in err
-    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    with open(tmp_path / "out" / "runs.csv") as fh:
-        rows = list(csv.DictReader(fh))
-    assert summary["complete"] is False and summary["runs"] == 400
-    assert len(rows) == summary["ok"] < 400 and summary["not_run"] == 400 - len(rows)
-    assert len({r["run"] for r in rows}) == len(rows)
-    assert list(scratch.iterdir()) == []
+# Signals at every moment of a sweep (the workers starting, mid-runs, the evaluation, the
+# writing; Ctrl-C and SIGTERM, to the sweep or its process group): test_sweep_hardening.py.
 
 
 def test_runs_csv_has_each_runs_error_estimate(twenty_runs):

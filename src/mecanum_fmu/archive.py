@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import io
 import lzma
-import os
 import re
 import shutil
 import tempfile
@@ -19,6 +18,8 @@ import zipfile
 import zlib
 from pathlib import Path
 from typing import BinaryIO
+
+from .storage import atomic_open
 
 MAX_MEMBER_BYTES = 1 << 30          # one inflated member (an FMU inside an SSP, a binary)
 MAX_TOTAL_BYTES = 2 << 30           # everything inflated from one archive
@@ -137,14 +138,8 @@ def extract_file(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path,
     """Inflate one member to target atomically (a hidden partial file, renamed when
     complete; removed on any failure)."""
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".part-")
-    try:
-        with os.fdopen(fd, "wb") as out:
-            copy_member(zf, info, out, limit)
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with atomic_open(target, "wb", unique=True) as out:
+        copy_member(zf, info, out, limit)
     return target
 
 

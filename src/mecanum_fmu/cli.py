@@ -130,6 +130,9 @@ def _add_sweep(sub) -> None:
     sweep.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
     sweep.add_argument("--scheduler", help="address of a running `dask scheduler` "
                        "(tcp://HOST:PORT) instead of local workers")
+    sweep.add_argument("--max-runs", type=int, default=None, metavar="N",
+                       help="allow up to N runs (default: 100000; each run is a row held in "
+                            "memory)")
     sweep.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     sweep.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     sweep.set_defaults(func=cmd_sweep)
@@ -356,16 +359,12 @@ def _sweep_progress():
 
 def cmd_sweep(args) -> int:
     from .sweep.cluster import run_sweep
-    if args.workers is not None and args.workers < 1:
-        raise ScenarioError([Problem("command line", "--workers", f"{args.workers} is not a "
-                                     "worker count; give 1 or more")])
-    if args.workers is not None and args.scheduler:
-        raise ScenarioError([Problem("command line", "--workers", "the workers of --scheduler "
-                                     "are started with `dask worker`; give one of the two")])
+    from .sweep.spec import MAX_RUNS
     show = _sweep_progress() if sys.stderr.isatty() else None
     try:
         summary = run_sweep(args.sweep, args.out, workers=args.workers, scheduler=args.scheduler,
-                            plots=not args.no_plots, fmu_dir=args.fmu_dir, progress=show)
+                            plots=not args.no_plots, fmu_dir=args.fmu_dir, progress=show,
+                            max_runs=MAX_RUNS if args.max_runs is None else args.max_runs)
     finally:
         if show is not None:
             print("\r" + " " * 60 + "\r", end="", file=sys.stderr)

@@ -1,13 +1,14 @@
-"""The results folder of one run: checked and locked before simulating, written so that no
-file ever looks complete when it is not.
+"""The results folder of one run or sweep: checked and locked before simulating, written so
+that no file ever looks complete when it is not.
 
 - The folder is made (or found) and probed before the run: a file in its place, a folder that
   cannot be written, a name that is too long are bad input (ScenarioError, exit code 2).
 - One run at a time per folder: an exclusive lock (fcntl.flock) on LOCK_NAME inside it, removed
   when the run ends; a second run is refused.
 - results.csv and summary.json are written under a temporary name in the folder and renamed
-  when complete; the copies of an earlier run are removed first, so that a run that ends
-  half-way never leaves an old file that looks like its own.
+  when complete (storage.atomic_path); the files of an earlier run, as its summary.json names
+  them (`files`), are removed first, and nothing else: a run that ends half-way never leaves
+  an old file that looks like its own, and a user's own files in the folder stay.
 """
 from __future__ import annotations
 
@@ -20,11 +21,30 @@ import numpy as np
 
 from .errors import MecanumError, Problem, ScenarioError
 from .results import csv_writer, write_rows
+from .storage import atomic_path, read_regular
 
-# as long as the longest name a run writes here (".summary.json.part" and the plots are
-# shorter): when the lock can be created, every other file name fits too
+# as long as the longest temporary name a run writes here (".summary.json.part"; the plots'
+# are close): when the lock can be created, the other file names fit too
 LOCK_NAME = ".mecanum_fmu_run.lock"
-TABLES = ("results.csv", "summary.json")
+SUMMARY = "summary.json"
+TABLES = ("results.csv", SUMMARY)
+SUMMARY_LIMIT = 1 << 20       # a summary.json larger than this is not one of ours
+
+
+def previous_files(folder: Path) -> set[str]:
+    """The file names the summary.json in folder says its run wrote there: plain names of
+    regular files in the folder only (a name with a separator, '..', or of a folder or link
+    is left alone); empty when there is no readable summary of ours."""
+    try:
+        data = json.loads(read_regular(folder / SUMMARY, SUMMARY_LIMIT, "a summary.json"))
+    except (OSError, ValueError):         # none, unreadable, not JSON (NotARegularFile too)
+        return set()
+    names = data.get("files") if isinstance(data, dict) else None
+    if not isinstance(names, list):
+        return set()
+    return {n for n in names if isinstance(n, str) and n not in ("", ".", "..")
+            and "/" not in n and "\0" not in n and n != LOCK_NAME
+            and (folder / n).is_file() and not (folder / n).is_symlink()}
 
 
 class WriteError(MecanumError):
@@ -39,18 +59,24 @@ def _bad(folder: Path, message: str) -> ScenarioError:
 
 
 class OutputFolder:
-    """`with OutputFolder(path) as out:` checks, creates and locks the folder."""
+    """`with OutputFolder(path) as out:` checks, creates and locks the folder, and removes the
+    files the previous run or sweep wrote there (as its summary.json names them under
+    "files"; `tables` when it names none), nothing else. The summary written here names the
+    files written through the folder (write_json, csv_stream, atomic) and record()ed."""
 
-    def __init__(self, path: Path | str):
+    def __init__(self, path: Path | str, tables: tuple[str, ...] = TABLES):
         self.path = Path(path)
+        self.tables = tables
         self._fd: int | None = None
         self._temps: set[Path] = set()
+        self.written: set[str] = set()        # file names, summary.json's "files"
+        self._listed: set[str] | None = None  # what the summary on disk names
 
     def __enter__(self) -> "OutputFolder":
         self._make()
         self._lock()
         try:
-            for name in TABLES:
+            for name in previous_files(self.path) | set(self.tables):
                 (self.path / name).unlink(missing_ok=True)
         except OSError as err:
             self._unlock()
@@ -64,7 +90,23 @@ class OutputFolder:
                 temp.unlink(missing_ok=True)
             except OSError:
                 pass
-        self._unlock()
+        try:
+            if self._listed is not None and self._listed != self.written | {SUMMARY}:
+                self._relist()
+        finally:
+            self._unlock()
+
+    def record(self, paths) -> None:
+        """Files of this folder written by others (the plots): named in summary.json."""
+        self.written.update(Path(p).name for p in paths if Path(p).parent == self.path)
+
+    def _relist(self) -> None:
+        """The summary on disk again, naming every file written (record() after it)."""
+        try:
+            data = json.loads((self.path / SUMMARY).read_text())
+            self.write_json(data)
+        except (OSError, ValueError, MecanumError):   # gone or unwritable: nothing to name
+            pass
 
     def _make(self) -> None:
         try:
@@ -107,20 +149,31 @@ class OutputFolder:
             os.close(self._fd)
             self._fd = None
 
-    def temporary(self, name: str) -> Path:
-        temp = self.path / f".{name}.part"
-        self._temps.add(temp)
-        return temp
+    def atomic(self, name: str) -> atomic_path:
+        """storage.atomic_path for a file of this folder; its temporary name is removed when
+        the folder is left, whatever happened. The name goes into the summary's "files"."""
+        atomic = atomic_path(self.path / name)
+        self._temps.add(atomic.temp)
+        self.written.add(name)
+        return atomic
 
-    def write_json(self, data: dict, name: str = "summary.json") -> Path:
-        """Written whole under a temporary name, then renamed."""
-        temp, final = self.temporary(name), self.path / name
+    def write_json(self, data: dict, name: str = SUMMARY) -> Path:
+        """Written whole under a temporary name, then renamed. The summary gets "files": the
+        names of the files written into the folder so far, itself included."""
+        if name == SUMMARY:
+            self.written.add(name)
+            data = {**data, "files": sorted(n for n in self.written
+                                            if n == name or (self.path / n).is_file())}
         try:
-            temp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
-            os.replace(temp, final)
+            with self.atomic(name) as temp:
+                temp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
         except OSError as err:
             raise WriteError(self.path, err) from None
-        return final
+        if name == SUMMARY:
+            self._listed = set(data["files"])
+        else:
+            self.written.add(name)
+        return self.path / name
 
     def write_tables(self, stream: "CsvStream", summary: dict) -> list[Path]:
         """results.csv (renamed) and summary.json together, or neither: a results.csv
@@ -136,20 +189,21 @@ class OutputFolder:
             raise
 
     def csv_stream(self, names: tuple[str, ...]) -> "CsvStream":
-        return CsvStream(self.temporary("results.csv"), self.path / "results.csv", names)
+        return CsvStream(self.atomic("results.csv"), names)
 
 
 class CsvStream:
     """results.csv written chunk by chunk during the run (a sink for master.simulate) under a
     temporary name; finish() renames it, abort() removes it."""
 
-    def __init__(self, temp: Path, final: Path, names: tuple[str, ...]):
-        self.temp, self.final = temp, final
+    def __init__(self, atomic: atomic_path, names: tuple[str, ...]):
+        self._atomic = atomic
+        self.temp, self.final = atomic.temp, atomic.path
         try:
-            self._fh = open(temp, "w", newline="")
+            self._fh = open(self.temp, "w", newline="")
             self._writer = csv_writer(self._fh, names)
         except OSError as err:
-            raise WriteError(final.parent, err) from None
+            raise WriteError(self.final.parent, err) from None
 
     def __call__(self, chunk: np.ndarray) -> None:
         try:
@@ -160,14 +214,13 @@ class CsvStream:
     def finish(self) -> Path:
         try:
             self._fh.close()
-            os.replace(self.temp, self.final)
+            return self._atomic.commit()
         except OSError as err:
             raise WriteError(self.final.parent, err) from None
-        return self.final
 
     def abort(self) -> None:
         try:
             self._fh.close()
         except OSError:     # the disk is full: what is buffered cannot be written
             pass
-        self.temp.unlink(missing_ok=True)
+        self._atomic.discard()

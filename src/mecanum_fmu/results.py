@@ -2,15 +2,14 @@
 from __future__ import annotations
 
 import csv
-import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 BELOW_ROUND_OFF = "below round-off"    # an error estimate within the outputs' round-off
+from .storage import atomic_open
 
 
 @dataclass
@@ -43,16 +42,8 @@ def write_csv(results: Results, path: Path) -> None:
     """One `time` column and one column per recorded variable, full precision (repr).
     Written under a temporary name beside `path` and renamed when complete: an interrupted
     or failed write leaves no file that looks complete."""
-    path = Path(path)
-    temp = path.with_name(f".{path.name}.part")
-    try:
-        with open(temp, "w", newline="") as fh:
-            writer = csv_writer(fh, results.names)
-            write_rows(writer, results.data)
-        os.replace(temp, path)
-    except BaseException:
-        temp.unlink(missing_ok=True)
-        raise
+    with atomic_open(path, "w", newline="") as fh:
+        write_rows(csv_writer(fh, results.names), results.data)
 
 
 def csv_writer(fh, names: tuple[str, ...]):
@@ -76,10 +67,6 @@ def format_value(value) -> str:
     if isinstance(value, float):
         return repr(value) if math.isfinite(value) else str(value)
     return str(value)
-
-
-def write_json(data: dict, path: Path) -> None:
-    path.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
 
 
 def error_estimate_lines(summary: dict) -> list[str]:

@@ -145,8 +145,14 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         with sigterm_raises(), OutputFolder(out_dir) as out:
             if plotter is not None:
                 plotter.expect(graph, topo.roles)
-            return _run_in(graph, topo, out, plotter=plotter, progress=progress, log=log,
-                           animate=animate, keep_rows=keep_rows)
+            try:
+                outcome = _run_in(graph, topo, out, plotter=plotter, progress=progress,
+                                  log=log, animate=animate, keep_rows=keep_rows)
+            except MecanumError as err:
+                out.record(err.files)      # named in summary.json: a re-run removes them
+                raise
+            out.record(outcome.files)
+            return outcome
     finally:
         if plotter is not None:
             plotter.cancel()        # stops the worker if the plots were not drawn

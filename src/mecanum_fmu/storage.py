@@ -5,9 +5,14 @@
 - open_regular() / read_regular(): the one way a user's input file is opened: only a regular
   file is accepted (a FIFO, /dev/zero or a socket would hang or never end), checked on the
   open descriptor before anything is read, and read up to a size limit.
+- atomic_path() / atomic_open(): the one "write under a temporary name, then rename" of the
+  project (result tables, summaries, plots, archives, extracted members): the temporary file
+  is `.<name>.part` beside the target (or `.<name>.<random>.part` when several processes may
+  write the same target at once), renamed over the target only when the block ends cleanly,
+  removed on any error or signal, so a reader never sees a half-written file.
 - write_zip(): the one deterministic archive writer (FMUs and SSPs): sorted members, a fixed
-  date, fixed permissions, deflated; written under a temporary name and renamed, so a reader
-  never sees a half-written archive and two writes of the same content are byte-identical.
+  date, fixed permissions, deflated; written atomically, so two writes of the same content are
+  byte-identical.
 """
 from __future__ import annotations
 
@@ -15,9 +20,11 @@ import errno
 import io
 import os
 import stat
+import tempfile
 import zipfile
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Mapping
+from typing import IO, Iterator, Mapping
 
 FIXED_DATE = (1980, 1, 1, 0, 0, 0)
 
@@ -77,15 +84,68 @@ def zip_bytes(members: Mapping[str, bytes], compresslevel: int | None = None) ->
     return buffer.getvalue()
 
 
+PART = ".part"
+
+
+def partial_name(path: Path | str) -> Path:
+    """The temporary name atomic_path() writes `path` under (when not unique)."""
+    path = Path(path)
+    return path.with_name(f".{path.name}{PART}")
+
+
+class atomic_path:
+    """`with atomic_path(target) as temp:` write temp (by name: savefig, write_bytes, ...);
+    when the block ends cleanly temp is renamed to target, otherwise (an error, Ctrl-C)
+    removed. unique: a fresh random temporary name (several writers of one target).
+    For a file written over a longer span (a stream): commit() and discard() by hand."""
+
+    def __init__(self, path: Path | str, unique: bool = False):
+        self.path = Path(path)
+        if unique:
+            fd, name = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}.",
+                                        suffix=PART)
+            os.close(fd)
+            self.temp = Path(name)
+        else:
+            self.temp = partial_name(self.path)
+
+    def commit(self) -> Path:
+        """Rename the temporary file to the target (OSError on failure)."""
+        os.replace(self.temp, self.path)
+        return self.path
+
+    def discard(self) -> None:
+        try:
+            self.temp.unlink(missing_ok=True)
+        except OSError:
+            pass
+
+    def __enter__(self) -> Path:
+        return self.temp
+
+    def __exit__(self, kind, *rest) -> bool:
+        try:
+            if kind is None:
+                self.commit()
+        finally:
+            self.discard()
+        return False
+
+
+@contextmanager
+def atomic_open(path: Path | str, mode: str = "w", unique: bool = False,
+                **kwargs) -> Iterator[IO]:
+    """open() on atomic_path(path)'s temporary name: renamed to path when the block ends
+    cleanly and the file is closed, removed otherwise."""
+    with atomic_path(path, unique) as temp:
+        with open(temp, mode, **kwargs) as fh:
+            yield fh
+
+
 def write_zip(path: Path, members: Mapping[str, bytes], compresslevel: int | None = None) -> Path:
     """Write members (archive name -> bytes) as a deterministic zip at path, atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".part")
-    try:
-        partial.write_bytes(zip_bytes(members, compresslevel))
-        os.replace(partial, path)
-    finally:
-        if partial.exists():
-            partial.unlink()
+    with atomic_path(path, unique=True) as temp:
+        temp.write_bytes(zip_bytes(members, compresslevel))
     return path

@@ -17,6 +17,7 @@ from ..arguments import check_simulate
 from ..errors import Interrupted, Problem, ScenarioError, SimulationError
 from ..graph import Graph
 from ..masters import DEFAULT, DEFAULT_TOLERANCE, Master, entry as master_entry
+from ..process import ctrl_c_latched
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
@@ -25,8 +26,7 @@ from .estimate import error_estimate
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
 from .recorder import Recorder, step_count
-from .stepping import (NonFinite, StepFailure, check_finite, ctrl_c_latched, initialise,
-                       step_all)
+from .stepping import NonFinite, StepFailure, check_finite, initialise, step_all
 
 __all__ = ["simulate", "estimate_error", "release_instances", "RUNTIME"]
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import ctypes
+import os
 
 from fmpy.fmi2 import FMU2Slave
 
@@ -48,11 +49,13 @@ class RunningInstance:
         self.key = (unzipped, md.guid, inst.name)
         kept = RUNTIME.take(self.key)
         if kept is None:
-            try:
+            cwd = os.getcwd()      # fmpy changes into the binary's folder to load it and
+            try:                   # does not change back when the load fails
                 self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
                                      modelIdentifier=md.coSimulation.modelIdentifier,
                                      instanceName=inst.name)
             except Exception as err:     # no or a broken binary, missing FMI functions
+                os.chdir(cwd)
                 raise load_error(inst, "cannot be loaded", err, unzipped) from None
             self.component, self.log = None, RUNTIME.new_log()
         else:

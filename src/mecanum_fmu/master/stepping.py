@@ -1,46 +1,16 @@
 """Initialisation and the stepping loop over prepared instances."""
 from __future__ import annotations
 
-import signal
-import threading
 import time as _time
-from contextlib import contextmanager
-from typing import Callable, Iterator
+from typing import Callable
 
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from ..graph import Graph, port_type
-from ..process import raise_terminated
 from .instance import FmuCallError, RunningInstance
 from .plan import Holds
 from .recorder import Recorder
-
-
-@contextmanager
-def ctrl_c_latched() -> Iterator[list[int]]:
-    """While the FMUs run, Ctrl-C (and SIGTERM) only set a flag that the stepping loop checks
-    once per step: flag[0] is the signal number, 0 while none came.
-
-    The bundled FMUs run Python code on this thread, so Python's default SIGINT handler would
-    raise KeyboardInterrupt inside an FMU call about 2 times in 3, and pythonfmu turns that
-    into fmi2Fatal (the run fails instead of stopping, the instance cannot even be freed);
-    SIGTERM would end the process with nothing kept. Only on the main thread and for a signal
-    whose handler is the default one (or process.sigterm_raises'); elsewhere the flag stays 0
-    and the signals behave as usual."""
-    flag = [0]
-    previous = {}
-    if threading.current_thread() is threading.main_thread():
-        for signum, defaults in ((signal.SIGINT, (signal.default_int_handler,)),
-                                 (signal.SIGTERM, (signal.SIG_DFL, raise_terminated))):
-            if signal.getsignal(signum) in defaults:
-                previous[signum] = signal.signal(
-                    signum, lambda number, frame: flag.__setitem__(0, flag[0] or number))
-    try:
-        yield flag
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
 
 
 def _guarded(r: RunningInstance, action: Callable[[], None]) -> None:

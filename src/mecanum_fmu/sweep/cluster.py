@@ -1,24 +1,29 @@
 """`sweep`: many runs of one scenario on a Dask cluster, one row per run.
 
-The client (this process) checks the sweep file and every value, plans the runs, sends them in
-batches to Dask workers (a LocalCluster of worker processes by default, or a running
-`dask scheduler` by address), computes the ground truth once per distinct commanded profile,
-and writes runs.csv (sorted by run index: the same bytes whatever the scheduling),
-summary.json and the plots. Files are written under a temporary name and renamed.
+The client (this process) checks the sweep file, every value, the output folder, the worker
+count and the scheduler before the first run; plans the runs, sends them in batches to Dask
+workers (a LocalCluster of worker processes by default, or a running `dask scheduler` by
+address), computes the ground truth once per distinct commanded profile, and writes runs.csv
+(sorted by run index: the same bytes whatever the scheduling), summary.json and the plots
+through output.OutputFolder (locked; summary.json says `complete: false` from before the
+first run until every run is written).
+
+Signals: while the cluster starts and the runs go, Ctrl-C and SIGTERM only set a flag
+(process.ctrl_c_latched) that the loop polls; the rest is cancelled, what finished is written.
+During the evaluation and the plots a signal stops them; the files are written with signals
+deferred. Exit 130 (Ctrl-C) or 143 (SIGTERM), `complete: false`.
 """
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import math
+import multiprocessing.forkserver
 import os
 import shutil
 import signal
 import tempfile
-import threading
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -26,22 +31,29 @@ from typing import Callable
 import numpy as np
 
 from ..arguments import check_execute, check_sweep_file
-from ..errors import Interrupted, Problem, ScenarioError
+from ..errors import Interrupted, MecanumError, Problem, ScenarioError
 from ..graph import Graph
 from ..master.recorder import time_grid
 from ..models.catalog import find_roles
 from ..models.topology import topology
+from ..output import OutputFolder, WriteError
+from ..process import SignalFlag, ctrl_c_latched, sigterm_raises
 from ..report.evaluation import evaluate, solve_truth
 from ..report.ground_truth import truth_inputs
 from ..results import Results, format_value
 from ..runner import prepare
 from . import spec
-from .spec import Run, Sweep
+from .checks import check_workers, probe_scheduler
+from .spec import MAX_RUNS, Run, Sweep
 from .worker import CleanUp, RunResult, run_batch, with_values
 
 BATCHES_PER_WORKER = 4        # tasks per worker: load balance and little lost on a dead worker
 MAX_BATCH = 25
 ERRORS = ("error.dx", "error.dy", "error.dtheta", "error.position")
+PRELOAD = "mecanum_fmu.sweep.forkserver_preload"
+UNIX_PATH_ROOM = 70           # TMPDIR bytes that leave room for "/pymp-*/listener-*"
+POLL_S = 0.05                 # how often the client looks for results and signals
+SIGNAL_NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
 
 
 @dataclass
@@ -54,51 +66,81 @@ class Execution:
     complete: bool
 
 
-def prepare_sweep(path: str | Path, fmu_dir: Path | None = None) -> tuple[Sweep, Graph, list[Run]]:
+def prepare_sweep(path: str | Path, fmu_dir: Path | None = None,
+                  max_runs: int = MAX_RUNS) -> tuple[Sweep, Graph, list[Run]]:
     """Load and check the sweep file, its scenario and every value. Raises ScenarioError."""
     check_sweep_file(path)
-    return spec.prepare_sweep(path, lambda scenario: prepare(scenario, fmu_dir=fmu_dir))
+    return spec.prepare_sweep(path, lambda scenario: prepare(scenario, fmu_dir=fmu_dir),
+                              max_runs)
 
 
 def execute(graph: Graph, runs: list[Run], *, workers: int | None = None,
             scheduler: str | None = None,
             progress: Callable[[int, int], None] | None = None,
-            log: Callable[[str], None] = lambda line: None) -> Execution:
-    """Run every planned run (those with a problem are failed rows without running)."""
+            log: Callable[[str], None] = lambda line: None,
+            stop: list[int] | None = None) -> Execution:
+    """Run every planned run (those with a problem are failed rows without running).
+    stop: a flag (process.ctrl_c_latched's) that ends the sweep when set."""
     check_execute(graph, runs, workers, scheduler, progress, log)
+    stop = stop if stop is not None else [0]
+    if stop[0]:                 # a signal before the start: no cluster for nothing
+        return Execution(_not_runnable(runs), workers or 0, scheduler or "local", 0.0, 0.0,
+                         False)
     tick = time.perf_counter()
     with cluster(workers, scheduler) as (client, n_workers, address):
         startup = time.perf_counter() - tick
         log(f"{n_workers} worker(s) ready ({address}, {startup:.1f} s)")
         tick = time.perf_counter()
-        results, complete = run_on(client, n_workers, graph, runs, progress)
+        results, complete = run_on(client, n_workers, graph, runs, progress, stop)
         wall = time.perf_counter() - tick
     return Execution(results, n_workers, address, startup, wall, complete)
 
 
 def run_on(client, n_workers: int, graph: Graph, runs: list[Run],
-           progress: Callable[[int, int], None] | None = None) -> tuple[dict, bool]:
+           progress: Callable[[int, int], None] | None = None,
+           stop: list[int] | None = None) -> tuple[dict, bool]:
     """Send the runs in batches to the client's workers and gather their rows by index.
-    Returns (rows, complete); Ctrl-C cancels what is left (complete False)."""
+    Returns (rows, complete); a set `stop` flag or Ctrl-C cancels what is left."""
     from distributed import as_completed
+    stop = stop if stop is not None else [0]
+    results = _not_runnable(runs)
+    if stop[0]:
+        return results, False
+    futures = _submit(client, n_workers, graph, runs)
+    pending = as_completed(list(futures))
+    try:
+        while not pending.is_empty():
+            if stop[0]:
+                break
+            done = pending.next_batch(block=False) if pending.has_ready() else []
+            if not done:
+                time.sleep(POLL_S)
+            for future in done:
+                for row in _batch_rows(future, futures[future]):
+                    results[row.index] = row
+                if progress is not None:
+                    progress(len(results), len(runs))
+    except KeyboardInterrupt:         # not latched (not the main thread, a handler of its own)
+        stop[0] = stop[0] or signal.SIGINT
+    if stop[0]:
+        client.cancel(list(futures))
+        return results, False
+    return results, True
+
+
+def _not_runnable(runs: list[Run]) -> dict[int, RunResult]:
+    """The failed rows of the runs whose values the scenario's rules refuse (not run)."""
+    return {r.index: RunResult(r.index, "failed", r.problem, {}, None, 0.0, 0.0)
+            for r in runs if r.problem is not None}
+
+
+def _submit(client, n_workers: int, graph: Graph, runs: list[Run]) -> dict:
     todo = [(r.index, r.values) for r in runs if r.problem is None]
-    results = {r.index: RunResult(r.index, "failed", r.problem, {}, None, 0.0, 0.0)
-               for r in runs if r.problem is not None}
     roles = find_roles(graph)
     path_names = (f"{roles.pose}.x", f"{roles.pose}.y") if roles.pose else None
     size = max(1, min(MAX_BATCH, math.ceil(len(todo) / (n_workers * BATCHES_PER_WORKER))))
     batches = [todo[i:i + size] for i in range(0, len(todo), size)]
-    futures = {client.submit(run_batch, graph, b, path_names, pure=False): b for b in batches}
-    try:
-        for future in as_completed(list(futures)):
-            for row in _batch_rows(future, futures[future]):
-                results[row.index] = row
-            if progress is not None:
-                progress(len(results), len(runs))
-    except KeyboardInterrupt:
-        client.cancel(list(futures))
-        return results, False
-    return results, True
+    return {client.submit(run_batch, graph, b, path_names, pure=False): b for b in batches}
 
 
 def _batch_rows(future, batch) -> list[RunResult]:
@@ -114,7 +156,9 @@ class cluster:
     Local: one worker process per core (or `workers`), one thread each; the workers' statistical
     profiler is off (it samples every worker thread's stack every 10 ms, costly next to FMU
     calls that re-enter Python).
-    A LocalCluster gets a scratch folder of its own, removed afterwards."""
+    A LocalCluster gets a scratch folder of its own, which is also its workers' TMPDIR (their
+    FMU extraction folders live there), removed afterwards: a worker killed by a signal
+    leaves nothing behind either."""
 
     def __init__(self, workers: int | None, scheduler: str | None):
         self.workers, self.scheduler = workers, scheduler
@@ -128,33 +172,44 @@ class cluster:
             raise
 
     def _start(self):
-        from distributed import Client, LocalCluster
         if self.scheduler:
-            try:
-                self.client = Client(self.scheduler, timeout="20s")
-                self.client.wait_for_workers(1, timeout=60)
-            except (OSError, TimeoutError, ValueError) as err:
-                raise ScenarioError([Problem("command line", "--scheduler", f"cannot use the "
-                                     f"Dask scheduler at {self.scheduler}: {err}; give tcp://HOST:PORT "
-                                     "of one started with `dask scheduler` (and `dask worker "
-                                     "ADDRESS`s)")]) from None
-            n = len(self.client.scheduler_info(n_workers=-1)["workers"])
+            n = self._connect()
         else:
-            n = self.workers or os.cpu_count() or 1
-            self.scratch = tempfile.mkdtemp(prefix="mecanum_sweep_")
-            import dask
-            self.config = dask.config.set({"temporary-directory": self.scratch,
-                                           "distributed.worker.profile.enabled": False})
-            with _workers_ignore_ctrl_c():
-                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                            dashboard_address=None, local_directory=self.scratch,
-                                            silence_logs=logging.CRITICAL, host="127.0.0.1",
-                                            # its HTTP server (health checks) on any free port,
-                                            # not 8787: several sweeps may run at once
-                                            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
-            self.client = self.cluster.get_client()
+            n = self._start_local()
         self.client.register_plugin(CleanUp(), name=CleanUp.name)
         return self.client, n, self.scheduler or "local"
+
+    def _connect(self) -> int:
+        from distributed import Client
+        try:
+            self.client = Client(self.scheduler, timeout="20s")
+            self.client.wait_for_workers(1, timeout=60)
+        except (OSError, TimeoutError, ValueError) as err:
+            raise ScenarioError([Problem("command line", "--scheduler", f"cannot use the "
+                                 f"Dask scheduler at {self.scheduler}: {err}; give tcp://HOST:PORT "
+                                 "of one started with `dask scheduler` (and `dask worker "
+                                 "ADDRESS`s)")]) from None
+        return len(self.client.scheduler_info(n_workers=-1)["workers"])
+
+    def _start_local(self) -> int:
+        from distributed import LocalCluster
+        import dask
+        n = self.workers or os.cpu_count() or 1
+        self.scratch = tempfile.mkdtemp(prefix="mecanum_sweep_")
+        self.config = dask.config.set({"temporary-directory": self.scratch,
+                                       "distributed.worker.profile.enabled": False,
+                                       "distributed.worker.multiprocessing-method":
+                                           "forkserver"})
+        _forkserver_ignoring_ctrl_c()
+        self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                    dashboard_address=None, local_directory=self.scratch,
+                                    silence_logs=logging.CRITICAL, host="127.0.0.1",
+                                    env={"TMPDIR": self.scratch},
+                                    # its HTTP server (health checks) on any free port,
+                                    # not 8787: several sweeps may run at once
+                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+        self.client = self.cluster.get_client()
+        return n
 
     def __exit__(self, *exc):
         try:
@@ -170,18 +225,40 @@ class cluster:
         return False
 
 
-@contextmanager
-def _workers_ignore_ctrl_c():
-    """Worker processes started in here ignore SIGINT (an ignored signal stays ignored in a
-    child, and Python keeps it so): Ctrl-C at a terminal reaches the whole process group, and
-    the client, not each worker, is the one to stop the sweep and cancel what is left."""
-    main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+def _forkserver_ignoring_ctrl_c() -> None:
+    """Local workers are forked by multiprocessing's fork server, started here (once per
+    process) with sweep.forkserver_preload first in its preload list: the server ignores
+    SIGINT, and so does every worker it forks. The Ctrl-C that a terminal sends to the whole
+    process group reaches only the client, which stops the sweep and cancels what is left.
+    This thread blocks SIGINT while the server is spawned (the mask is inherited: a Ctrl-C
+    before the preload runs waits, then is dropped); the client's own disposition never
+    changes, so a Ctrl-C meanwhile is taken by another thread of the client (OpenBLAS's) and
+    handled as usual: none is lost."""
+    from distributed.utils import get_mp_context
+    get_mp_context()                      # sets Dask's preload list for the server
+    server = multiprocessing.forkserver._forkserver
+    if PRELOAD not in server._preload_modules:
+        server.set_forkserver_preload([PRELOAD, *server._preload_modules])
+    _socket_folder()
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
-        yield
+        server.ensure_running()
     finally:
-        if main:
-            signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _socket_folder() -> None:
+    """The fork server listens on a Unix socket in multiprocessing's pymp-* folder, made in
+    TMPDIR; a socket path has at most 107 bytes, so under a TMPDIR too long for it the folder
+    is made in /tmp instead (removed at exit, process.exit_now too)."""
+    from multiprocessing import current_process, util
+    if "tempdir" in current_process()._config or len(tempfile.gettempdir()) <= UNIX_PATH_ROOM:
+        return
+    saved, tempfile.tempdir = tempfile.tempdir, "/tmp"
+    try:
+        util.get_temp_dir()
+    finally:
+        tempfile.tempdir = saved
 
 
 # ---------------------------------------------------------------------------------------------
@@ -227,8 +304,8 @@ def _end_row(row: RunResult, pose: str, times: np.ndarray) -> Results:
     return Results(names, data, "", float(times[0]), float(times[-1]), 0.0, 0, 0.0)
 
 
-def write_runs_csv(path: Path, sweep: Sweep, graph: Graph, runs: list[Run],
-                   results: dict[int, RunResult], errors: dict[int, dict]) -> None:
+def write_runs_csv(out: OutputFolder, sweep: Sweep, graph: Graph, runs: list[Run],
+                   results: dict[int, RunResult], errors: dict[int, dict]) -> Path:
     outputs = [str(p.ref) for p in graph.recorded]
     varied = [str(ref) for ref in sweep.varied]
     has_truth = bool(errors) or (find_roles(graph).source is not None
@@ -236,20 +313,29 @@ def write_runs_csv(path: Path, sweep: Sweep, graph: Graph, runs: list[Run],
     estimates = estimate_columns(results)
     header = (["run"] + varied + ["status", "message"] + outputs
               + (list(ERRORS) if has_truth else []) + list(estimates))
-    with _atomic(path, "w", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(header)
-        for run in runs:
-            row = results.get(run.index)
-            if row is None:
-                continue           # not run (interrupted): summary.json counts it
-            err = errors.get(run.index, {})
-            writer.writerow([run.index] + [format_value(run.values[ref]) for ref in sweep.varied]
-                            + [row.status, row.message]
-                            + [format_value(row.ends[o]) if o in row.ends else "" for o in outputs]
-                            + ([format_value(err[e]) if e in err else "" for e in ERRORS]
-                               if has_truth else [])
-                            + [column.get(run.index, "") for column in estimates.values()])
+    try:
+        with out.atomic("runs.csv") as temp, open(temp, "w", newline="") as fh:
+            _write_rows(csv.writer(fh, lineterminator="\n"), header, sweep, outputs, runs,
+                        results, errors, has_truth, estimates)
+    except OSError as err:                        # a full disk: exit 1, as `run`
+        raise WriteError(out.path, err) from None
+    return out.path / "runs.csv"
+
+
+def _write_rows(writer, header, sweep, outputs, runs, results, errors, has_truth,
+                estimates) -> None:
+    writer.writerow(header)
+    for run in runs:
+        row = results.get(run.index)
+        if row is None:
+            continue           # not run (interrupted): summary.json counts it
+        err = errors.get(run.index, {})
+        writer.writerow([run.index] + [format_value(run.values[ref]) for ref in sweep.varied]
+                        + [row.status, row.message]
+                        + [format_value(row.ends[o]) if o in row.ends else "" for o in outputs]
+                        + ([format_value(err[e]) if e in err else "" for e in ERRORS]
+                           if has_truth else [])
+                        + [column.get(run.index, "") for column in estimates.values()])
 
 
 def estimate_columns(results: dict[int, RunResult]) -> dict[str, dict[int, str]]:
@@ -263,44 +349,11 @@ def estimate_columns(results: dict[int, RunResult]) -> dict[str, dict[int, str]]
     return columns
 
 
-class _atomic:
-    """open() on a temporary name next to `path`; renamed to `path` only when closed cleanly."""
-
-    def __init__(self, path: Path, mode: str, **kwargs):
-        self.path = Path(path)
-        self.tmp = self.path.with_name(f".{self.path.name}.partial")
-        self.fh = open(self.tmp, mode, **kwargs)
-
-    def __enter__(self):
-        return self.fh
-
-    def __exit__(self, kind, *rest):
-        self.fh.close()
-        if kind is None:
-            os.replace(self.tmp, self.path)
-        else:
-            self.tmp.unlink(missing_ok=True)
-        return False
-
-
 def summarize(sweep: Sweep, graph: Graph, runs: list[Run], ex: Execution,
-              errors: dict[int, dict]) -> dict:
-    rows = ex.results.values()
-    ok = [r for r in rows if r.status == "ok"]
-    worked = [r for r in rows if r.seconds > 0]
-    exp = graph.scenario.experiment
-    summary = {
-        "sweep": sweep.name, "file": str(sweep.path), "scenario": str(sweep.scenario_path),
-        "master": exp.master, "step_size": exp.step_size, "stop_time": exp.stop_time,
-        "varied": [str(r) for r in sweep.varied], "seed": sweep.seed,
-        "runs": len(runs), "ok": len(ok), "failed": len(rows) - len(ok),
-        "not_run": len(runs) - len(rows), "complete": ex.complete and len(rows) == len(runs),
-        "workers": ex.workers, "scheduler": ex.scheduler,
-        "startup_s": round(ex.startup_s, 3), "wall_time_s": round(ex.wall_s, 3),
-        "runs_per_s": round(len(rows) / ex.wall_s, 3) if ex.wall_s > 0 else None,
-        "per_run_s": _mean([r.seconds for r in worked]),
-        "per_run_stepping_loop_s": _mean([r.loop_seconds for r in worked]),
-    }
+              errors: dict[int, dict], signum: int = 0) -> dict:
+    """The summary; `complete` only when every run ran, nothing stopped and no signal came."""
+    summary = _counts(sweep, graph, runs, ex, signum)
+    ok = [r for r in ex.results.values() if r.status == "ok"]
     roles = find_roles(graph)
     if roles.pose and ok:
         xy = np.array([[r.ends[f"{roles.pose}.x"], r.ends[f"{roles.pose}.y"]] for r in ok])
@@ -316,42 +369,132 @@ def summarize(sweep: Sweep, graph: Graph, runs: list[Run], ex: Execution,
     return summary
 
 
+def _counts(sweep: Sweep, graph: Graph, runs: list[Run], ex: Execution, signum: int) -> dict:
+    rows = ex.results.values()
+    ok = sum(r.status == "ok" for r in rows)
+    worked = [r for r in rows if r.seconds > 0]
+    exp = graph.scenario.experiment
+    summary = {
+        "sweep": sweep.name, "file": str(sweep.path), "scenario": str(sweep.scenario_path),
+        "master": exp.master, "step_size": exp.step_size, "stop_time": exp.stop_time,
+        "varied": [str(r) for r in sweep.varied], "seed": sweep.seed,
+        "runs": len(runs), "ok": ok, "failed": len(rows) - ok,
+        "not_run": len(runs) - len(rows),
+        "complete": ex.complete and len(rows) == len(runs) and not signum,
+        "workers": ex.workers, "scheduler": ex.scheduler,
+        "startup_s": round(ex.startup_s, 3), "wall_time_s": round(ex.wall_s, 3),
+        "runs_per_s": round(len(rows) / ex.wall_s, 3) if ex.wall_s > 0 else None,
+        "per_run_s": _mean([r.seconds for r in worked]),
+        "per_run_stepping_loop_s": _mean([r.loop_seconds for r in worked]),
+    }
+    if signum:
+        summary["interrupted"] = SIGNAL_NAMES.get(signum, str(signum))
+    return summary
+
+
 def _mean(values: list[float]) -> float | None:
     return round(float(np.mean(values)), 6) if values else None
 
 
-def write_summary(path: Path, summary: dict) -> None:
-    with _atomic(path, "w") as fh:
-        fh.write(json.dumps(summary, indent=2) + "\n")
+def check_sweep(path: str | Path, *, workers: int | None = None, scheduler: str | None = None,
+                fmu_dir: Path | None = None,
+                max_runs: int = MAX_RUNS) -> tuple[Sweep, Graph, list[Run], int | None]:
+    """Everything checked before the first run but the output folder: the sweep file, its
+    scenario and values, the run count, the worker count or the scheduler. ScenarioError."""
+    if workers is not None and scheduler:
+        raise ScenarioError([Problem("command line", "--workers", "the workers of --scheduler "
+                                     "are started with `dask worker`; give one of the two")])
+    if isinstance(max_runs, bool) or not isinstance(max_runs, int) or max_runs < 1:
+        raise ScenarioError([Problem("command line", "--max-runs", f"{max_runs!r} is not a "
+                                     "run count; give 1 or more")])
+    workers = None if scheduler else check_workers(workers)
+    if scheduler:
+        probe_scheduler(scheduler)
+    sweep, graph, runs = prepare_sweep(path, fmu_dir, max_runs)
+    return sweep, graph, runs, workers
 
 
 def run_sweep(path: str | Path, out_dir: Path | None = None, *, workers: int | None = None,
               scheduler: str | None = None, plots: bool = True, fmu_dir: Path | None = None,
               progress: Callable[[int, int], None] | None = None,
-              log: Callable[[str], None] = print) -> dict:
-    """The whole command. Returns the summary; raises Interrupted after writing on Ctrl-C."""
+              log: Callable[[str], None] = print, max_runs: int = MAX_RUNS) -> dict:
+    """The whole command. Returns the summary; raises ScenarioError before the first run,
+    Interrupted (exit code 130 / 143) after writing what finished on Ctrl-C or SIGTERM."""
     check_execute(None, None, workers, scheduler, progress, log)
-    sweep, graph, runs = prepare_sweep(path, fmu_dir)
+    sweep, graph, runs, workers = check_sweep(path, workers=workers, scheduler=scheduler,
+                                              fmu_dir=fmu_dir, max_runs=max_runs)
     out_dir = Path(out_dir) if out_dir is not None else Path("results") / sweep.name
-    log(f"{sweep.name}: {len(runs)} runs of {graph.scenario.name}, "
-        + (f"scheduler {scheduler}" if scheduler else
-           f"{workers or os.cpu_count()} local worker process(es)"))
-    ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress, log=log)
-    errors = end_errors(graph, runs, ex.results, log)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    write_runs_csv(out_dir / "runs.csv", sweep, graph, runs, ex.results, errors)
-    summary = summarize(sweep, graph, runs, ex, errors)
-    write_summary(out_dir / "summary.json", summary)
-    if plots and ex.results:
-        from .plots import write_sweep_plots
-        write_sweep_plots(out_dir, sweep, graph, runs, ex.results, errors)
+    with sigterm_raises(), ctrl_c_latched() as flag, \
+            OutputFolder(out_dir, tables=("runs.csv", "summary.json")) as out:
+        log(f"{sweep.name}: {len(runs)} runs of {graph.scenario.name} into {out_dir}/, "
+            + (f"scheduler {scheduler}" if scheduler else
+               f"{workers} local worker process(es)"))
+        summary = _sweep_into(out, flag, sweep, graph, runs, workers=workers,
+                              scheduler=scheduler, plots=plots, progress=progress, log=log)
     for line in report_lines(summary):
         log(line)
-    if not summary["complete"]:
-        err = Interrupted(float("nan"))
-        err.args = (f"interrupted: {len(ex.results)} of {len(runs)} runs written to {out_dir}/",)
+    log(f"wrote {len(summary['files'])} files to {out_dir}/")
+    if "interrupted" in summary:
+        err = Interrupted(float("nan"), terminated=summary["interrupted"] == "SIGTERM")
+        err.args = (f"{'terminated (SIGTERM)' if err.terminated else 'interrupted'}: "
+                    f"{len(runs) - summary['not_run']} of {len(runs)} runs written to "
+                    f"{out_dir}/",)
         raise err
     return summary
+
+
+def _sweep_into(out: OutputFolder, flag: SignalFlag, sweep: Sweep, graph: Graph,
+                runs: list[Run], *, workers, scheduler, plots: bool, progress, log) -> dict:
+    """Run and write into out, with signals latched in flag: summary.json with complete:
+    false first, then the runs, runs.csv, the plots and the final summary.json. The
+    evaluation and the plots stop on a signal; nothing else does. Returns the final summary
+    (with "files")."""
+    started = Execution({}, workers or 0, scheduler or "local", 0.0, 0.0, False)
+    out.write_json(summarize(sweep, graph, runs, started, {}))      # complete: false
+    ex = execute(graph, runs, workers=workers, scheduler=scheduler, progress=progress,
+                 log=log, stop=flag)
+    try:
+        errors, failures = _interruptible(flag, lambda: end_errors(graph, runs, ex.results, log),
+                                          {}), {}
+    except Exception as err:       # a failing ground truth costs only itself, as in `run`
+        errors, failures = {}, {"ground_truth_error": f"{type(err).__name__}: {err}"}
+    write_runs_csv(out, sweep, graph, runs, ex.results, errors)
+    plots_error = _plots(out, flag, sweep, graph, runs, ex, errors) if plots else None
+    if plots_error:
+        failures["plots_error"] = plots_error
+    summary = {**summarize(sweep, graph, runs, ex, errors, flag[0]), **failures}
+    out.write_json(summary)
+    if flag[0] and "interrupted" not in summary:      # came while it was written
+        summary = {**summarize(sweep, graph, runs, ex, errors, flag[0]), **failures}
+        out.write_json(summary)
+    if plots_error:
+        raise MecanumError(f"writing the plots into {out.path} failed: {plots_error}",
+                           files=[out.path / name for name in sorted(out.written)])
+    return {**summary, "files": sorted(out.written)}
+
+
+def _plots(out: OutputFolder, flag: SignalFlag, sweep, graph, runs, ex, errors) -> str | None:
+    """Draw the plots (stopped by a signal); what went wrong, if anything (a full disk)."""
+    if not ex.results:
+        return None
+    from .plots import write_sweep_plots   # here: matplotlib's import is slow
+    try:
+        out.record(_interruptible(flag, lambda: write_sweep_plots(
+            out.path, sweep, graph, runs, ex.results, errors), []))
+    except Exception as err:       # the runs are written: report the figure, keep the rest
+        return f"{type(err).__name__}: {err}"
+    return None
+
+
+def _interruptible(flag: SignalFlag, action: Callable, nothing):
+    """action(), unless a signal came already or comes during it: then `nothing`."""
+    if flag[0]:
+        return nothing
+    try:
+        with flag.raising():
+            return action()
+    except KeyboardInterrupt:          # process.Terminated too (SIGTERM); flag[0] says which
+        return nothing
 
 
 def report_lines(s: dict) -> list[str]:

@@ -1,7 +1,6 @@
 """A sweep's figures: end-point scatter, error histogram, overlaid (subsampled) paths."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +10,7 @@ from ..graph import Graph
 from ..models.catalog import find_roles
 from ..report.ground_truth import ground_truth
 from ..report.plots import new_figure
+from ..storage import atomic_path
 from .spec import Run, Sweep
 from .worker import RunResult
 
@@ -18,10 +18,9 @@ MAX_PATHS = 200          # paths overlaid (every k-th ok run)
 
 
 def _save(fig: Figure, path: Path) -> Path:
-    tmp = path.with_name(f".{path.name}.partial")
-    fig.savefig(tmp, format="png")
+    with atomic_path(path) as temp:
+        fig.savefig(temp, format="png")
     fig.clear()
-    os.replace(tmp, path)
     return path
 
 

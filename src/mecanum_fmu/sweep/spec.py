@@ -29,13 +29,14 @@ import numpy as np
 
 from ..errors import Problem, ScenarioError
 from ..graph import Graph, check_start_values, settable_parameters
+from ..models.blocks.profile_table import INTERPOLATIONS
 from ..errors import did_you_mean
 from ..scenario import (Scalar, VarRef, experiment_values, override_experiment, parse_ref,
                         read_yaml)
 from ..values import is_finite, name_problem, scalar_problem, show, unknown_keys
 
 _TOP_KEYS = ("name", "description", "scenario", "experiment", "grid", "random")
-MAX_RUNS = 1_000_000            # grid points x samples; more is surely a typo
+MAX_RUNS = 100_000              # grid points x samples; more is likely a typo (--max-runs)
 DISTRIBUTIONS = {"normal": "[mean, sd] with sd >= 0", "uniform": "[low, high] with low <= high"}
 
 
@@ -62,21 +63,23 @@ class Run:
     problem: str | None = None      # a draw the scenario's rules refuse: a failed row
 
 
-def load_sweep(path: str | Path) -> Sweep:
-    """Read and check the file's own structure (no FMU needed). Raises ScenarioError."""
-    sweep, problems, _ = read_sweep(path)
+def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
+    """Read and check the file's own structure (no FMU needed). Raises ScenarioError.
+    max_runs: the most runs accepted (grid points x samples), checked before any is planned."""
+    sweep, problems, _ = read_sweep(path, max_runs)
     if problems:
         raise ScenarioError(problems)
     return sweep
 
 
-def prepare_sweep(path: str | Path, load_graph: Callable[[Path], Graph]) -> tuple[Sweep, Graph,
+def prepare_sweep(path: str | Path, load_graph: Callable[[Path], Graph],
+                  max_runs: int = MAX_RUNS) -> tuple[Sweep, Graph,
                                                                                   list[Run]]:
     """The sweep file, its scenario's graph (load_graph(scenario path)) and the planned runs.
     Every problem is reported at once: those of the file's own structure together with those
     of its scenario and of every parameter name it varies (even one with a bad distribution).
     Raises ScenarioError."""
-    sweep, problems, named = read_sweep(path)
+    sweep, problems, named = read_sweep(path, max_runs)
     graph = None
     if sweep.scenario_path == sweep.path.parent:      # no scenario given: reported already
         pass
@@ -95,7 +98,8 @@ def prepare_sweep(path: str | Path, load_graph: Callable[[Path], Graph]) -> tupl
     return sweep, graph, plan_runs(sweep, graph)
 
 
-def read_sweep(path: str | Path) -> tuple[Sweep, list[Problem], list[tuple[str, VarRef]]]:
+def read_sweep(path: str | Path, max_runs: int = MAX_RUNS
+               ) -> tuple[Sweep, list[Problem], list[tuple[str, VarRef]]]:
     """The sweep with its valid parts, every problem of the file's own structure, and every
     (place, parameter) it names."""
     path = Path(path)
@@ -127,9 +131,10 @@ def read_sweep(path: str | Path) -> tuple[Sweep, list[Problem], list[tuple[str, 
     for dup in sorted({r for r in seen if seen.count(r) > 1}):
         bad(f"random.{dup}", f"'{dup}' is varied in both grid and random; vary it in one")
     total = math.prod(len(v) for _, v in grid) * max(samples, 1)
-    if total > MAX_RUNS:
-        bad("grid" if grid else "random.samples", f"{total} runs (grid points x samples) is "
-            f"more than {MAX_RUNS:,}; split the study")
+    if total > max_runs:
+        bad("grid" if grid else "random.samples", f"{total:,} runs (grid points x samples) "
+            f"is more than the limit of {max_runs:,} (each run is a row held in memory); "
+            f"split the study, or give --max-runs {total} to run them all")
     sweep = Sweep(path, name if isinstance(name, str) else path.stem, path.parent / scenario,
                   experiment, grid, samples, seed, random)
     return sweep, problems, named
@@ -224,6 +229,7 @@ def apply_experiment(sweep: Sweep, graph: Graph) -> Graph:
 def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
     """Check every varied parameter against the graph, then list the runs in index order."""
     _check_parameters(sweep, graph)
+    _check_profile_grid(sweep, graph)
     points = list(itertools.product(*(values for _, values in sweep.grid)))
     refs = [ref for ref, _ in sweep.grid]
     _check_grid_points(sweep, graph, refs, points)
@@ -274,6 +280,26 @@ def parameter_problems(sweep: Sweep, graph: Graph,
 
 def _check_parameters(sweep: Sweep, graph: Graph) -> None:
     problems = parameter_problems(sweep, graph)
+    if problems:
+        raise ScenarioError(problems)
+
+
+def _check_profile_grid(sweep: Sweep, graph: Graph) -> None:
+    """A VelocitySource's or PathFollower's `table` and `interpolation` are text its FMU takes as they are:
+    the scenario loader reads a table's file into CSV text, which a grid value would skip
+    (every run would fail), and an interpolation must be one the FMU knows."""
+    problems = []
+    for ref, values in sweep.grid:
+        if graph.instance(ref.instance).model_name not in ("VelocitySource", "PathFollower"):
+            continue
+        if ref.variable == "table":
+            problems.append(Problem(str(sweep.path), f"grid.{ref}", "a table is read from its "
+                            "file when the scenario is loaded, not per run; sweep one scenario "
+                            "per table (or vary the expressions, e.g. source.vx_expr)"))
+        elif ref.variable == "interpolation" and (
+                unknown := [v for v in values if v not in INTERPOLATIONS]):
+            problems.append(Problem(str(sweep.path), f"grid.{ref}", f"{show(unknown[0])} is "
+                            f"unknown; use {' or '.join(INTERPOLATIONS)}"))
     if problems:
         raise ScenarioError(problems)
 

@@ -8,6 +8,7 @@ process and reuses instances across runs (fmi2Reset), so a worker pays the FMU s
 from __future__ import annotations
 
 import dataclasses
+import tempfile
 import time
 from dataclasses import dataclass
 
@@ -81,7 +82,9 @@ class CleanUp(WorkerPlugin):
     name = "mecanum_fmu-clean-up"
 
     def setup(self, worker):
-        pass
+        # a forked worker may hold the fork server's cached temporary folder: use its TMPDIR
+        # (a local cluster's scratch folder, removed by the client even if the worker dies)
+        tempfile.tempdir = None
 
     def teardown(self, worker):
         RUNTIME.remove_extractions()
