@@ -148,7 +148,7 @@ class TestRunAndSweepArguments:
         err = refused(cluster.prepare_sweep, None)
         assert "sweep(): argument path: expected a sweep file path" in str(err)
         err = refused(cluster.run_sweep, tmp_path / "s.yaml", tmp_path / "out", workers=0)
-        assert "argument workers" in str(err) and not (tmp_path / "out").exists()
+        assert "workers: 0 is not a worker count" in str(err) and not (tmp_path / "out").exists()
 
 
 class TestFmuChangedSincePrepare:

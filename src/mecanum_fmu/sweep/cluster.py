@@ -420,7 +420,7 @@ def run_sweep(path: str | Path, out_dir: Path | None = None, *, workers: int | N
               log: Callable[[str], None] = print, max_runs: int = MAX_RUNS) -> dict:
     """The whole command. Returns the summary; raises ScenarioError before the first run,
     Interrupted (exit code 130 / 143) after writing what finished on Ctrl-C or SIGTERM."""
-    check_execute(None, None, workers, scheduler, progress, log)
+    check_execute(None, None, None, scheduler, progress, log)   # workers: check_sweep
     sweep, graph, runs, workers = check_sweep(path, workers=workers, scheduler=scheduler,
                                               fmu_dir=fmu_dir, max_runs=max_runs)
     out_dir = Path(out_dir) if out_dir is not None else Path("results") / sweep.name
