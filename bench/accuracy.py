@@ -139,10 +139,11 @@ def print_scenario(name: str, rows: list[dict], table: list[tuple], host: str) -
 def plot(everything: dict, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg   # here: start-up
     from matplotlib.figure import Figure
-    fig = Figure(figsize=(11, 7))
+    lines = -(-len(everything) // 3)
+    fig = Figure(figsize=(11, 3.5 * lines))
     FigureCanvasAgg(fig)
     for i, (name, rows) in enumerate(everything.items()):
-        ax = fig.add_subplot(2, 3, i + 1)
+        ax = fig.add_subplot(lines, 3, i + 1)
         for m, marker in zip(MASTERS, "Dos^*"):
             mine = [r for r in rows if r["master"] == m and r["err"] > 0]
             if mine:
@@ -153,7 +154,7 @@ def plot(everything: dict, path: Path) -> None:
         ax.tick_params(labelsize=7)
         if i % 3 == 0:
             ax.set_ylabel("end-point error [m]", fontsize=8)
-        if i >= 3:
+        if i >= 3 * (lines - 1):
             ax.set_xlabel("doStep passes", fontsize=8)
     fig.axes[0].legend(fontsize=7)
     fig.tight_layout()
