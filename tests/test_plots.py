@@ -18,7 +18,7 @@ from mecanum_fmu.results import Results  # noqa: E402
 
 R, C, K = 0.06, 1.0, 0.16 + 0.12 * 1.0     # alpha = 45 deg: c = cot(alpha) = 1, k = L + W*c
 ROLES = Roles("source", "c2w", "w2c", "pose")
-PANEL_KEYS = ["velocities", "path", "vy", "wheels", "twist"]
+PANEL_KEYS = ["path", "error", "velocities", "vy", "wheels", "twist", "theta"]
 WHEEL_LABELS = ["w1 front-right", "w2 front-left", "w3 rear-left", "w4 rear-right"]
 
 
@@ -90,7 +90,15 @@ def test_wheels_panel(run, figures):
     results, _ = run
     ax = figures["wheels"].axes[0]
     assert [line.get_label() for line in ax.get_lines()] == WHEEL_LABELS
-    assert [line.get_linestyle() for line in ax.get_lines()] == ["-", "-", "--", "--"]
+    # with w = 0, w1 = w3 and w2 = w4: four distinguishable styles, the rear pair drawn over
+    styles = {(line.get_linestyle(), line.get_linewidth()) for line in ax.get_lines()}
+    assert len(styles) == 4
+    lines = ax.get_lines()
+    for under, over in zip(lines, lines[1:]):      # each thinner and on top of the one before
+        assert over.get_zorder() > under.get_zorder()
+        assert over.get_linewidth() < under.get_linewidth() or over.get_linestyle() != "-"
+    assert [line.get_linestyle() for line in lines[2:]] == ["--", ":"]
+    assert len({line.get_color() for line in lines}) == 4
     t = results.time
     expected = [(np.cos(t) - np.sin(t)) / R, (np.cos(t) + np.sin(t)) / R,
                 (np.cos(t) - np.sin(t)) / R, (np.cos(t) + np.sin(t)) / R]
@@ -126,9 +134,9 @@ def test_twist_panel_solid_vs_dashed(run, figures):
         assert cmd.get_color() == rec.get_color()
 
 
-@pytest.mark.parametrize("role, gone", [("pose", {"path"}), ("inverse", {"wheels"}),
+@pytest.mark.parametrize("role, gone", [("pose", {"path", "error", "theta"}), ("inverse", {"wheels"}),
                                         ("forward", {"twist"}),
-                                        ("source", {"velocities", "vy", "twist"})])
+                                        ("source", {"velocities", "vy", "error"})])
 def test_missing_role_drops_panel(run, role, gone):
     results, truth = run
     roles = Roles(**{**ROLES.__dict__, role: None})
@@ -140,7 +148,7 @@ def test_missing_role_drops_panel(run, role, gone):
 def test_unrecorded_columns_drop_panel():
     results, truth = make_run(drop=("c2w", "pose.y"))
     figs = plots.build_figures(results, ROLES, truth)
-    assert list(figs) == ["velocities", "vy", "twist"]
+    assert list(figs) == ["velocities", "vy", "twist", "theta"]
 
 
 def test_partial_source_columns():
@@ -210,8 +218,9 @@ def test_write_plots_subset(run, tmp_path):
     results, truth = run
     roles = Roles("source", None, None, "pose")
     paths = plots.write_plots(results, roles, truth, tmp_path)
-    assert sorted(p.name for p in paths) == ["dashboard.png", "path.png", "velocities.png", "vy.png"]
-    assert len(plots.build_dashboard(results, roles, truth).axes) == 3
+    assert sorted(p.name for p in paths) == ["dashboard.png", "error.png", "path.png", "theta.png",
+                                             "velocities.png", "vy.png"]
+    assert len(plots.build_dashboard(results, roles, truth).axes) == 5
 
 
 def test_dashboard_uses_the_panel_drawers(run):
