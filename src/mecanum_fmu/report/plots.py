@@ -32,6 +32,7 @@ DPI = 100
 MARGINS = dict(left=0.07, right=0.98, wspace=0.22)   # fixed: no layout engine on the run path
 TITLE_ROOM = 0.4                  # inches above a dashboard panel for its title
 LABEL_ROOM = 0.55                 # inches below it for tick labels and the x label
+SUPTITLE_FROM_TOP = 0.2          # inches from the top edge to the top of the dashboard title
 PAD = 6                           # pixels kept around a panel cut from the dashboard
 # Text without FreeType's hinting: drawing the dashboard takes a quarter less time (its text is
 # most of that), and at 100 dpi the glyphs look the same to the eye.
@@ -86,7 +87,9 @@ def dashboard_frame(results: Results, roles: Roles, title: str = "") -> Frame:
     for i, key in enumerate(keys):
         ax = fig.add_subplot(rows, 2, i + 1)
         ax.set_title(panel_title(key, roles), y=1.0)      # a fixed y: no search for a free place
-    fig.suptitle(_suptitle(results, keys, title))
+    # a fixed distance from the top edge (matplotlib's default is a fraction of the height),
+    # clear of the first row's cells however tall the dashboard is
+    fig.suptitle(_suptitle(results, keys, title), y=1 - SUPTITLE_FROM_TOP / height)
     return Frame(keys, fig)
 
 
