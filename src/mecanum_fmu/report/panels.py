@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from matplotlib import ticker
 from matplotlib.axes import Axes
 
 from .ground_truth import Roles, Truth
@@ -187,7 +188,7 @@ def _draw_theta(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -
         ax.plot(truth.time[ti], truth.theta[ti], color="0.6", lw=3,
                 label="reference" if roles.follower else "ground truth")
     theta = results[f"{roles.pose}.theta"]
-    end = float(theta[-1])
+    end = round(float(theta[-1]), 3) + 0.0        # + 0.0: no "-0.000" for a round-off below 0
     ax.plot(t, theta[idx], color="C0", lw=1.2,
             label=f"simulated (end {end:.3f} rad = {math.degrees(end):.1f}°)")
     _finish(ax, "t [s]", "θ [rad]")
@@ -259,6 +260,10 @@ def _draw_error(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -
         ax.plot(t, np.maximum(e, ERROR_FLOOR), style, label=f"{label}, end {e[-1]:.2e}")
     if all(np.max(e) <= ERROR_FLOOR for e in errors.values()):
         note(ax, f"every error at or below {ERROR_FLOOR:g} (round-off)")
+    # plain "1e-04" tick labels: matplotlib's 10^-4 is mathtext, an eighth of the dashboard's
+    # drawing time
+    ax.yaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:.0e}"))
+    ax.yaxis.set_minor_formatter(ticker.NullFormatter())
     _finish(ax, "t [s]", f"error (log scale, floor {ERROR_FLOOR:g})")
 
 
