@@ -106,7 +106,9 @@ def wheels_of(roles: Roles) -> tuple[str | None, tuple]:
 
 
 def forward_of(roles: Roles) -> str | None:
-    return roles.forward or roles.omni_forward
+    """The forward kinematics of the same chassis as wheels_of (a graph of several chassis,
+    scenarios/chassis/compare.yaml, does not mix the mecanum wheels with the omni twist)."""
+    return roles.forward or (roles.omni_forward if roles.inverse is None else None)
 
 
 def truth_at(truth: Truth, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
