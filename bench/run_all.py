@@ -7,6 +7,7 @@ benchmark's time, the total and the budget. No benchmark writes a tracked file: 
 modification times of git's tracked files are compared before and after, and any file written
 is named at the end (exit code 1).
 """
+import resource
 import subprocess
 import sys
 import time
@@ -53,6 +54,12 @@ def tracked_mtimes() -> dict[str, int]:
             if name and (ROOT / name).is_file()}
 
 
+def cpu_seconds() -> float:
+    """User + system time of this process and of its children that have ended."""
+    usage = [resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+    return sum(u.ru_utime + u.ru_stime for u in usage)
+
+
 def run(target: str, benches) -> int:
     """Run `benches` in turn, timing each; print the total against the budget (over it is said,
     not an error: the machine may be busy). Exit code 1 when a benchmark wrote a tracked file."""
@@ -70,8 +77,9 @@ def run(target: str, benches) -> int:
     budget = BUDGET_S[target]
     verdict = "" if budget is None else (
         f" (budget {budget:.0f} s: " + ("within it)" if total <= budget else "OVER it)"))
-    print(f"\nmake {target}: {total:.1f} s in all{verdict}; the machine is shared, so the "
-          "times vary with its load")
+    print(f"\nmake {target}: {total:.1f} s in all{verdict}; {cpu_seconds():.1f} s of CPU time "
+          "(this process and its children: about the wall time on an idle machine; on a shared "
+          "one the wall time grows with its load)")
     after = tracked_mtimes()
     written = sorted(name for name, mtime in before.items() if after.get(name) != mtime)
     if written:
