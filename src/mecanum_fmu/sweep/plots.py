@@ -131,10 +131,11 @@ def _paths(out_dir, sweep, points: list[Point]) -> Path:
     ax = fig.add_subplot()
     each = max(1, MAX_PATHS // max(1, len(points)))
     for p in points:
-        shown = [r for _, r in p.runs if r.path is not None]
-        for k, r in enumerate(shown[::max(1, -(-len(shown) // each))]):
+        have = [r for _, r in p.runs if r.path is not None]
+        shown = have[::max(1, -(-len(have) // each))]
+        for k, r in enumerate(shown):
             ax.plot(r.path[:, 0], r.path[:, 1], lw=0.6, alpha=0.3, color=p.color,
-                    label=f"{p.label}: {len(shown)} runs" if k == 0 else None)
+                    label=f"{p.label}: {len(shown)} of {len(have)} runs" if k == 0 else None)
         if p.truth is not None:
             ax.plot(p.truth.x, p.truth.y, color="k", lw=1.2, ls="--",
                     label="ground truth" if p is points[0] else None)
@@ -142,6 +143,8 @@ def _paths(out_dir, sweep, points: list[Point]) -> Path:
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    for handle in ax.legend(fontsize=7).legend_handles:     # legend lines opaque, readable
+        handle.set_alpha(1.0)
+        handle.set_linewidth(max(handle.get_linewidth(), 1.5))
     ax.set_title(f"{sweep.name}: paths (up to {MAX_PATHS} overlaid)")
     return _save(fig, out_dir / "paths.png")
