@@ -102,7 +102,7 @@ def _scatter(out_dir, sweep, pose, points: list[Point]) -> Path:
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper right")
     ax.set_title(f"{sweep.name}: end points")
     return _save(fig, out_dir / "end_points.png")
 
@@ -122,7 +122,7 @@ def _histogram(out_dir, sweep, points: list[Point], errors: dict[int, dict]) -> 
     ax.set_ylabel("runs")
     ax.set_title(f"{sweep.name}: end-point error")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper right")
     return _save(fig, out_dir / "error_histogram.png")
 
 
@@ -143,7 +143,8 @@ def _paths(out_dir, sweep, points: list[Point]) -> Path:
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
-    for handle in ax.legend(fontsize=7).legend_handles:     # legend lines opaque, readable
+    legend = ax.legend(fontsize=7, loc="lower left")     # not "best": slow over many paths
+    for handle in legend.legend_handles:                 # legend lines opaque, readable
         handle.set_alpha(1.0)
         handle.set_linewidth(max(handle.get_linewidth(), 1.5))
     ax.set_title(f"{sweep.name}: paths (up to {MAX_PATHS} overlaid)")
