@@ -15,7 +15,8 @@ import numpy as np
 from matplotlib import ticker
 from matplotlib.axes import Axes
 
-from .ground_truth import Roles, Truth
+from .ground_truth import Truth
+from ..models.catalog import Roles
 from ..results import Results
 
 MAX_POINTS = 5000                 # more rows than this are decimated before drawing
