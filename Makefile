@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test fmus bench clean
+.PHONY: run test fmus bench bench-long clean
 
 run: $(STAMP)
 	$(PY) -m mecanum_fmu fmus
@@ -18,9 +18,15 @@ test: $(STAMP)
 fmus: $(STAMP)
 	$(PY) -m mecanum_fmu fmus
 
+# make bench: the quick benchmarks, under 3 minutes (it prints its time and the budget);
+# make bench-long: memory against run length, endurance, the whole sweep (tens of minutes)
 bench: $(STAMP)
 	$(PY) -m mecanum_fmu fmus
 	$(PY) bench/run_all.py
+
+bench-long: $(STAMP)
+	$(PY) -m mecanum_fmu fmus
+	$(PY) bench/run_all.py --long
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)

@@ -3,7 +3,8 @@ clusters warmed up first, so FMU unpacking and instantiation are not timed; best
 interleaved rounds), the per-run overhead on a worker next to its stepping loop (the seed circle, 200
 steps), and the whole 1000-sample scenarios/sweeps/wheel_tolerance.yaml as `sweep` runs it.
 
-Run: make bench   (or: .venv/bin/python bench/sweep.py [--runs N])
+Run: make bench (40 runs a round, no whole study), make bench-long (all of it), or
+.venv/bin/python bench/sweep.py [--runs N] [--no-study]
 """
 from __future__ import annotations
 
@@ -59,6 +60,8 @@ def machine_parallelism() -> float:
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=120, help="runs per timed round")
+    parser.add_argument("--no-study", action="store_true",
+                        help="leave out the whole 1000-sample study (make bench-long runs it)")
     args = parser.parse_args(argv)
     _, graph, runs = prepare_sweep(STUDY)
     runs = runs[:args.runs]
@@ -76,6 +79,15 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"  per run on a worker (median): {1000 * total:.2f} ms, stepping loop "
           f"{1000 * loop:.2f} ms, overhead {1000 * (total - loop):.2f} ms = "
           f"{(total - loop) / loop:.2f}x the loop (target <= 2x)")
+    measured = {"one": one, "two": two, "machine": (before, after),
+                "overhead": (total - loop) / loop}
+    if not args.no_study:
+        measured["whole"] = whole_study()
+    return measured
+
+
+def whole_study() -> float:
+    """The 1000-sample wheel_tolerance as `sweep` runs it, plots included; its wall time."""
     with tempfile.TemporaryDirectory(prefix="mecanum_bench_sweep_") as out:
         tick = time.perf_counter()
         summary = run_sweep(STUDY, out, plots=True, log=lambda line: None)
@@ -87,8 +99,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"  end points: sd x {1000 * ep['sd'][0]:.1f} mm, sd y {1000 * ep['sd'][1]:.1f} mm, "
           f"max from mean {1000 * ep['max_from_mean']:.1f} mm; error vs ground truth: mean "
           f"{1000 * err['mean']:.1f} mm, sd {1000 * err['sd']:.1f} mm, max {1000 * err['max']:.1f} mm")
-    return {"one": one, "two": two, "machine": (before, after), "overhead": (total - loop) / loop, "whole": whole}
-
+    return whole
 
 if __name__ == "__main__":       # a guard Dask's worker processes need (they re-import main)
     from mecanum_fmu.process import exit_now

@@ -241,4 +241,6 @@ def test_icr_panel(mode_runs, fmu_dir, tmp_path):
     forward = mode_runs["forward"]
     figures = plots.build_figures(forward.results, roles, forward.truth)
     labels = [line.get_label() for line in figures["icr"].axes[0].get_lines()]
-    assert "ICR (none: w = 0)" in labels
+    assert "ICR" not in labels
+    notes = [text.get_text() for text in figures["icr"].axes[0].texts]
+    assert any("pure translation: no ICR" in n for n in notes)

@@ -1,5 +1,6 @@
 """Tests for the plots: figure contents against a hand-made run of the seed scenario
 (docs/spec.md, Expected results)."""
+import math
 from pathlib import Path
 
 import matplotlib
@@ -18,7 +19,7 @@ from mecanum_fmu.results import Results  # noqa: E402
 
 R, C, K = 0.06, 1.0, 0.16 + 0.12 * 1.0     # alpha = 45 deg: c = cot(alpha) = 1, k = L + W*c
 ROLES = Roles("source", "c2w", "w2c", "pose")
-PANEL_KEYS = ["velocities", "path", "vy", "wheels", "twist"]
+PANEL_KEYS = ["path", "error", "velocities", "vy", "wheels", "twist", "theta"]
 WHEEL_LABELS = ["w1 front-right", "w2 front-left", "w3 rear-left", "w4 rear-right"]
 
 
@@ -90,7 +91,15 @@ def test_wheels_panel(run, figures):
     results, _ = run
     ax = figures["wheels"].axes[0]
     assert [line.get_label() for line in ax.get_lines()] == WHEEL_LABELS
-    assert [line.get_linestyle() for line in ax.get_lines()] == ["-", "-", "--", "--"]
+    # with w = 0, w1 = w3 and w2 = w4: four distinguishable styles, the rear pair drawn over
+    styles = {(line.get_linestyle(), line.get_linewidth()) for line in ax.get_lines()}
+    assert len(styles) == 4
+    lines = ax.get_lines()
+    for under, over in zip(lines, lines[1:]):      # each thinner and on top of the one before
+        assert over.get_zorder() > under.get_zorder()
+        assert over.get_linewidth() < under.get_linewidth() or over.get_linestyle() != "-"
+    assert [line.get_linestyle() for line in lines[2:]] == ["--", ":"]
+    assert len({line.get_color() for line in lines}) == 4
     t = results.time
     expected = [(np.cos(t) - np.sin(t)) / R, (np.cos(t) + np.sin(t)) / R,
                 (np.cos(t) - np.sin(t)) / R, (np.cos(t) + np.sin(t)) / R]
@@ -126,9 +135,9 @@ def test_twist_panel_solid_vs_dashed(run, figures):
         assert cmd.get_color() == rec.get_color()
 
 
-@pytest.mark.parametrize("role, gone", [("pose", {"path"}), ("inverse", {"wheels"}),
+@pytest.mark.parametrize("role, gone", [("pose", {"path", "error", "theta"}), ("inverse", {"wheels"}),
                                         ("forward", {"twist"}),
-                                        ("source", {"velocities", "vy", "twist"})])
+                                        ("source", {"velocities", "vy", "error"})])
 def test_missing_role_drops_panel(run, role, gone):
     results, truth = run
     roles = Roles(**{**ROLES.__dict__, role: None})
@@ -140,7 +149,7 @@ def test_missing_role_drops_panel(run, role, gone):
 def test_unrecorded_columns_drop_panel():
     results, truth = make_run(drop=("c2w", "pose.y"))
     figs = plots.build_figures(results, ROLES, truth)
-    assert list(figs) == ["velocities", "vy", "twist"]
+    assert list(figs) == ["velocities", "vy", "twist", "theta"]
 
 
 def test_partial_source_columns():
@@ -210,8 +219,9 @@ def test_write_plots_subset(run, tmp_path):
     results, truth = run
     roles = Roles("source", None, None, "pose")
     paths = plots.write_plots(results, roles, truth, tmp_path)
-    assert sorted(p.name for p in paths) == ["dashboard.png", "path.png", "velocities.png", "vy.png"]
-    assert len(plots.build_dashboard(results, roles, truth).axes) == 3
+    assert sorted(p.name for p in paths) == ["dashboard.png", "error.png", "path.png", "theta.png",
+                                             "velocities.png", "vy.png"]
+    assert len(plots.build_dashboard(results, roles, truth).axes) == 5
 
 
 def test_dashboard_uses_the_panel_drawers(run):
@@ -232,3 +242,169 @@ def test_cli_run_writes_dashboard(tmp_path):
     for name in ["dashboard"] + PANEL_KEYS:
         path = tmp_path / f"{name}.png"
         assert path.is_file() and path.stat().st_size > 1000, name
+
+
+# ------------------------------------------------------------------ issue 24, item 5
+
+def frame_of(path):
+    """The dashboard frame the plot worker lays out for a bundled scenario (no run needed)."""
+    from mecanum_fmu.report.plot_worker import _frame_hint
+    from mecanum_fmu.runner import prepare
+    return plots.dashboard_frame(*_frame_hint(prepare(ROOT / "scenarios" / path)))
+
+
+def titles(frame):
+    return dict(zip(frame.keys, (ax.get_title() for ax in frame.figure.axes)))
+
+
+def test_theta_panel(run, figures):
+    results, truth = run
+    ax = figures["theta"].axes[0]
+    assert ax.get_ylabel() == "θ [rad]" and "θ" in figures["theta"].axes[0].get_title()
+    lines = ax.get_lines()
+    assert [line.get_label() for line in lines] == [
+        "ground truth", "simulated (end 0.000 rad = 0.0°)"]
+    np.testing.assert_array_equal(lines[1].get_ydata(), results["pose.theta"])
+    low, high = ax.get_ylim()
+    assert high - low >= 0.2            # theta = 0 throughout: no zoom into round-off
+
+
+def test_error_panel_is_the_distance_to_the_truth(run, figures):
+    results, truth = run
+    ax = figures["error"].axes[0]
+    assert ax.get_yscale() == "log"
+    distance = ax.get_lines()[0]
+    assert distance.get_label().startswith("distance to ground truth [m], end ")
+    # pose = truth exactly here: every error sits on the floor of 1e-12, and the panel says so
+    np.testing.assert_array_equal(distance.get_ydata(), 1e-12)
+    assert any("round-off" in t.get_text() for t in ax.texts)
+    results.data["pose.x"] += 0.01                       # 1 cm off everywhere
+    ax = plots.build_figures(results, ROLES, truth)["error"].axes[0]
+    np.testing.assert_allclose(ax.get_lines()[0].get_ydata(), 0.01, rtol=1e-9)
+    assert not ax.texts
+
+
+def icr_run(has_icr: float):
+    """make_run with the forward block's ICR columns: body (1, 0) when has_icr, else none."""
+    results, truth = make_run()
+    names = results.names + ("w2c.icr_x", "w2c.icr_y", "w2c.has_icr")
+    data = np.empty(len(results.time), dtype=results.data.dtype.descr + [(n, "f8") for n in names[-3:]])
+    for name in results.data.dtype.names:
+        data[name] = results.data[name]
+    data["w2c.icr_x"], data["w2c.icr_y"], data["w2c.has_icr"] = has_icr, 0.0, has_icr
+    return Results(names, data, *[getattr(results, f) for f in (
+        "master", "start_time", "stop_time", "step_size", "steps", "wall_time")]), truth
+
+
+def test_icr_panel_says_pure_translation():
+    results, truth = icr_run(0.0)
+    ax = plots.build_figures(results, ROLES, truth)["icr"].axes[0]
+    assert [t.get_text() for t in ax.texts] == ["pure translation: no ICR (w = 0)"]
+    assert [line.get_label() for line in ax.get_lines()] == ["path"]
+    results, truth = icr_run(1.0)
+    ax = plots.build_figures(results, ROLES, truth)["icr"].axes[0]
+    assert not ax.texts
+    icr = lines_by_label(ax)["ICR"]
+    np.testing.assert_allclose(icr.get_xdata(), results["pose.x"] + 1.0)   # theta = 0
+
+
+def test_closed_loop_shows_path_and_tracking_error_once():
+    frame = frame_of("closed_loop/track_circle.yaml")
+    assert frame.keys[:2] == ["tracking", "tracking_error"]
+    assert "path" not in frame.keys and "error" not in frame.keys
+    assert titles(frame)["tracking"] == "Reference path vs actual path"
+    assert titles(frame)["tracking_error"] == "Tracking error"
+    assert len(set(titles(frame).values())) == len(frame.keys)
+
+
+def test_omni_dashboard_speaks_in_the_world_frame():
+    frame = frame_of("chassis/omni_field_circle.yaml")
+    assert titles(frame)["velocities"] == "Input velocities (world frame)"
+    assert titles(frame)["vy"] == "vY(t) (world frame)"
+    assert {"wheels", "twist", "theta"} <= set(frame.keys)       # no longer two empty cells
+    assert len(frame.keys) >= 2 * math.ceil(len(frame.keys) / 2) - 1
+    results, truth = make_run()
+    roles = Roles("source", None, None, "pose", frame="source", omni_inverse="c2w")
+    figs = plots.build_figures(results, roles, truth)
+    assert [l.get_label() for l in figs["velocities"].axes[0].get_lines()] == [
+        "vX (world)", "vY (world)", "ω"]
+    assert [l.get_label() for l in figs["wheels"].axes[0].get_lines()] == [
+        "w1 front-left", "w2 rear-left", "w3 rear-right", "w4 front-right"]   # docs/chassis.md
+
+
+@pytest.mark.parametrize("path", ["circle.yaml", "closed_loop/track_circle.yaml",
+                                  "chassis/omni_field_circle.yaml", "chassis/bicycle_circle.yaml",
+                                  "modes/showcase.yaml", "profiles/joystick.yaml"])
+def test_titles_fit_their_panel(path):
+    frame = frame_of(path)
+    fig = frame.figure
+    renderer = fig.canvas.get_renderer()
+    half = fig.bbox.width / 2
+    for ax in fig.axes:
+        assert ax.title.get_window_extent(renderer).width < 0.9 * half, ax.get_title()
+    assert fig._suptitle.get_window_extent(renderer).width < fig.bbox.width
+
+
+def test_animation_legend_names_the_wheel_arrows():
+    from mecanum_fmu.report.animation import WHEEL_COLORS, build_scene
+    results, truth = make_run()
+    fig, update, n = build_scene(results, ROLES, truth, {"L": 0.16, "W": 0.12, "R": R})
+    legend = fig.axes[0].get_legend()
+    labels = [t.get_text() for t in legend.get_texts()]
+    assert labels[-4:] == WHEEL_LABELS and {"ground truth", "path"} <= set(labels)
+    assert "rim speed" in legend.get_title().get_text()
+    colors = [h.get_color() for h in legend.legend_handles[-4:]]
+    assert colors == list(WHEEL_COLORS)
+    arrows = fig.axes[0].collections[0]
+    np.testing.assert_array_equal(arrows.get_facecolors(),
+                                  matplotlib.colors.to_rgba_array(WHEEL_COLORS))
+
+
+def test_sweep_plots_colour_each_grid_point_with_its_own_truth_and_mean(tmp_path, monkeypatch):
+    from mecanum_fmu.sweep import plots as sweep_plots
+    from mecanum_fmu.sweep.cluster import prepare_sweep
+    from mecanum_fmu.sweep.worker import RunResult
+    path = tmp_path / "s.yaml"
+    path.write_text(f"name: s\nscenario: {ROOT / 'scenarios' / 'circle.yaml'}\n"
+                    "grid:\n  source.w_expr: ['0', '0.5']\n"
+                    "random:\n  samples: 4\n  seed: 1\n  w2c.dR1: {normal: [0.0, 0.0003]}\n")
+    sweep, graph, runs = prepare_sweep(path)
+    assert len(runs) == 8
+    results, errors = {}, {}
+    for r in runs:                      # made-up end points and errors, 4 per grid point
+        point, k = divmod(r.index, 4)
+        ends = {"pose.x": [1.0, 3.0][point] + 0.1 * k, "pose.y": [0.0, 2.0][point]}
+        results[r.index] = RunResult(r.index, "ok", "", ends, np.zeros((3, 2)) + point, 0.1, 0.1)
+        errors[r.index] = {"error.position": [0.001, 0.01][point] * (k + 1)}
+    drawn = {}
+
+    def keep(fig, out):                 # the figure as it is saved, before it is cleared
+        drawn[out.name] = fig
+        return out
+    monkeypatch.setattr(sweep_plots, "_save", keep)
+    sweep_plots.write_sweep_plots(tmp_path, sweep, graph, runs, results, errors)
+
+    ax = drawn["end_points.png"].axes[0]
+    dots = ax.collections
+    assert len(dots) == 2 and not np.allclose(dots[0].get_facecolor(), dots[1].get_facecolor())
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "source.w_expr=0: 4 end points" in labels and "source.w_expr=0.5: 4 end points" in labels
+    assert "mean (1.1500, 0.0000)" in labels and "mean (3.1500, 2.0000)" in labels
+    stars = [line for line in ax.get_lines() if line.get_marker() == "*"]
+    assert len(stars) == 2                                      # a truth per grid point
+    np.testing.assert_allclose(stars[0].get_xydata()[0], (1.8390715, -0.5440211), atol=1e-6)
+    assert np.hypot(*(stars[1].get_xydata()[0] - stars[0].get_xydata()[0])) > 0.1
+
+    ax = drawn["error_histogram.png"].axes[0]
+    assert ax.get_title() == "s: end-point error"
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["source.w_expr=0: mean 2.50 mm, max 4.00 mm",
+                      "source.w_expr=0.5: mean 25.00 mm, max 40.00 mm"]
+
+    ax = drawn["paths.png"].axes[0]
+    truths = [line for line in ax.get_lines() if line.get_linestyle() == "--"]
+    assert len(truths) == 2 and not np.allclose(truths[0].get_xydata(), truths[1].get_xydata())
+    for fig in drawn.values():                                  # titles that fit
+        ax = fig.axes[0]
+        fig.canvas.draw()
+        assert ax.title.get_window_extent().width < fig.bbox.width * 0.95, ax.get_title()

@@ -153,6 +153,10 @@ class Roles:
     forward: str | None
     pose: str | None
     follower: str | None = None     # a PathFollower: closed loop, the truth is its reference
+    frame: str | None = None        # a FieldToBody: the source's twist is in the WORLD frame
+    omni_inverse: str | None = None   # the omni X-drive's kinematics pair (docs/chassis.md)
+    omni_forward: str | None = None
+    steering: str | None = None     # a SteeringSource: the car-like chassis' (v, phi) input
 
 
 def find_roles(graph) -> Roles:
@@ -164,4 +168,5 @@ def find_roles(graph) -> Roles:
             found.setdefault(model.role, []).append(inst.name)
     one = {role: names[0] for role, names in found.items() if len(names) == 1}
     return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"),
-                 one.get("follower"))
+                 one.get("follower"), one.get("frame"), one.get("omni-inverse"),
+                 one.get("omni-forward"), one.get("steering"))

@@ -3,7 +3,8 @@
 Each frame draws, in the world frame (docs/spec.md, Pose integration), the chassis as a
 2L x 2W rectangle (L along body X, left-right; W along body Y, front-rear) at the recorded pose,
 its four wheels with an arrow along the body +Y of each wheel scaled by that wheel's rim speed
-R*wi, the path so far and the ground-truth path. Frames are decimated to at most `max_frames`,
+R*wi, the path so far and the ground-truth path; a legend below the view names each wheel's
+arrow colour. Frames are decimated to at most `max_frames`,
 played at FPS.
 """
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Mapping
 
 import numpy as np
 from matplotlib.animation import PillowWriter
+from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 
 from .evaluation import Evaluation
@@ -21,14 +23,16 @@ from .truth import Truth
 from ..models.catalog import Roles
 from ..models.modes import geometry_of
 from ..results import Results
+from .panels import WHEELS
 from .plots import new_figure
 
 FPS = 20
 MAX_FRAMES = 100
-FIG_SIZE = (5.0, 5.0)           # inches
-DPI = 80                        # -> 400 x 400 pixels
+FIG_SIZE = (5.0, 5.8)           # inches: the square view and the legend below it
+DPI = 80                        # -> 400 x 464 pixels
 WHEEL_POS = ((1, 1), (-1, 1), (-1, -1), (1, -1))   # (sign of X, sign of Y) of wheels 1..4
 WHEEL_COLORS = ("C3", "C1", "C2", "C4")
+ARROWS = "arrows: wheel rim speed R·wi, along body +y"
 
 
 def frame_indices(n: int, max_frames: int = MAX_FRAMES) -> np.ndarray:
@@ -51,21 +55,41 @@ def write_animation(results: Results, evaluation: Evaluation, path: Path | str,
                     max_frames: int = MAX_FRAMES) -> Path:
     """Write the animated GIF of the run and its Evaluation (roles, truth, the chassis'
     geometry) to path and return it."""
-    roles, truth, params = evaluation.roles, evaluation.truth, geometry_of(evaluation.geometry)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    fig, update, n = build_scene(results, evaluation.roles, evaluation.truth,
+                                 evaluation.geometry)
+    writer = PillowWriter(fps=FPS)
+    with writer.saving(fig, str(path), dpi=DPI):
+        for i in frame_indices(n, max_frames):
+            update(int(i))
+            writer.grab_frame()
+    fig.clear()
+    return path
+
+
+def build_scene(results: Results, roles: Roles, truth: Truth | None,
+                graph_params: Mapping | None):
+    """The animation's figure, update(i) that shows row i, and the number of rows."""
+    params = geometry_of(graph_params)
     x, y, theta, rim = _track(results, roles, params["R"])
     fig = new_figure(FIG_SIZE, dpi=DPI)
     ax = fig.add_subplot()
     _set_view(ax, x, y, truth, params["L"], params["W"])
     update = _scene(ax, results, (x, y, theta, rim), truth, params)
-    writer = PillowWriter(fps=FPS)
-    with writer.saving(fig, str(path), dpi=DPI):
-        for i in frame_indices(len(x), max_frames):
-            update(int(i))
-            writer.grab_frame()
-    fig.clear()
-    return path
+    _legend(ax, roles.inverse is not None)
+    return fig, update, len(x)
+
+
+def _legend(ax, wheels: bool) -> None:
+    """Below the view: the paths, and what each wheel's arrow is (its colour, the wheel)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if wheels:
+        for (var, where), color in zip(WHEELS, WHEEL_COLORS):
+            handles.append(Line2D([], [], color=color, lw=2.5))
+            labels.append(f"{var} {where}")
+    ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=3,
+              fontsize=8, title=ARROWS if wheels else None, title_fontsize=8, frameon=False)
 
 
 def _track(results: Results, roles: Roles, R: float):
@@ -126,7 +150,6 @@ def _scene(ax, results: Results, track, truth: Truth | None, params: Mapping):
     arrows = ax.quiver(np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4),
                        color=WHEEL_COLORS, angles="xy", scale_units="xy", scale=1.0,
                        width=0.008, zorder=5)
-    ax.legend(loc="upper right", fontsize=8)
     title = ax.set_title("")
 
     def update(i: int) -> None:
