@@ -20,6 +20,7 @@ import loop_overhead
 import memory
 import other_hosts
 import sweep
+import table_lookup
 import turnaround
 from mecanum_fmu.process import exit_now
 
@@ -34,6 +35,8 @@ QUICK = (
     ("closed-loop convergence (bench/closed_loop_order.py)", closed_loop_order.main),
     ("sweeps on Dask: rates and per-run overhead (bench/sweep.py --runs 40 --no-study)",
      lambda: sweep.main(["--runs", "40", "--no-study"])),
+    ("table lookup: 10^3 and 10^6 rows (bench/table_lookup.py 1000 1000000)",
+     lambda: table_lookup.main(["1000", "1000000"])),
     ("command-line turnaround: plots and validate (bench/turnaround.py 3)",
      lambda: turnaround.main(3)),
 )
