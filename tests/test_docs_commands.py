@@ -56,8 +56,6 @@ SKIPS = [
 # by the command exactly as written: rewriting the command retires its entry. The test is an
 # xfail(strict): when the command runs again, it reports XPASS and the entry must go.
 KNOWN_BROKEN = {
-    ".venv/bin/python -m mecanum_fmu.report.chassis_compare":
-        "issue 20: ImportError: cannot import name 'exit_now' from 'mecanum_fmu.master'",
     # bare python/fmpy in docs owned by other helpers of issue 20 (branches travel, sweeps,
     # tables, masters); they write .venv/bin/... and these entries retire themselves.
     "python -m mecanum_fmu export-ssp scenarios/circle.yaml -o circle.ssp": "bare python (travel)",
@@ -77,13 +75,6 @@ KNOWN_BROKEN = {
     "LD_PRELOAD=$(python -c \"import sysconfig, os; print(os.path.join(sysconfig.get_config_var("
     "'LIBDIR'), sysconfig.get_config_var('INSTSONAME')))\") OMSimulator model.ssp":
         "bare python (travel)",
-    "python -m mecanum_fmu sweep scenarios/sweeps/wheel_tolerance.yaml": "bare python (sweeps)",
-    "python -m mecanum_fmu sweep SWEEP.yaml [--out DIR] [--workers N] "
-    "[--scheduler tcp://HOST:PORT] [--no-plots]": "bare python (sweeps)",
-    "PYTHONPATH=src python bench/table_vs_expressions.py": "bare python (tables)",
-    "PYTHONPATH=src python bench/closed_loop_order.py": "bare python (tables)",
-    "python -m mecanum_fmu run <scenario> --master <m> --step-size 0.05 --no-plots":
-        "bare python (masters)",
 }
 
 
