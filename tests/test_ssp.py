@@ -362,14 +362,27 @@ def test_not_an_ssp(tmp_path):
 # ------------------------------------------------------------------------------------ doctor
 
 def test_doctor_reports_what_each_fmu_needs(fmu_dir, built_fmus):
-    """Per FMU: the libpython its binary needs and where it is found (docs/openmodelica.md)."""
-    from mecanum_fmu.models.link import build_link
-    link = build_link()
-    if link is None:
-        pytest.skip("this Python has no shared libpython to link the FMUs to")
+    """Per FMU: self-contained, the glibc floor of its binaries, and the win64 story."""
+    import re
+    from elftools.elf.elffile import ELFFile
     proc = cli("doctor", "--fmu-dir", fmu_dir)
     assert proc.returncode == 0, proc.stderr
-    for model in built_fmus:
+    for model, fmu in built_fmus.items():
         line = next(l for l in proc.stdout.splitlines() if l.strip().startswith(f"{model}:"))
-        assert f"needs {link.soname}" in line and f"found: {link.path}" in line, line
-    assert "LD_PRELOAD=" in proc.stdout         # the route for FMUs built elsewhere
+        assert "linux64: self-contained" in line, line
+        assert "win64: pythonfmu's own DLL, NOT self-contained" in line and "python3.dll" in line
+        # the floor, independently: the newest GLIBC_ version named in any binary's
+        # version-needed table (.gnu.version_r), read here with pyelftools directly
+        floor = (0,)
+        with zipfile.ZipFile(fmu) as zf:
+            for name in zf.namelist():
+                if name.endswith(".so") or ".so." in name:
+                    import io
+                    elf = ELFFile(io.BytesIO(zf.read(name)))
+                    section = elf.get_section_by_name(".gnu.version_r")
+                    for _, auxes in section.iter_versions() if section else ():
+                        for aux in auxes:
+                            if re.fullmatch(r"GLIBC_[\d.]+", aux.name):
+                                floor = max(floor, tuple(map(int, aux.name[6:].split("."))))
+        assert f"glibc >= {'.'.join(map(str, floor))} " in line, (floor, line)
+    assert "LD_PRELOAD=" not in proc.stdout      # no preload line: nothing to preload
