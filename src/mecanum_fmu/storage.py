@@ -23,7 +23,7 @@ import struct
 import zipfile
 import zlib
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
 FIXED_DATE = (1980, 1, 1, 0, 0, 0)
 
@@ -71,10 +71,10 @@ def read_regular(path: Path | str, limit: int, what: str = "an input file") -> b
 
 
 def zip_bytes(members: Mapping[str, bytes], compresslevel: int | None = None,
-              reuse: Path | None = None, stored: bool = False) -> bytes:
+              reuse: Path | Sequence[Path] = (), stored: bool = False) -> bytes:
     """The deterministic zip of members (archive name -> bytes), as bytes; stored: not
-    compressed (what Python's zipimport reads without zlib). With reuse (an
-    archive written here), a member whose name, size and CRC match one of reuse's is copied
+    compressed (what Python's zipimport reads without zlib). With reuse (archives written
+    here), a member whose name, size and CRC match one of reuse's is copied
     compressed as it is there, not compressed again (a bundled libpython: 3 s at level 9)."""
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w") as zf, _reusable(reuse) as old:
@@ -94,22 +94,20 @@ def zip_bytes(members: Mapping[str, bytes], compresslevel: int | None = None,
 
 
 @contextlib.contextmanager
-def _reusable(path: Path | None):
-    """name -> (ZipInfo, its compressed bytes) of the deflated members of the archive at path."""
-    if path is None:
-        yield {}
-        return
-    with zipfile.ZipFile(path) as zf, open(path, "rb") as raw:
-        out = {}
-        for info in zf.infolist():
-            if info.compress_type != zipfile.ZIP_DEFLATED:
-                continue
-            raw.seek(info.header_offset)
-            header = raw.read(30)
-            name_len, extra_len = struct.unpack("<HH", header[26:30])
-            raw.seek(info.header_offset + 30 + name_len + extra_len)
-            out[info.filename] = (info, raw.read(info.compress_size))
-        yield out
+def _reusable(paths: Path | Sequence[Path]):
+    """name -> (ZipInfo, its compressed bytes) of the deflated members of the archives."""
+    out = {}
+    for path in [paths] if isinstance(paths, (str, Path)) else paths:
+        with zipfile.ZipFile(path) as zf, open(path, "rb") as raw:
+            for info in zf.infolist():
+                if info.compress_type != zipfile.ZIP_DEFLATED:
+                    continue
+                raw.seek(info.header_offset)
+                header = raw.read(30)
+                name_len, extra_len = struct.unpack("<HH", header[26:30])
+                raw.seek(info.header_offset + 30 + name_len + extra_len)
+                out[info.filename] = (info, raw.read(info.compress_size))
+    yield out
 
 
 def _copy_compressed(zf: zipfile.ZipFile, info: zipfile.ZipInfo, data: bytes) -> None:
@@ -128,7 +126,7 @@ def _copy_compressed(zf: zipfile.ZipFile, info: zipfile.ZipInfo, data: bytes) ->
 
 
 def write_zip(path: Path, members: Mapping[str, bytes], compresslevel: int | None = None,
-              reuse: Path | None = None) -> Path:
+              reuse: Path | Sequence[Path] = ()) -> Path:
     """Write members (archive name -> bytes) as a deterministic zip at path, atomically
     (reuse: see zip_bytes)."""
     path = Path(path)
