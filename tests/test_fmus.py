@@ -601,3 +601,19 @@ def test_pose_integrator_state_round_trip(built_fmus):
         assert probe.getReal(outs) == reference[n_before]
         for fmu in (ref, probe):
             fmu.terminate()
+
+
+def test_without_a_compiler_the_build_says_its_fmus_are_not_self_contained(monkeypatch):
+    """No gcc: `make fmus` still builds (plain pythonfmu FMUs) and its last line says what
+    they then need, naming what is missing."""
+    from mecanum_fmu.models import embed
+    monkeypatch.setattr(embed.shutil, "which", lambda name: None)
+    embed.runtime_or_none.cache_clear()
+    try:
+        assert embed.runtime_or_none() is None
+        line = embed.summary()
+        assert "NOT self-contained" in line and "gcc not found" in line, line
+    finally:
+        monkeypatch.undo()
+        embed.runtime_or_none.cache_clear()
+    assert embed.runtime_or_none() is not None
