@@ -160,9 +160,10 @@ static int find_python(const char *folder)
         snprintf(want, sizeof want, "%d.%d.", PY_MAJOR_VERSION, PY_MINOR_VERSION);
         if (strncmp(v, want, strlen(want)) != 0)
             return fail("this FMU bundles Python %d.%d, but the process already runs Python "
-                        "%.20s; two interpreters cannot share a process. Load it in a host "
+                        "%.*s; two interpreters cannot share a process. Load it in a host "
                         "without Python or with Python %d.%d (e.g. the `ecos` program, or "
-                        "fmpy on Python %d.%d)", PY_MAJOR_VERSION, PY_MINOR_VERSION, v,
+                        "fmpy on Python %d.%d)", PY_MAJOR_VERSION, PY_MINOR_VERSION,
+                        (int)strcspn(v, " "), v,
                         PY_MAJOR_VERSION, PY_MINOR_VERSION, PY_MAJOR_VERSION, PY_MINOR_VERSION);
     } else if (loaded) {
         handle = loaded;
