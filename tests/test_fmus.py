@@ -5,6 +5,7 @@ Process rules (pythonfmu): every FMU is loaded from ONE extraction folder per co
 fmi2FreeInstance, never fmpy's freeInstance/freeLibrary), and simulate_fmu always gets an
 instance created here, so it never extracts or unloads anything itself.
 """
+import io
 import json
 import math
 import os
@@ -248,17 +249,40 @@ def test_slave_scripts_are_uniquely_named_and_self_contained(built_fmus, tmp_pat
 
 
 def test_build_is_reproducible(built_fmus, tmp_path):
-    """A second build, in a fresh process with another hash seed, gives the same bytes."""
+    """A second build, in a fresh process with another hash seed and an empty cache (the
+    bundled Python's pieces made anew: stripped libpython, compiled stdlib), gives the same
+    bytes."""
     src = Path(mecanum_fmu.__file__).resolve().parents[1]
     dest = tmp_path / "again"
-    env = dict(os.environ, PYTHONPATH=str(src), PYTHONHASHSEED="12345")
+    env = dict(os.environ, PYTHONPATH=str(src), PYTHONHASHSEED="12345",
+               XDG_CACHE_HOME=str(tmp_path / "cache"))
     code = ("import sys; from mecanum_fmu.models.build import build_all; "
             "build_all(sys.argv[1])")
-    subprocess.run([sys.executable, "-c", code, str(dest)], check=True, env=env, timeout=120)
+    subprocess.run([sys.executable, "-c", code, str(dest)], check=True, env=env, timeout=600)
+    assert any((tmp_path / "cache" / "mecanum_fmu" / "runtime").iterdir())   # really made anew
     again = sorted(p.name for p in dest.iterdir())
     assert again == sorted(f"{m}.fmu" for m in built_fmus)    # every bundled FMU
     for model in built_fmus:
         assert (dest / f"{model}.fmu").read_bytes() == built_fmus[model].read_bytes(), model
+
+
+def test_reused_members_are_the_bytes_a_fresh_compression_writes(tmp_path):
+    """write_zip(reuse=) copies a member deflated in another archive instead of deflating it
+    again (the bundled libpython): the archive is byte for byte the one written without."""
+    import random
+    from mecanum_fmu.storage import zip_bytes
+    rng = random.Random(7)
+    big = bytes(rng.getrandbits(8) for _ in range(200_000)) + b"abc" * 100_000
+    members = {"b/libpython.so": big, "a/model.xml": b"<x/>" * 50, "c/stdlib.zip": b"z" * 999}
+    old = tmp_path / "old.zip"
+    old.write_bytes(zip_bytes({"b/libpython.so": big, "c/stdlib.zip": b"z" * 999,
+                               "other": b"not in the new one"}, compresslevel=9))
+    fresh = zip_bytes(members, compresslevel=9)
+    assert zip_bytes(members, compresslevel=9, reuse=old) == fresh
+    with zipfile.ZipFile(io.BytesIO(fresh)) as zf:
+        assert {n: zf.read(n) for n in zf.namelist()} == members
+    changed = dict(members, **{"b/libpython.so": big[:-1] + b"!"})      # same size, other CRC
+    assert zip_bytes(changed, compresslevel=9, reuse=old) == zip_bytes(changed, compresslevel=9)
 
 
 # ------------------------------------------------------------------ running alone
@@ -577,3 +601,19 @@ def test_pose_integrator_state_round_trip(built_fmus):
         assert probe.getReal(outs) == reference[n_before]
         for fmu in (ref, probe):
             fmu.terminate()
+
+
+def test_without_a_compiler_the_build_says_its_fmus_are_not_self_contained(monkeypatch):
+    """No gcc: `make fmus` still builds (plain pythonfmu FMUs) and its last line says what
+    they then need, naming what is missing."""
+    from mecanum_fmu.models import embed
+    monkeypatch.setattr(embed.shutil, "which", lambda name: None)
+    embed.runtime_or_none.cache_clear()
+    try:
+        assert embed.runtime_or_none() is None
+        line = embed.summary()
+        assert "NOT self-contained" in line and "gcc not found" in line, line
+    finally:
+        monkeypatch.undo()
+        embed.runtime_or_none.cache_clear()
+    assert embed.runtime_or_none() is not None

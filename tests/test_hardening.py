@@ -249,8 +249,11 @@ def test_damaged_ssp(damage, place, expect, circle_ssp, sandbox, capsys, monkeyp
         elif damage == "dotdot_member":
             content["resources/../../x"] = b"x"
         elif damage == "huge_integer":
-            content["SystemStructure.ssd"] = content["SystemStructure.ssd"].replace(
-                b'<ssv:String value="sin(t)" />', b'<ssv:Integer value="1' + b"0" * 400 + b'" />')
+            # c2w's first parameter, L = 0.16 (String values are not in the SSD: in the FMUs)
+            ssd = content["SystemStructure.ssd"]
+            assert ssd.count(b'<ssv:Real value="0.16" />') == 2          # c2w's and w2c's
+            content["SystemStructure.ssd"] = ssd.replace(
+                b'<ssv:Real value="0.16" />', b'<ssv:Integer value="1' + b"0" * 400 + b'" />', 1)
         elif damage == "fmu_over_limit":
             monkeypatch.setattr(archive, "MAX_MEMBER_BYTES", 100_000)
         write_members(ssp, content)

@@ -1,5 +1,5 @@
 """The seed system in other FMI hosts - libcosim, Ecos, and Ecos' command-line program (a
-non-Python host that needs LD_PRELOAD=<libpython>) - loaded from our exported SSP and compared
+non-Python host; our FMUs carry their Python) - loaded from our exported SSP and compared
 with our Jacobi master at the same step (mecanum_fmu.interop.cross_check explains the tolerance).
 
 A host that cannot be loaded skips with what to install; with MECANUM_FMU_REQUIRE_TOOLS=1 (CI)

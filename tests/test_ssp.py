@@ -8,7 +8,7 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from helpers import child_env, run_child
+from helpers import CHAIN_CONNECTIONS, child_env, run_child
 from mecanum_fmu.models.library import read_description
 from mecanum_fmu.graph import compile_graph, port_type
 from mecanum_fmu.errors import ScenarioError
@@ -81,8 +81,10 @@ def test_export_structure_and_content(exported, circle_graph, built_fmus):
         assert comp.get("type") == "application/x-fmu-sharedlibrary"
         # connectors: names, kinds and types as in the FMU's own model description
         md = read_description(inst.fmu_path)
+        # (bundled models: no String parameters - their values are the FMU's own defaults)
         expected = {v.name: (v.causality, port_type(v)) for v in md.modelVariables
-                    if v.causality in ("input", "output", "parameter")}
+                    if v.causality in ("input", "output", "parameter")
+                    and not (v.causality == "parameter" and v.type == "String")}
         got = {}
         for c in comp.find(q("ssd", "Connectors")):
             (typ,) = list(c)
@@ -94,10 +96,12 @@ def test_export_structure_and_content(exported, circle_graph, built_fmus):
         for p in comp.iter(q("ssv", "Parameter")):
             (val,) = list(p)
             params[p.get("name")] = (val.tag.split("}")[1], val.get("value"))
-        want = {k: ssp_write._format(v) for k, v in inst.start_values.items()}
+        types = {v.name: v.type for v in md.modelVariables}
+        want = {k: (types[k], repr(float(v)) if types[k] == "Real" else str(v))
+                for k, v in inst.start_values.items() if types[k] != "String"}
         assert params == want
     assert len(graph.instance("c2w").start_values) == 4        # the shared geometry
-    assert params_of(comps, "source")["vy_expr"] == ("String", "cos(t)")
+    assert "vy_expr" not in params_of(comps, "source")         # cos(t): the FMU's default
     conns = [(c.get("startElement"), c.get("startConnector"), c.get("endElement"),
               c.get("endConnector")) for c in system.iter(q("ssd", "Connection"))]
     assert conns == [(c.source.instance, c.source.variable, c.target.instance,
@@ -113,6 +117,69 @@ def params_of(comps, name):
     comp = next(c for c in comps if c.get("name") == name)
     return {p.get("name"): (p[0].tag.split("}")[1], p[0].get("value"))
             for p in comp.iter(q("ssv", "Parameter"))}
+
+
+TYPED = """\
+name: typed
+experiment: {start_time: 0.0, stop_time: 2.0, step_size: 0.05, master: jacobi}
+components:
+  source: {fmu: VelocitySource, parameters: {vx_expr: "2.5", vy_expr: "0", w_expr: "0"}}
+  c2w: {fmu: Center2Wheel}
+  w2c: {fmu: Wheel2Center}
+  pose: {fmu: PoseIntegrator, parameters: {x0: 5, y0: -1}}
+""" + CHAIN_CONNECTIONS
+
+
+def test_values_take_the_fmu_variables_type_and_baked_strings_leave_the_ssd(built_fmus,
+                                                                            tmp_path):
+    """x0: 5 (a YAML int) sets a Real: written as ssv:Real 5.0; the String expressions are
+    baked into a variant FMU, so the SSD has neither their connectors nor their bindings
+    (OMSimulator reports an error for each); imported again, the value is the Real 5.0 and
+    the run ends where x0 = 5.0 puts it: x = 5 + 2.5 * 2."""
+    from helpers import write_scenario
+    from mecanum_fmu import master
+    from mecanum_fmu.runner import prepare
+    fmu_dir = next(iter(built_fmus.values())).parent
+    graph = prepare(write_scenario(tmp_path, "typed", TYPED), fmu_dir=fmu_dir)
+    path = ssp_write.export_ssp(graph, tmp_path / "typed.ssp")
+    comps = list(ssd_root(path).iter(q("ssd", "Component")))
+    assert params_of(comps, "pose") == {"x0": ("Real", "5.0"), "y0": ("Real", "-1.0")}
+    source = next(c for c in comps if c.get("name") == "source")
+    assert source.get("source").startswith("resources/VelocitySource_")       # the variant
+    assert not [e for e in source.iter() if e.tag in (q("ssc", "String"), q("ssv", "String"))]
+    again = prepare(path, fmu_dir=fmu_dir)
+    values = again.instance("pose").start_values
+    assert values["x0"] == 5.0 and type(values["x0"]) is float
+    results = master.simulate(again, again.scenario.experiment)
+    assert results["pose.x"][-1] == pytest.approx(10.0, abs=1e-12)
+    assert results["pose.y"][-1] == pytest.approx(-1.0, abs=1e-12)
+
+
+def test_ssp_import_types_an_integer_binding_for_a_real_as_real(exported, tmp_path):
+    """An SSP from another tool with <ssv:Integer value="5"/> for the Real x0 imports as 5.0."""
+    with zipfile.ZipFile(exported) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist()}
+    ssd = members["SystemStructure.ssd"].decode()
+    ours = '<ssd:Component name="pose"'
+    assert ours in ssd
+    at = ssd.index(ours)
+    end = ssd.index("</ssd:Component>", at)
+    block = ssd[at:end]
+    bound = block.replace("</ssv:Parameters>", '<ssv:Parameter name="x0"><ssv:Integer '
+                          'value="5"/></ssv:Parameter></ssv:Parameters>')
+    if "<ssd:ParameterBindings>" not in block:
+        bound = block.replace("</ssd:Connectors>", "</ssd:Connectors><ssd:ParameterBindings>"
+                              "<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet "
+                              'version="1.0" name="initialValues"><ssv:Parameters>'
+                              '<ssv:Parameter name="x0"><ssv:Integer value="5"/></ssv:Parameter>'
+                              "</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>"
+                              "</ssd:ParameterBinding></ssd:ParameterBindings>")
+    members["SystemStructure.ssd"] = (ssd[:at] + bound + ssd[end:]).encode()
+    with zipfile.ZipFile(tmp_path / "int.ssp", "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    comp = next(c for c in ssp_read.load_ssp(tmp_path / "int.ssp").components if c.name == "pose")
+    assert comp.parameters["x0"] == 5.0 and type(comp.parameters["x0"]) is float
 
 
 def test_export_is_deterministic(circle_graph, tmp_path):
@@ -156,7 +223,11 @@ def test_load_ssp_gives_the_same_scenario(exported, circle_graph, fmu_dir, cache
     graph = compile_graph(scenario, fmu_dir)
     for inst in graph.instances:
         want = circle_graph.instance(inst.name)
-        assert inst.start_values == want.start_values
+        strings = {v.name: v.start for v in inst.model.modelVariables if v.type == "String"}
+        # String values travel in the FMU (its defaults, baked when they differ), not the SSD
+        assert inst.start_values == {k: v for k, v in want.start_values.items()
+                                     if k not in strings}
+        assert all(strings[k] == v for k, v in want.start_values.items() if k in strings)
         assert [type(v) for v in inst.start_values.values()] == \
             [type(want.start_values[k]) for k in inst.start_values]
         assert inst.model.guid == want.model.guid
@@ -362,14 +433,27 @@ def test_not_an_ssp(tmp_path):
 # ------------------------------------------------------------------------------------ doctor
 
 def test_doctor_reports_what_each_fmu_needs(fmu_dir, built_fmus):
-    """Per FMU: the libpython its binary needs and where it is found (docs/openmodelica.md)."""
-    from mecanum_fmu.models.link import build_link
-    link = build_link()
-    if link is None:
-        pytest.skip("this Python has no shared libpython to link the FMUs to")
+    """Per FMU: self-contained, the glibc floor of its binaries, and the win64 story."""
+    import re
+    from elftools.elf.elffile import ELFFile
     proc = cli("doctor", "--fmu-dir", fmu_dir)
     assert proc.returncode == 0, proc.stderr
-    for model in built_fmus:
+    for model, fmu in built_fmus.items():
         line = next(l for l in proc.stdout.splitlines() if l.strip().startswith(f"{model}:"))
-        assert f"needs {link.soname}" in line and f"found: {link.path}" in line, line
-    assert "LD_PRELOAD=" in proc.stdout         # the route for FMUs built elsewhere
+        assert "linux64: self-contained" in line, line
+        assert "win64: pythonfmu's own DLL, NOT self-contained" in line and "python3.dll" in line
+        # the floor, independently: the newest GLIBC_ version named in any binary's
+        # version-needed table (.gnu.version_r), read here with pyelftools directly
+        floor = (0,)
+        with zipfile.ZipFile(fmu) as zf:
+            for name in zf.namelist():
+                if name.endswith(".so") or ".so." in name:
+                    import io
+                    elf = ELFFile(io.BytesIO(zf.read(name)))
+                    section = elf.get_section_by_name(".gnu.version_r")
+                    for _, auxes in section.iter_versions() if section else ():
+                        for aux in auxes:
+                            if re.fullmatch(r"GLIBC_[\d.]+", aux.name):
+                                floor = max(floor, tuple(map(int, aux.name[6:].split("."))))
+        assert f"glibc >= {'.'.join(map(str, floor))} " in line, (floor, line)
+    assert "LD_PRELOAD=" not in proc.stdout      # no preload line: nothing to preload

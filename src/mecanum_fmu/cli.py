@@ -139,9 +139,10 @@ def _add_sweep(sub) -> None:
 
 
 def _add_doctor(sub) -> None:
-    doctor = sub.add_parser("doctor", help="how to load the FMUs in other tools (LD_PRELOAD)",
-                            description="Print where the FMUs are and the LD_PRELOAD line "
-                                        "non-Python hosts need for pythonfmu FMUs.")
+    doctor = sub.add_parser("doctor", help="what each FMU needs on a target machine (Python, glibc, win64)",
+                            description="Print, per FMU, whether it is self-contained (carries "
+                                        "its Python), the glibc version and system libraries "
+                                        "its Linux binaries need, and what a Windows host needs.")
     doctor.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     doctor.set_defaults(func=cmd_doctor)
 
@@ -270,12 +271,8 @@ def cmd_fmus(args) -> int:
     build_all(args.dest or default_fmu_dir(), only_stale=not args.force,
               report=lambda path, state: print(f"{path}  ({path.stat().st_size // 1024} KiB, "
                                                f"{state})"))
-    from .models.link import build_link
-    link = build_link()
-    print("other FMI tools: " + (f"the binaries load {link.path} by themselves (needed entry "
-                                 "+ runpath), no LD_PRELOAD" if link else
-                                 "a non-Python host needs LD_PRELOAD=<a shared libpython>")
-          + " (details: python -m mecanum_fmu doctor, docs/openmodelica.md)")
+    from .models.embed import summary
+    print(summary() + " (details: python -m mecanum_fmu doctor, docs/other-tools.md)")
     return 0
 
 

@@ -12,19 +12,25 @@
   removed on any error or signal, so a reader never sees a half-written file.
 - write_zip(): the one deterministic archive writer (FMUs and SSPs): sorted members, a fixed
   date, fixed permissions, deflated; written atomically, so two writes of the same content are
-  byte-identical.
+  byte-identical. Members already deflated in another archive (an FMU's bundled Python) can
+  be copied as they are (reuse=), so large unchanged members are compressed once, not per
+  archive.
 """
 from __future__ import annotations
 
+import contextlib
+import copy
 import errno
 import io
 import os
 import stat
+import struct
 import tempfile
 import zipfile
+import zlib
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Iterator, Mapping
+from typing import IO, Iterator, Mapping, Sequence
 
 FIXED_DATE = (1980, 1, 1, 0, 0, 0)
 
@@ -71,16 +77,26 @@ def read_regular(path: Path | str, limit: int, what: str = "an input file") -> b
     return data
 
 
-def zip_bytes(members: Mapping[str, bytes], compresslevel: int | None = None) -> bytes:
-    """The deterministic zip of members (archive name -> bytes), as bytes."""
+def zip_bytes(members: Mapping[str, bytes], compresslevel: int | None = None,
+              reuse: Path | Sequence[Path] = (), stored: bool = False) -> bytes:
+    """The deterministic zip of members (archive name -> bytes), as bytes; stored: not
+    compressed (what Python's zipimport reads without zlib). With reuse (archives written
+    here), a member whose name, size and CRC match one of reuse's is copied
+    compressed as it is there, not compressed again (a bundled libpython: 3 s at level 9)."""
     buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w") as zf:
+    with zipfile.ZipFile(buffer, "w") as zf, _reusable(reuse) as old:
         for name in sorted(members):
+            data = members[name]
+            known = old.get(name)
+            if known is not None and known[0].file_size == len(data) \
+                    and known[0].CRC == zlib.crc32(data):
+                _copy_compressed(zf, *known)
+                continue
             info = zipfile.ZipInfo(name, date_time=FIXED_DATE)
-            info.compress_type = zipfile.ZIP_DEFLATED
+            info.compress_type = zipfile.ZIP_STORED if stored else zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
             info.create_system = 3
-            zf.writestr(info, members[name], compresslevel=compresslevel)
+            zf.writestr(info, data, compresslevel=compresslevel)
     return buffer.getvalue()
 
 
@@ -142,10 +158,44 @@ def atomic_open(path: Path | str, mode: str = "w", unique: bool = False,
             yield fh
 
 
-def write_zip(path: Path, members: Mapping[str, bytes], compresslevel: int | None = None) -> Path:
-    """Write members (archive name -> bytes) as a deterministic zip at path, atomically."""
+@contextlib.contextmanager
+def _reusable(paths: Path | Sequence[Path]):
+    """name -> (ZipInfo, its compressed bytes) of the deflated members of the archives."""
+    out = {}
+    for path in [paths] if isinstance(paths, (str, Path)) else paths:
+        with zipfile.ZipFile(path) as zf, open(path, "rb") as raw:
+            for info in zf.infolist():
+                if info.compress_type != zipfile.ZIP_DEFLATED:
+                    continue
+                raw.seek(info.header_offset)
+                header = raw.read(30)
+                name_len, extra_len = struct.unpack("<HH", header[26:30])
+                raw.seek(info.header_offset + 30 + name_len + extra_len)
+                out[info.filename] = (info, raw.read(info.compress_size))
+    yield out
+
+
+def _copy_compressed(zf: zipfile.ZipFile, info: zipfile.ZipInfo, data: bytes) -> None:
+    """Append an already deflated member (zipfile has no public call for this; these
+    attributes have been stable since Python 2: fp, filelist, NameToInfo, start_dir)."""
+    new = copy.copy(info)
+    new.header_offset = zf.fp.tell()
+    new.extra = b""
+    new.flag_bits &= ~0x08          # sizes in the local header, no data descriptor
+    zf.fp.write(new.FileHeader(zip64=False))
+    zf.fp.write(data)
+    zf.filelist.append(new)
+    zf.NameToInfo[new.filename] = new
+    zf.start_dir = zf.fp.tell()
+    zf._didModify = True
+
+
+def write_zip(path: Path, members: Mapping[str, bytes], compresslevel: int | None = None,
+              reuse: Path | Sequence[Path] = ()) -> Path:
+    """Write members (archive name -> bytes) as a deterministic zip at path, atomically
+    (reuse: see zip_bytes)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path, unique=True) as temp:
-        temp.write_bytes(zip_bytes(members, compresslevel))
+        temp.write_bytes(zip_bytes(members, compresslevel, reuse))
     return path

@@ -8,14 +8,14 @@ is the host's own.
 
   libcosim  Open Simulation Platform, PyPI `libcosimpy`, `CosimExecution.from_ssp_file`
             (fixed-step algorithm; time is an integer count of nanoseconds).
-  ecos      PyPI `ecospy`, `EcosSimulation(ssp_path=...)` (needs Debian's libtbb12). Ecos
+  ecos      PyPI `ecospy`, `EcosSimulation(ssp_path=...)` (needs Intel TBB's libtbb.so.12:
+            PyPI `tbb`, loaded from the environment before ecospy, else the system's). Ecos
             applies an SSP's parameter bindings only when their set is named at init, so we
             name it (ssp.PARAMETER_SET); without that it silently runs the FMUs' defaults.
   ecos-cli  the `ecos` program shipped inside the ecospy wheel: a non-Python host. It runs with
-            LD_PRELOAD removed from its environment: our FMUs find their libpython themselves
-            (models/link.py). FMUs built elsewhere by plain pythonfmu need LD_PRELOAD=<libpython>
-            (what `doctor` prints); set MECANUM_FMU_ECOS_PRELOAD=<libpython> for those. Its CSV
-            has 6 decimals.
+            LD_PRELOAD removed from its environment: our FMUs carry their Python
+            (models/embed.py). FMUs built elsewhere by plain pythonfmu need LD_PRELOAD=<libpython>;
+            set MECANUM_FMU_ECOS_PRELOAD=<libpython> for those. Its CSV has 6 decimals.
 """
 from __future__ import annotations
 
@@ -35,8 +35,8 @@ from .ssp import PARAMETER_SET
 HOSTS = ("libcosim", "ecos", "ecos-cli")
 INSTALL = {
     "libcosim": "pip install libcosimpy",
-    "ecos": "pip install ecospy; on Debian/Ubuntu also: apt-get install libtbb12",
-    "ecos-cli": "pip install ecospy; on Debian/Ubuntu also: apt-get install libtbb12",
+    "ecos": "pip install ecospy tbb",
+    "ecos-cli": "pip install ecospy tbb",
 }
 UNAVAILABLE = 3          # the child's exit code when the host cannot be loaded
 
@@ -138,37 +138,80 @@ def _ecos(ssp: str, start: float, stop: float, step: float, names: list[str]) ->
                 setup_s=t1 - t0, simulate_s=t2 - t1)
 
 
+def tbb_folder() -> str | None:
+    """The folder of Intel TBB's runtime libtbb.so.12 from PyPI `tbb`, or None when that
+    wheel is not installed (then the system's library, if any, is used)."""
+    from importlib.metadata import PackageNotFoundError, distribution
+    try:
+        tbb = next((f for f in distribution("tbb").files or () if f.name == "libtbb.so.12"), None)
+    except PackageNotFoundError:
+        return None
+    return str(Path(tbb.locate()).resolve().parent) if tbb is not None else None
+
+
+def ecos_libraries() -> list[str]:
+    """The folders the `ecos` program needs on LD_LIBRARY_PATH: ecospy's binaries and TBB's."""
+    from importlib.util import find_spec
+    spec = find_spec("ecospy")
+    folders = [str(Path(spec.origin).parent / "binaries")] if spec is not None else []
+    return folders + [f for f in (tbb_folder(),) if f]
+
+
+def ecos_program(folder: Path) -> Path:
+    """A runnable copy of the wheel's `ecos` program in folder (the wheel ships it without
+    the executable bit)."""
+    from importlib.util import find_spec
+    program = Path(folder) / "ecos"
+    shutil.copy(Path(find_spec("ecospy").origin).parent / "binaries" / "ecos", program)
+    program.chmod(0o755)
+    return program
+
+
+def ecos_command(program: Path, ssp: str, start: float, stop: float, step: float) -> list[str]:
+    # stop half a step late: Ecos' clock drifts by adding h each step (see _ecos)
+    return [str(program), "simulate", "--path", ssp, "--startTime", repr(start),
+            "--stopTime", repr(stop + step / 2), "--stepSize", repr(step),
+            "--parameterSet", PARAMETER_SET, "-l", "warn"]
+
+
+def ecos_csv_values(folder: Path, names: list[str]) -> tuple[float, dict[str, float]]:
+    """The end time and the last row's values of `names` in the CSV ecos wrote in folder."""
+    table = next(Path(folder).glob("*.csv"))
+    with open(table, newline="") as fh:
+        rows = list(csv.reader(fh, skipinitialspace=True))
+    header = {h.split("[", 1)[0].replace("::", ".", 1): i for i, h in enumerate(rows[0])}
+    last = rows[-1]
+    return float(last[header["time"]]), {name: float(last[header[name]]) for name in names}
+
+
 def _ecos_cli(ssp: str, start: float, stop: float, step: float, names: list[str]) -> dict:
     from importlib.metadata import version
-    from importlib.util import find_spec
 
-    binaries = Path(find_spec("ecospy").origin).parent / "binaries"
     with tempfile.TemporaryDirectory(prefix="mecanum-ecos-") as tmp:
-        program = Path(tmp) / "ecos"       # the wheel ships it without the executable bit
-        shutil.copy(binaries / "ecos", program)
-        program.chmod(0o755)
+        program = ecos_program(Path(tmp))
         env = dict(os.environ, LD_LIBRARY_PATH=os.pathsep.join(
-            p for p in (str(binaries), os.environ.get("LD_LIBRARY_PATH")) if p))
+            p for p in (*ecos_libraries(), os.environ.get("LD_LIBRARY_PATH")) if p))
         env.pop("LD_PRELOAD", None)       # the FMUs must load by themselves
         if os.environ.get("MECANUM_FMU_ECOS_PRELOAD"):     # FMUs built elsewhere
             env["LD_PRELOAD"] = os.environ["MECANUM_FMU_ECOS_PRELOAD"]
-        # stop half a step late: Ecos' clock drifts by adding h each step (see _ecos)
-        cmd = [str(program), "simulate", "--path", ssp, "--startTime", repr(start),
-               "--stopTime", repr(stop + step / 2), "--stepSize", repr(step),
-               "--parameterSet", PARAMETER_SET, "-l", "warn"]
         t0 = time.perf_counter()
-        proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        proc = subprocess.run(ecos_command(program, ssp, start, stop, step), cwd=tmp, env=env,
+                              capture_output=True, text=True)
         wall = time.perf_counter() - t0
         if proc.returncode != 0:
             raise RuntimeError(f"ecos exited with code {proc.returncode}: {proc.stderr[-2000:]}")
-        table = next(Path(tmp).glob("*.csv"))
-        with open(table, newline="") as fh:
-            rows = list(csv.reader(fh, skipinitialspace=True))
-    header = {h.split("[", 1)[0].replace("::", ".", 1): i for i, h in enumerate(rows[0])}
-    last = rows[-1]
-    values = {name: float(last[header[name]]) for name in names}
-    return dict(version=version("ecospy"), end_time=float(last[header["time"]]), values=values,
+        end_time, values = ecos_csv_values(Path(tmp), names)
+    return dict(version=version("ecospy"), end_time=end_time, values=values,
                 setup_s=None, simulate_s=wall)
+
+
+def _load_tbb() -> None:
+    """Load PyPI tbb's libtbb.so.12 globally, so ecospy's libecosc.so finds it (when the
+    wheel is installed; otherwise the system's library is used)."""
+    import ctypes
+    folder = tbb_folder()
+    if folder is not None:
+        ctypes.CDLL(str(Path(folder) / "libtbb.so.12"), mode=ctypes.RTLD_GLOBAL)
 
 
 def _child(argv: list[str]) -> int:
@@ -178,6 +221,7 @@ def _child(argv: list[str]) -> int:
         if host == "libcosim":
             import libcosimpy.CosimExecution  # noqa: F401
         else:
+            _load_tbb()
             import ecospy  # noqa: F401  (loads libecosc.so, which needs libtbb.so.12)
     except (ImportError, OSError) as err:
         print(f"cannot load {host}: {err}")

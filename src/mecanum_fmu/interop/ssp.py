@@ -28,6 +28,18 @@ for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)
 
 
+def as_type(value, kind: str | None):
+    """A start value as the type of the FMU variable it sets (kind: port_type of that
+    variable), whatever literal it was written with: `x0: 5` for a Real is 5.0, an integral
+    Real for an Integer is an int. Anything else (a wrong type) is returned as it is, for the
+    graph's checks to report."""
+    if kind == "Real" and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if kind == "Integer" and isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
 def q(prefix: str, tag: str) -> str:
     """The qualified tag name {namespace}tag."""
     return f"{{{NS[prefix]}}}{tag}"

@@ -11,7 +11,7 @@ scenario's values:
     __init__, set those values through the variables' setters - what fmi2SetString would do -
     so the slave starts with them even when nobody calls fmi2SetString.
 
-Everything else (binaries, pythonfmu runtime) is copied byte for byte. One FMU per distinct set
+Everything else (binaries, the bundled Python, pythonfmu's runtime) is copied byte for byte. One FMU per distinct set
 of values, named `<Model>_<first 12 hex digits of its sha256>.fmu`: deterministic, so two
 exports of one scenario are identical and two components with the same values share a file.
 The String bindings stay in the SSD (hosts that apply them set the same values).
@@ -84,15 +84,16 @@ def variants(graph) -> dict[str, Variant]:
         fmu = Path(inst.fmu_path).resolve()
         key = (str(fmu), json.dumps(changes, sort_keys=True))
         if key not in made:
-            data = bake(fmu.read_bytes(), changes)
+            data = bake(fmu.read_bytes(), changes, reuse=fmu)
             digest = hashlib.sha256(data).hexdigest()[:12]
             made[key] = Variant(f"{inst.model.modelName}_{digest}.fmu", data)
         out[inst.name] = made[key]
     return out
 
 
-def bake(fmu: bytes, values: dict[str, str]) -> bytes:
-    """The FMU archive `fmu` with `values` (String parameter -> value) as its defaults."""
+def bake(fmu: bytes, values: dict[str, str], reuse: Path | None = None) -> bytes:
+    """The FMU archive `fmu` with `values` (String parameter -> value) as its defaults; reuse:
+    the archive's file, whose unchanged members (the bundled Python) are copied deflated."""
     import io
     with zipfile.ZipFile(io.BytesIO(fmu)) as zf:
         entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.filename.endswith("/")}
@@ -102,7 +103,7 @@ def bake(fmu: bytes, values: dict[str, str]) -> bytes:
     module = entries["resources/slavemodule.txt"].decode().strip()
     script = f"resources/{module}.py"
     entries[script] = entries[script] + _PATCH.format(mark=_MARK, values=repr(values)).encode()
-    return zip_bytes(entries, compresslevel=9)
+    return zip_bytes(entries, compresslevel=9, reuse=reuse)
 
 
 def _description(xml: bytes, values: dict[str, str], tag: str) -> bytes:

@@ -20,7 +20,9 @@ from xml.etree import ElementTree as ET
 from ..errors import Problem, ScenarioError
 from ..scenario import (Component, Connection, Scenario, Scalar, VarRef, is_finite,
                        is_identifier, parse_experiment, parse_ref, show, usable_name)
-from .ssp import ANNOTATION_TYPE, FMU_MIME, NS, SSD_NAME, local, namespace, q
+from .ssp import ANNOTATION_TYPE, FMU_MIME, NS, SSD_NAME, as_type, local, namespace, q
+from ..graph import port_type
+from ..models.library import read_description
 from ..archive import ZIP_ERRORS, ArchiveError, checked_members, extract_file, read_member
 from ..storage import NotARegularFile, cache_root, open_regular, read_regular
 
@@ -105,7 +107,7 @@ class _SsdReader:
             self.bad(f"{self.sys_place}/Elements", "no ssd:Component: a system needs at least "
                                                    "one FMU")
         # graph messages name the SSD place: components carry it
-        return [Component(c.name, c.fmu, params_of[c.name], self.at(c.place))
+        return [Component(c.name, c.fmu, _typed(Path(c.fmu), params_of[c.name]), self.at(c.place))
                 for c, _ in found if c.fmu]
 
     def _component(self, i: int, elem):
@@ -320,6 +322,16 @@ class _Source:
         except OSError as err:
             raise ArchiveError(f"cannot be copied into the cache ({target.parent}): "
                                f"{err.strerror or err}") from None
+
+
+def _typed(fmu: Path, params: dict[str, Scalar]) -> dict[str, Scalar]:
+    """The values as the types of the FMU variables they set (ssp.as_type: an ssv:Integer 5
+    for a Real is 5.0); an FMU that cannot be read is left to the graph's checks."""
+    try:
+        kinds = {v.name: port_type(v) for v in read_description(fmu).modelVariables}
+    except ValueError:
+        return params
+    return {name: as_type(value, kinds.get(name)) for name, value in params.items()}
 
 
 def _bindings(owner, place: str, source: _Source, bad: Callable) -> dict[str, Scalar]:

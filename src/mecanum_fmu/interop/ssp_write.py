@@ -9,13 +9,15 @@ from xml.etree import ElementTree as ET
 from ..graph import port_type
 from ..scenario import Scalar
 from . import ssp_bake, ssp_vendor
-from .ssp import (ANNOTATION_TYPE, FMU_MIME, PARAMETER_SET, SSD_NAME, VALUE_TAGS, q)
+from .ssp import ANNOTATION_TYPE, FMU_MIME, PARAMETER_SET, SSD_NAME, VALUE_TAGS, as_type, q
 from ..storage import write_zip
 
 
 
-def _format(value: Scalar) -> tuple[str, str]:
-    """(SSV/SSC type tag, value text) for a start value; repr keeps floats bit-exact."""
+def _format(value: Scalar, kind: str | None = None) -> tuple[str, str]:
+    """(SSV/SSC type tag, value text) for a start value, typed as the FMU variable it sets
+    (kind, when known); repr keeps floats bit-exact."""
+    value = as_type(value, kind)
     if isinstance(value, bool):
         return "Boolean", "true" if value else "false"
     if isinstance(value, int):
@@ -25,8 +27,11 @@ def _format(value: Scalar) -> tuple[str, str]:
     return "String", str(value)
 
 
-def build_ssd(graph, sources: dict[str, str]) -> bytes:
-    """The SystemStructure.ssd text of a compiled graph; sources: instance -> FMU source URI."""
+def build_ssd(graph, sources: dict[str, str], strings_in_fmu: set[str] = frozenset()) -> bytes:
+    """The SystemStructure.ssd text of a compiled graph; sources: instance -> FMU source URI;
+    strings_in_fmu: instances whose String parameters are their FMU's own defaults (bundled
+    models, baked or at the default): no String parameter connector or binding is written for
+    those (OMSimulator cannot import either and reports an error for each)."""
     scenario = graph.scenario
     exp = scenario.experiment
     root = ET.Element(q("ssd", "SystemStructureDescription"),
@@ -39,26 +44,12 @@ def build_ssd(graph, sources: dict[str, str]) -> bytes:
         inst = graph.instance(comp.name)
         node = ET.SubElement(elements, q("ssd", "Component"), {
             "name": inst.name, "type": FMU_MIME, "source": sources[inst.name]})
-        connectors = ET.SubElement(node, q("ssd", "Connectors"))
-        for var in inst.model.modelVariables:
-            if var.causality not in ("input", "output", "parameter"):
-                continue
-            conn = ET.SubElement(connectors, q("ssd", "Connector"),
-                                 {"name": var.name, "kind": var.causality})
-            kind = port_type(var)
-            if kind in VALUE_TAGS:
-                ET.SubElement(conn, q("ssc", kind))   # units left out: no ssd:Units table
-        if inst.start_values:
-            bindings = ET.SubElement(node, q("ssd", "ParameterBindings"))
-            binding = ET.SubElement(bindings, q("ssd", "ParameterBinding"))
-            values = ET.SubElement(binding, q("ssd", "ParameterValues"))
-            pset = ET.SubElement(values, q("ssv", "ParameterSet"),
-                                 {"version": "1.0", "name": PARAMETER_SET})
-            params = ET.SubElement(pset, q("ssv", "Parameters"))
-            for key in sorted(inst.start_values):
-                tag, text = _format(inst.start_values[key])
-                param = ET.SubElement(params, q("ssv", "Parameter"), {"name": key})
-                ET.SubElement(param, q("ssv", tag), {"value": text})
+        kinds = {var.name: port_type(var) for var in inst.model.modelVariables}
+        skip = ({v.name for v in inst.model.modelVariables
+                 if v.causality == "parameter" and kinds[v.name] == "String"}
+                if inst.name in strings_in_fmu else set())
+        _connectors(node, inst, skip)
+        _bindings(node, {k: v for k, v in inst.start_values.items() if k not in skip}, kinds)
     connections = ET.SubElement(system, q("ssd", "Connections"))
     for conn in scenario.connections:         # declared order, like the YAML
         ET.SubElement(connections, q("ssd", "Connection"), {
@@ -77,6 +68,33 @@ def build_ssd(graph, sources: dict[str, str]) -> bytes:
             ET.SubElement(ours, q("mf", "Output"), {"name": str(ref)})
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+
+
+def _connectors(node, inst, skip: set[str]) -> None:
+    connectors = ET.SubElement(node, q("ssd", "Connectors"))
+    for var in inst.model.modelVariables:
+        if var.causality not in ("input", "output", "parameter") or var.name in skip:
+            continue
+        conn = ET.SubElement(connectors, q("ssd", "Connector"),
+                             {"name": var.name, "kind": var.causality})
+        kind = port_type(var)
+        if kind in VALUE_TAGS:
+            ET.SubElement(conn, q("ssc", kind))   # units left out: no ssd:Units table
+
+
+def _bindings(node, start_values: dict, kinds: dict[str, str]) -> None:
+    if not start_values:
+        return
+    bindings = ET.SubElement(node, q("ssd", "ParameterBindings"))
+    binding = ET.SubElement(bindings, q("ssd", "ParameterBinding"))
+    values = ET.SubElement(binding, q("ssd", "ParameterValues"))
+    pset = ET.SubElement(values, q("ssv", "ParameterSet"),
+                         {"version": "1.0", "name": PARAMETER_SET})
+    params = ET.SubElement(pset, q("ssv", "Parameters"))
+    for key in sorted(start_values):
+        tag, text = _format(start_values[key], kinds.get(key))
+        param = ET.SubElement(params, q("ssv", "Parameter"), {"name": key})
+        ET.SubElement(param, q("ssv", tag), {"value": text})
 
 
 def export_ssp(graph, path: str | Path) -> Path:
@@ -101,9 +119,10 @@ def export_ssp(graph, path: str | Path) -> Path:
             files[name] = fmu
             by_file[fmu] = name
         sources[inst.name] = by_file[fmu]
-    ssd = ssp_vendor.with_vendor_annotations(build_ssd(graph, sources),
+    strings_in_fmu = {i.name for i in graph.instances if ssp_bake.is_bakeable(i)}
+    ssd = ssp_vendor.with_vendor_annotations(build_ssd(graph, sources, strings_in_fmu),
                                              graph.scenario.experiment.step_size)
     members = {SSD_NAME: ssd}
     members.update((name, data if isinstance(data, bytes) else data.read_bytes())
                    for name, data in files.items())
-    return write_zip(path, members)
+    return write_zip(path, members, compresslevel=1)   # FMUs are zips already: little to gain

@@ -21,7 +21,7 @@ from pythonfmu import FmuBuilder
 from .catalog import MODELS
 from .library import bundled_fmu_path, is_current, slave_source
 from ..storage import write_zip
-from . import link as fmu_link
+from . import embed
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},
               "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"},
@@ -44,10 +44,12 @@ def build_fmu(model_name: str, dest_dir: Path) -> Path:
         with zipfile.ZipFile(raw) as zf:
             entries = {info.filename: zf.read(info) for info in zf.infolist()
                        if not info.filename.endswith("/")}
-    entries = fmu_link.link_entries(entries, fmu_link.build_link())
+    rt, reuse = embed.runtime_or_none(), None
+    if rt is not None:
+        entries, reuse = embed.embed_entries(entries, model_name, rt)
     entries["modelDescription.xml"] = _fix_model_description(
         entries["modelDescription.xml"], slave_class, source.guid)
-    return write_zip(target, entries, compresslevel=9)
+    return write_zip(target, entries, compresslevel=9, reuse=reuse)
 
 
 

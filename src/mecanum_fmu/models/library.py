@@ -17,7 +17,7 @@ from fmpy.model_description import ModelDescription
 from ..errors import did_you_mean
 from ..archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
 from .catalog import MODELS
-from .link import build_link, with_prelude
+from .embed import runtime_or_none
 from ..storage import cache_root
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -48,9 +48,9 @@ class SlaveSource:
     def digest(self) -> str:
         """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
         text = self.script + "\npythonfmu " + version("pythonfmu")
-        linked = build_link()          # the libpython the binaries are linked to (link.py)
-        if linked is not None:
-            text += "\nlinked to " + linked.tag
+        bundled = runtime_or_none()    # the Python runtime the FMU carries (embed.py)
+        if bundled is not None:
+            text += "\n" + bundled.tag
         return hashlib.sha256(text.encode()).hexdigest()
 
     @property
@@ -69,7 +69,7 @@ def slave_source(model_name: str) -> SlaveSource:
         block = (PACKAGE_DIR / where).read_text()
         return f"# --- inlined from mecanum_fmu/models/{where} ---\n{block}# --- end ---"
 
-    script = with_prelude(_INLINE.sub(inline, text), build_link())
+    script = _INLINE.sub(inline, text)
     return SlaveSource(model_name, f"mecanum_fmu_{module}", script)
 
 
