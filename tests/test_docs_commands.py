@@ -55,26 +55,8 @@ SKIPS = [
 # Commands that are known not to run today, each with the issue or branch that fixes it. Keyed
 # by the command exactly as written: rewriting the command retires its entry. The test is an
 # xfail(strict): when the command runs again, it reports XPASS and the entry must go.
-KNOWN_BROKEN = {
-    # bare python/fmpy in docs owned by other helpers of issue 20 (branches travel, sweeps,
-    # tables, masters); they write .venv/bin/... and these entries retire themselves.
-    "python -m mecanum_fmu export-ssp scenarios/circle.yaml -o circle.ssp": "bare python (travel)",
-    "python -m mecanum_fmu doctor": "bare python (travel)",
-    "python -m mecanum_fmu cross-check scenarios/circle.yaml": "bare python (travel)",
-    "python -m mecanum_fmu run system.ssp": "bare python (travel)",
-    "python -m mecanum_fmu info Center2Wheel": "bare python (travel)",
-    "python -m mecanum_fmu.interop.other_hosts": "bare python (travel)",
-    "fmpy simulate fmus/Center2Wheel.fmu --stop-time 1 --output-interval 0.5 "
-    "--start-values vy 1 R 0.05 --output-file c2w.csv": "bare fmpy (travel)",
-    'B=$(python -c "import ecospy, os; print(os.path.dirname(ecospy.__file__))")/binaries':
-        "bare python (travel)",
-    "LIBPY=$(python -c \"import sysconfig as s; print(s.get_config_var('LIBDIR') + '/' + "
-    "s.get_config_var('INSTSONAME'))\")": "bare python (travel)",
-    "python -c \"import sysconfig as s; print(s.get_config_var('LIBDIR') + '/' + "
-    "s.get_config_var('INSTSONAME'))\"": "bare python (travel)",
-    "LD_PRELOAD=$(python -c \"import sysconfig, os; print(os.path.join(sysconfig.get_config_var("
-    "'LIBDIR'), sysconfig.get_config_var('INSTSONAME')))\") OMSimulator model.ssp":
-        "bare python (travel)",
+KNOWN_BROKEN: dict[str, str] = {
+    # "the command as written": "why it fails and which issue fixes it" (a strict xfail)
 }
 
 
