@@ -17,11 +17,6 @@ from mecanum_fmu.runner import prepare, run
 CIRCLE = ROOT / "scenarios" / "closed_loop" / "track_circle.yaml"
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(built_fmus):
-    return next(iter(built_fmus.values())).parent
-
-
 def circle(tmp_path, replace=(), name="loop"):
     text = CIRCLE.read_text()
     for old, new in replace:

@@ -248,9 +248,11 @@ def test_cli_run_writes_dashboard(tmp_path):
 
 def frame_of(path):
     """The dashboard frame the plot worker lays out for a bundled scenario (no run needed)."""
+    from mecanum_fmu.models.topology import topology
     from mecanum_fmu.report.plot_worker import _frame_hint
     from mecanum_fmu.runner import prepare
-    return plots.dashboard_frame(*_frame_hint(prepare(ROOT / "scenarios" / path)))
+    graph = prepare(ROOT / "scenarios" / path)
+    return plots.dashboard_frame(*_frame_hint(graph, topology(graph).roles))
 
 
 def titles(frame):

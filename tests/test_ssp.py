@@ -130,7 +130,7 @@ components:
 """ + CHAIN_CONNECTIONS
 
 
-def test_values_take_the_fmu_variables_type_and_baked_strings_leave_the_ssd(built_fmus,
+def test_values_take_the_fmu_variables_type_and_baked_strings_leave_the_ssd(fmu_dir,
                                                                             tmp_path):
     """x0: 5 (a YAML int) sets a Real: written as ssv:Real 5.0; the String expressions are
     baked into a variant FMU, so the SSD has neither their connectors nor their bindings
@@ -139,7 +139,6 @@ def test_values_take_the_fmu_variables_type_and_baked_strings_leave_the_ssd(buil
     from helpers import write_scenario
     from mecanum_fmu import master
     from mecanum_fmu.runner import prepare
-    fmu_dir = next(iter(built_fmus.values())).parent
     graph = prepare(write_scenario(tmp_path, "typed", TYPED), fmu_dir=fmu_dir)
     path = ssp_write.export_ssp(graph, tmp_path / "typed.ssp")
     comps = list(ssd_root(path).iter(q("ssd", "Component")))

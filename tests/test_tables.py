@@ -35,11 +35,6 @@ connections:
 """
 
 
-@pytest.fixture(scope="module")
-def fmu_dir(built_fmus):
-    return next(iter(built_fmus.values())).parent
-
-
 def source_scenario(folder, spec, name="tab"):
     return write_scenario(folder, name, SOURCE.format(spec=spec))
 
