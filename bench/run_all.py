@@ -1,6 +1,7 @@
 """`make bench`: the quick benchmarks, measured in one run on this machine, within a budget of
-3 minutes; `make bench-long` (run_all.py --long): the long ones (peak memory against run
-length up to 10^7 steps, 1,000 runs in one process, the whole 1000-sample sweep).
+3 minutes; `make bench-long` (run_all.py --long): the long ones (other FMI hosts, the full
+accuracy table, peak memory against run length up to 10^7 steps, 1,000 runs in one process,
+the whole 1000-sample sweep).
 
 Not tests: nothing here asserts a time; it prints ratios measured side by side, each
 benchmark's time, the total and the budget. No benchmark writes a tracked file: the
@@ -31,7 +32,6 @@ QUICK = (
      "table, TOL 1e-2..1e-4)", lambda: accuracy.main(["--quick", "--scenario", "circle.yaml",
                                                      "--scenario", "profiles/quiet_then_busy.yaml"])),
     ("stepping-loop overhead (bench/loop_overhead.py)", loop_overhead.main),
-    ("the same run in other FMI hosts (bench/other_hosts.py)", other_hosts.main),
     ("closed-loop convergence (bench/closed_loop_order.py)", closed_loop_order.main),
     ("sweeps on Dask: rates and per-run overhead (bench/sweep.py --runs 40 --no-study)",
      lambda: sweep.main(["--runs", "40", "--no-study"])),
@@ -41,6 +41,7 @@ QUICK = (
      lambda: turnaround.main(3)),
 )
 LONG = (
+    ("the same run in other FMI hosts (bench/other_hosts.py)", other_hosts.main),
     ("accuracy per cost, every scenario and tolerance (bench/accuracy.py)",
      lambda: accuracy.main([])),
     ("peak memory against run length (bench/memory.py)", memory.main),
