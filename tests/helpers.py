@@ -30,6 +30,16 @@ def tool_missing(reason: str):
     pytest.skip(reason)
 
 
+def mount_tmpfs(folder: Path, options: str) -> Path:
+    """Create folder and mount a tmpfs with `options` on it (root), or `tool_missing`."""
+    folder.mkdir()
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        tool_missing(f"cannot mount a tmpfs (not root, or no permission): {proc.stderr}")
+    return folder
+
+
 def run_host_or_skip(host: str, ssp: Path, **kwargs):
     """`other_hosts.run_host`, or `tool_missing` when the host cannot be loaded."""
     try:

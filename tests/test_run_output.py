@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import ROOT, SPEC_END, child_env, cli_args, read_csv, run_child, run_main, tool_missing
+from helpers import (ROOT, SPEC_END, child_env, cli_args, mount_tmpfs, read_csv, run_child,
+                     run_main)
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
 TIMEOUT = 180          # a safety net against a hung child, not a measurement
@@ -107,21 +108,13 @@ def test_an_unusable_output_folder_is_bad_input_before_simulating(tmp_path, caps
     assert (tmp_path / "file").read_text() == "not a folder\n"
 
 
-def _mount_tmpfs(folder: Path, options: str) -> None:
-    folder.mkdir()
-    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
-                          capture_output=True, text=True)
-    if proc.returncode != 0:
-        tool_missing(f"cannot mount a tmpfs (not root, or no permission): {proc.stderr}")
-
-
 @pytest.fixture
 def tmpfs(tmp_path):
     mounted = []
 
     def mount(name: str, options: str) -> Path:
         folder = tmp_path / name
-        _mount_tmpfs(folder, options)
+        mount_tmpfs(folder, options)
         mounted.append(folder)
         return folder
     yield mount

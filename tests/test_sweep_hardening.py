@@ -25,7 +25,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from helpers import ROOT, child_env, run_main
+from helpers import ROOT, child_env, mount_tmpfs, run_main
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
 PROFILE = ROOT / "scenarios" / "profiles"
@@ -71,14 +71,7 @@ def test_a_read_only_output_folder_is_refused(tmp_path, capsys, fmu_dir):
     """A read-only bind of a folder would need root; chmod works for a non-root user and
     the lock's open() is what fails for both (root: a read-only tmpfs, in test_run_output)."""
     if os.geteuid() == 0:
-        ro = tmp_path / "ro"
-        ro.mkdir()
-        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(ro)],
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            if os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1":
-                pytest.fail(f"cannot mount a tmpfs: {proc.stderr}")
-            pytest.skip(f"cannot mount a tmpfs: {proc.stderr}")
+        ro = mount_tmpfs(tmp_path / "ro", "ro,size=64k")
     else:
         ro = tmp_path / "ro"
         ro.mkdir()
@@ -492,14 +485,7 @@ def test_a_full_disk_is_reported_as_run_reports_it_before_the_first_run(tmp_path
                                                                        fmu_dir):
     """A tmpfs filled up: the first summary.json (complete: false) cannot be written, so the
     sweep stops before starting a worker: exit 1 with run's message, nothing left."""
-    disk = tmp_path / "full"
-    disk.mkdir()
-    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)],
-                          capture_output=True, text=True)
-    if proc.returncode != 0:
-        if os.environ.get("MECANUM_FMU_REQUIRE_TOOLS") == "1":
-            pytest.fail(f"cannot mount a tmpfs (needed for this test): {proc.stderr}")
-        pytest.skip(f"cannot mount a tmpfs (not root, or no permission): {proc.stderr}")
+    disk = mount_tmpfs(tmp_path / "full", "size=64k")
     try:
         out = disk / "out"
         out.mkdir()
