@@ -83,7 +83,7 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
         return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
                                  holds.ahead and how.rolls_back and rollback)), {}
     if not rollback or not holds.poses:
-        why = (f"rejects and retakes steps with fmi2Get/SetFMUstate, which "
+        why = ("rejects and retakes steps with fmi2Get/SetFMUstate, which "
                + ", ".join(repr(r.name) for r in running if not r.can_roll_back) + " cannot do"
                if not rollback else "controls the error of a PoseIntegrator's pose, and this "
                "graph has none")

@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import Problem, ScenarioError
 from ..graph import Graph, check_start_values, settable_parameters
 from ..models.blocks.profile_table import INTERPOLATIONS
+from ..profiles import PROFILE_KEYS
 from ..errors import did_you_mean
 from ..scenario import (Scalar, VarRef, experiment_values, override_experiment, parse_ref,
                         read_yaml)
@@ -290,7 +291,7 @@ def _check_profile_grid(sweep: Sweep, graph: Graph) -> None:
     (every run would fail), and an interpolation must be one the FMU knows."""
     problems = []
     for ref, values in sweep.grid:
-        if graph.instance(ref.instance).model_name not in ("VelocitySource", "PathFollower"):
+        if graph.instance(ref.instance).model_name not in PROFILE_KEYS:   # takes a table
             continue
         if ref.variable == "table":
             problems.append(Problem(str(sweep.path), f"grid.{ref}", "a table is read from its "
