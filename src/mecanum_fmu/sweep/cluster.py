@@ -308,8 +308,8 @@ def write_runs_csv(out: OutputFolder, sweep: Sweep, graph: Graph, runs: list[Run
                    results: dict[int, RunResult], errors: dict[int, dict]) -> Path:
     outputs = [str(p.ref) for p in graph.recorded]
     varied = [str(ref) for ref in sweep.varied]
-    has_truth = bool(errors) or (find_roles(graph).source is not None
-                                 and find_roles(graph).pose is not None)
+    roles = find_roles(graph)
+    has_truth = bool(errors) or (roles.source is not None and roles.pose is not None)
     estimates = estimate_columns(results)
     header = (["run"] + varied + ["status", "message"] + outputs
               + (list(ERRORS) if has_truth else []) + list(estimates))
