@@ -251,3 +251,28 @@ def test_a_python_host_runs_the_fmu_or_refuses_it_clearly(built_fmus, tmp_path, 
         running = version[1:-1].replace(", ", ".")          # e.g. 3.12: then ".1;" follows
         assert f"bundles Python 3.11, but the process already runs Python {running}." \
             in proc.stdout, proc.stdout
+
+
+def test_a_plain_c_host_runs_and_exits_without_a_memory_error(built_fmus, tmp_path):
+    """A C host that frees its instance and returns from main without dlclose, as most do, under
+    valgrind: no invalid read or write anywhere, from loading the FMU to the process's exit.
+    (pythonfmu's library, left loaded, used to reset its interpreter state after exit() had
+    destroyed it; glibc then aborted the host now and then: "corrupted double-linked list".)"""
+    if shutil.which("valgrind") is None or shutil.which("gcc") is None:
+        missing("valgrind and gcc are needed (apt-get install valgrind gcc)")
+    host = tmp_path / "plain_host"
+    subprocess.run(["gcc", "-O1", "-o", str(host), str(ROOT / "tests" / "hosts" / "plain_host.c"),
+                    "-ldl"], check=True)
+    from fmpy import extract, read_model_description
+    folder = Path(extract(str(built_fmus["PoseIntegrator"]), str(tmp_path / "fmu")))
+    md = read_model_description(str(folder))
+    vrs = {v.name: v.valueReference for v in md.modelVariables}
+    proc = subprocess.run(
+        ["valgrind", "--error-exitcode=9", str(host),
+         str(folder / "binaries" / "linux64" / "PoseIntegrator.so"), md.guid,
+         (folder / "resources").as_uri(), str(vrs["vx"]), "0.5", str(vrs["x"])],
+        capture_output=True, text=True, timeout=300, env={"PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
+    assert proc.stdout.split()[0] == "RAN", proc.stdout
+    assert float(proc.stdout.split()[1]) == pytest.approx(0.5, abs=1e-12)   # 0.5 m/s for 1 s

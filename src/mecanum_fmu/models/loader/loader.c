@@ -20,6 +20,7 @@
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* Bind the dl* calls to their oldest symbol versions: the glibc floor stays pythonfmu's. */
@@ -205,6 +206,20 @@ static int add_paths(void *handle, const char *folder)
     return 0;
 }
 
+/* pythonfmu 0.7.0 keeps its interpreter state in a static std::shared_ptr and resets it in a
+ * destructor function (finalizePythonInterpreter). For a library nobody dlcloses (this loader
+ * never closes it), exit() destroys the shared_ptr first and calls that function after it, on
+ * freed memory: glibc aborts the host now and then ("corrupted double-linked list", valgrind:
+ * an invalid read in finalizePythonInterpreter). An exit handler registered once pythonfmu's
+ * library is loaded runs before its static destructors, so the state is reset while it lives.
+ * pythonfmu never finalizes an interpreter it did not start, and it starts none here. */
+static void (*release_state)(void);
+
+static void release_at_exit(void)
+{
+    release_state();
+}
+
 static int load_real(const char *folder, const char *identifier)
 {
     char lib[4096];
@@ -218,6 +233,9 @@ static int load_real(const char *folder, const char *identifier)
     real_instantiate = (instantiate_fn)dlsym(handle, "fmi2Instantiate");
     if (!real_instantiate)
         return fail("fmi2Instantiate missing in %s", lib);
+    release_state = (void (*)(void))dlsym(handle, "finalizePythonInterpreter");
+    if (release_state)
+        atexit(release_at_exit);
     return 0;
 }
 
