@@ -1,11 +1,25 @@
 """Shared fixtures: the four bundled FMUs, built once per test session."""
 import os
+import signal
 import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# Started in the background (nohup, `make test &`), the shell hands every process an ignored
+# SIGINT, and Python then installs no KeyboardInterrupt: the Ctrl-C tests need it as a terminal
+# gives it, to this process and to the runs it starts.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+# Hypothesis tries the same examples on every run, so `make test` passes or fails the same way
+# each time (a test that fails now and then is a failing test). HYPOTHESIS_PROFILE=explore
+# searches afresh; what it finds becomes a fixed example (@example) or a fix.
+settings.register_profile("repeatable", derandomize=True, database=None)
+settings.register_profile("explore")
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 
 try:
     import mecanum_fmu  # noqa: F401

@@ -245,17 +245,21 @@ def test_an_instance_that_failed_is_not_reused(tmp_path, fmus, capsys):
 
 
 def test_ctrl_c_through_the_python_api_stops_the_run_and_keeps_the_rows(tmp_path):
-    """SIGINT while the FMUs run (from a timer thread 1 s into a ~20 s run, so it lands
-    wherever the main thread is - mostly inside an FMU's Python code) ends the run as
-    Interrupted with the rows so far; no FMU sees a KeyboardInterrupt (which pythonfmu would
-    turn into Fatal about 2 times in 3), so the instances end cleanly and are reused."""
+    """SIGINT while the FMUs run (from a timer thread started by the run's first progress
+    report, so it lands 0.3 s into the stepping wherever the main thread is - mostly inside an
+    FMU's Python code - however slowly the machine instantiated) ends the run as Interrupted
+    with the rows so far; no FMU sees a KeyboardInterrupt (which pythonfmu would turn into
+    Fatal about 2 times in 3), so the instances end cleanly and are reused."""
     graph = runner.prepare(chain_scenario(tmp_path, "long", step_size=1e-4, stop_time=100.0))
     master.release_instances()
-    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
-    timer.start()
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+
+    def started(fraction):
+        if timer.ident is None:         # the first report: the stepping has begun
+            timer.start()
     try:
         with pytest.raises(Interrupted) as caught:
-            master.simulate(graph, graph.scenario.experiment)
+            master.simulate(graph, graph.scenario.experiment, progress=started)
     finally:
         timer.cancel()
     partial = caught.value.results
