@@ -9,12 +9,15 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   limited by the last step's (minmod: a jump or a kink in a table adds nothing, no storm of
   rejections); the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error
   moves every later point by J (p - p_t);
-- a step may take LOCAL x its share TOL * h / (stop - start) while the signed sum of the
-  accepted steps' errors stays under BUDGET x TOL, else STRICT x its share; a rejected step
-  rolls every FMU back (fmi2SetFMUstate) and is retried, shorter;
+- the signed sum of the accepted steps' errors must stay under the line
+  TOL (FLOOR + SLOPE (t - start) / span), and a step's own error under LOCAL x its share
+  TOL h / span times the room that sum leaves under the line; a rejected step rolls every FMU
+  back (fmi2SetFMUstate) and is retried, shorter;
 - the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
-  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval, and is cut
-  so that the steps land on the output grid (every step_size seconds: results.csv's rows).
+  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval; the last
+  step is kept unless the controller wants GROW x it or less than it; steps land on the
+  output grid (every step_size seconds: results.csv's rows) and on the breakpoints of the
+  VelocitySources' tables and segments (Stops: a jump gets a step of 1e-6 h_out before it).
 The sum of the accepted steps' errors is the run's error estimate.
 """
 from __future__ import annotations
