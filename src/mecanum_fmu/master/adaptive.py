@@ -324,8 +324,8 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
         counts["steps_taken"] += 1
         for pose, update in zip(holds.poses, updates):
             pose.accept(h, update)
-        if goal == target:      # a step cut short to end on a stop says nothing of the next
-            control.accept(ratio, h, drift)
+        if h >= 0.1 * min(control.wanted, interval):   # not cut short by a stop: a step
+            control.accept(ratio, h, drift)             # of 1e-6 h_out says nothing of the next
         else:
             control.drift = drift
         if not np.isfinite(real).all():
