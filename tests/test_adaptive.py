@@ -57,7 +57,7 @@ def test_quiet_then_busy_takes_fewer_steps_than_any_fixed_step_that_meets_the_to
 @pytest.mark.parametrize("tolerance", [1e-2, 1e-5])
 def test_segment_jumps_meet_the_tolerance_without_a_storm_of_rejections(tolerance):
     # a jump between two steps costs h |jump| / 2 under any hold: the steps must end on the
-    # segments' ends (7 jumps of 0.3 m/s at h = 0.01 would leave ~1e-3 m)
+    # segments' ends (8 jumps, of 0.3 m/s in v and up to 1.6 rad/s in w)
     graph, results = _run(ROOT / "scenarios" / "modes" / "showcase.yaml", tolerance)
     assert _end_error(graph, results) <= tolerance
     truth = ground_truth(graph, results.time)
