@@ -5,7 +5,8 @@ zero-order-hold host (libcosim or Ecos) at a fixed step on our exported SSP wher
 
 A "pass" is one doStep of every FMU of the graph: the fixed masters take one per step (two in a
 feedback loop under quadratic), the adaptive master one per step taken or rejected (two in a
-loop). Errors are |end point - ground truth| in m (report/ground_truth.py). Wall times are of
+loop). Errors are |end point - ground truth| in m (report/ground_truth.py); "estimate" is the
+adaptive master's own at the end (summary.json's error_estimate, |(x, y)|). Wall times are of
 the stepping loop, on whatever else this machine runs: compare within one run.
 
 Run: make bench  (or: .venv/bin/python bench/accuracy.py [--quick] [--plot PATH])
@@ -49,8 +50,11 @@ def measure(graph, **changes) -> dict:
     truth = ground_truth(graph, res.time)
     pose = next(n[:-2] for n in res.names if n.endswith(".x") and n[:-2] + ".theta" in res.names)
     err = float(np.hypot(res[pose + ".x"][-1] - truth.x[-1], res[pose + ".y"][-1] - truth.y[-1]))
+    own = res.extra.get("error_estimate", {})        # the adaptive master's own, at the end
+    estimate = float(np.hypot(own[pose + ".x"]["end"], own[pose + ".y"]["end"])) \
+        if pose + ".x" in own else None
     return {"master": exp.master, "h": exp.step_size, "tol": exp.tolerance, "err": err,
-            "passes": _passes(graph, res), "wall": res.wall_time}
+            "estimate": estimate, "passes": _passes(graph, res), "wall": res.wall_time}
 
 
 def _passes(graph, res) -> int:
@@ -126,13 +130,13 @@ def print_scenario(name: str, rows: list[dict], table: list[tuple], host: str) -
         knob = r["tol"] if r["master"] == "adaptive" else r["h"]
         print(f"{r['master']:<13} {knob:>9.3g} {r['err']:>10.2e} {r['passes']:>7d} "
               f"{r['wall']:>8.3f}")
-    print(f"{'TOL':>7} {'true |e|':>9} {'<= TOL':>6} {'passes':>7} {'best fixed':>10} "
-          f"{'its h':>9} {'ratio':>6}")
+    print(f"{'TOL':>7} {'true |e|':>9} {'estimate':>9} {'<= TOL':>6} {'passes':>7} "
+          f"{'best fixed':>10} {'its h':>9} {'ratio':>6}")
     for tol, row, best in table:
         fixed = f"{best['passes']:>10d} {best['h']:>9.3g} {row['passes'] / best['passes']:>6.2f}" \
             if best is not None else f"{'none':>10}"
-        print(f"{tol:>7.0e} {row['err']:>9.2e} {str(row['err'] <= tol):>6} {row['passes']:>7d} "
-              f"{fixed}")
+        print(f"{tol:>7.0e} {row['err']:>9.2e} {row['estimate']:>9.2e} "
+              f"{str(row['err'] <= tol):>6} {row['passes']:>7d} {fixed}")
     print(f"host: {host}")
 
 

@@ -16,7 +16,7 @@ from . import plausibility
 from .models import library as fmu_library
 from .models.catalog import bundled_model
 from .errors import Problem, ScenarioError
-from .masters import entry as master_entry
+from .masters import DEFAULT, entry as master_entry
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 
 VALUE_TYPES = ("Real", "Integer", "Boolean")    # what moves between FMUs and is recorded
@@ -96,10 +96,40 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
     instances = [Instance(c.name, check.models[c.name][0], check.models[c.name][1],
                           start_values[c.name], c.place) for c in scenario.components]
     order, link_order = _dependency_order(instances, links, scenario.label)
+    refused = _adaptive_problems(scenario, order, links)
+    if refused:
+        raise ScenarioError(refused)
     return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
                  tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
                        + _rollback_warning(scenario, order, links)
                        + plausibility.warnings(scenario, order)))
+
+
+def _adaptive_problems(scenario: Scenario, order: list[Instance], links: list[Link]
+                       ) -> list[Problem]:
+    """The adaptive master rejects and retakes steps with fmi2Get/SetFMUstate, and controls
+    the error of a PoseIntegrator whose twist (vx, vy, w) comes from other FMUs: without
+    either it cannot run (master/adaptive.py)."""
+    how = master_entry(scenario.experiment.master)
+    if not how.adaptive:
+        return []
+    unable = [inst.name for inst in order if not inst.can_get_set_state]
+    driven = {(l.target.ref.instance, l.target.ref.variable) for l in links}
+    poses = [inst.name for inst in order if _role(inst) == "pose"
+             and all((inst.name, v) in driven for v in ("vx", "vy", "w"))]
+    why = ("rejects and retakes steps with fmi2Get/SetFMUstate, which "
+           + ", ".join(repr(n) for n in unable) + " cannot do (canGetAndSetFMUstate is false)"
+           if unable else "controls the error of a PoseIntegrator's pose (its vx, vy and w "
+           "connected), and this graph has none" if not poses else "")
+    if not why:
+        return []
+    return [Problem(scenario.label, "experiment.master", f"the {how.name} master {why}; "
+                    f"choose a fixed-step master (e.g. {DEFAULT}) and drop the tolerance")]
+
+
+def _role(inst: Instance) -> str | None:
+    model = bundled_model(inst.model)
+    return model.role if model is not None else None
 
 
 def _rollback_warning(scenario: Scenario, order: list[Instance], links: list[Link]) -> list[str]:

@@ -9,12 +9,15 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   limited by the last step's (minmod: a jump or a kink in a table adds nothing, no storm of
   rejections); the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error
   moves every later point by J (p - p_t);
-- a step may take LOCAL x its share TOL * h / (stop - start) while the signed sum of the
-  accepted steps' errors stays under BUDGET x TOL, else STRICT x its share; a rejected step
-  rolls every FMU back (fmi2SetFMUstate) and is retried, shorter;
+- the signed sum of the accepted steps' errors must stay under the line
+  TOL (FLOOR + SLOPE (t - start) / span), and a step's own error under LOCAL x its share
+  TOL h / span times the room that sum leaves under the line; a rejected step rolls every FMU
+  back (fmi2SetFMUstate) and is retried, shorter;
 - the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
-  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval, and is cut
-  so that the steps land on the output grid (every step_size seconds: results.csv's rows).
+  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval; the last
+  step is kept unless the controller wants GROW x it or less than it; steps land on the
+  output grid (every step_size seconds: results.csv's rows) and on the breakpoints of the
+  VelocitySources' tables and segments (Stops: a jump gets a step of 1e-6 h_out before it).
 The sum of the accepted steps' errors is the run's error estimate.
 """
 from __future__ import annotations
@@ -26,6 +29,7 @@ from typing import Callable
 import numpy as np
 
 from ..graph import Instance, Port
+from ..models.blocks.profile_table import parse_table
 from ..models.catalog import bundled_model
 from .instance import RunningInstance
 from .plan import Holds
@@ -34,11 +38,15 @@ from .stepping import NonFinite, _one_pass, _state_call
 
 _TWIST = ("vx", "vy", "w")
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
-# A step's own error may take LOCAL times its share (h / span) of the tolerance: the steps'
-# errors of a smooth input largely cancel (a quadrature's leading term telescopes), and the
-# signed sum catches the case where they do not: once over BUDGET x the tolerance, the steps
-# are held to STRICT x their share
-LOCAL, BUDGET, STRICT = 4.0, 0.4, 0.5
+# The signed sum of the accepted steps' errors must stay under the line
+# TOL x (FLOOR + SLOPE x elapsed / span): an error that grows steadily (the frame turning) gets
+# its share of the tolerance per unit time, one that cancels along the run (the hold's leading
+# term telescopes: a smooth input's steps may each err far more than their share) is not held
+# to a share it does not need. A step's own error may take at most LOCAL x its share
+# TOL x h / span (a guard: one step cannot spend the budget that the others' errors cancel).
+FLOOR, SLOPE, LOCAL = 0.15, 0.7, 32.0
+MIN_ROOM = 0.5 * SLOPE / LOCAL
+GROW = 1.3        # a longer step only when the controller wants GROW x it (step_to)
 
 
 def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -192,35 +200,94 @@ def step_error(holds: AdaptiveHolds, left: float) -> tuple[float, float, list]:
     return position, heading, updates
 
 
+class Stops:
+    """The times a step must end on besides the output grid: the breakpoints of the bundled
+    VelocitySources' tables (segments are hold tables). A kink (linear) is one stop; a jump
+    (hold) two: JUMP x the output interval before it, then on it, so that the step that sees
+    the new value at its end is that short (the hold's mean blends the two values: the jump
+    costs the step before it h |jump| / 2, under every hold, whatever the tolerance)."""
+
+    JUMP = 1e-6
+
+    def __init__(self, graph, start: float, stop: float, interval: float):
+        times = []
+        for inst in graph.instances:
+            model = bundled_model(inst.model)
+            text = inst.value("table") if model is not None and \
+                model.name == "VelocitySource" else ""
+            if isinstance(text, str) and text.strip():
+                times += _breakpoints(text, str(inst.value("interpolation")),
+                                      self.JUMP * interval)
+        near = 1e-9 * interval
+        self.times = sorted(x for x in set(times) if start + near < x < stop - near)
+        self.near, self.i = near, 0
+
+    def next(self, t: float, target: float) -> float:
+        """The first stop after t, or target when none comes before it."""
+        while self.i < len(self.times) and self.times[self.i] <= t + self.near:
+            self.i += 1
+        if self.i < len(self.times) and self.times[self.i] < target - self.near:
+            return self.times[self.i]
+        return target
+
+
+def _breakpoints(text: str, interpolation: str, before: float) -> list[float]:
+    """The times of a table's jumps (each with one `before` it) or kinks."""
+    times, *columns = (np.asarray(c, dtype=float) for c in parse_table(text))
+    values = np.stack(columns, axis=1)
+    if interpolation == "hold":
+        at = times[1:][np.any(values[1:] != values[:-1], axis=1)]
+        return list(at) + list(at - before)
+    slopes = np.diff(values, axis=0) / np.diff(times)[:, None]
+    return list(times[1:-1][np.any(slopes[1:] != slopes[:-1], axis=1)])
+
+
 class Controller:
-    """The step: PI on the error ratio, clamped, cut to land on the output grid."""
+    """The step: PI on the error ratio, clamped, cut to land on the next stop."""
 
     def __init__(self, tolerance: float, span: float, first: float, longest: float):
         self.tolerance, self.span, self.longest = tolerance, span, longest
-        self.wanted, self.ratio_before = first, 1.0
+        self.wanted, self.ratio_before, self.last = first, 1.0, 0.0
+        self.drift = 0.0      # the accumulated error so far (PoseError.now, the worst)
 
-    def ratio(self, position: float, heading: float, h: float, drift: float) -> float:
-        """Over 1: reject. The step's own error against LOCAL x its share of the tolerance
-        while the signed accumulated error stays under BUDGET x the tolerance, else against
-        STRICT x its share (the rest of the run then adds at most STRICT x the tolerance)."""
-        share = LOCAL if drift <= BUDGET * self.tolerance else STRICT
-        return max(position, heading) / (share * self.tolerance * h / self.span)
+    def ratios(self, position: float, heading: float, h: float, drift: float,
+               elapsed: float) -> tuple[float, float]:
+        """(the step's own error against its allowance, for the PI; over 1: reject). The
+        allowance is LOCAL x its share TOL h / span, times the room the accumulated error
+        leaves under the line TOL (FLOOR + SLOPE elapsed / span) (at least MIN_ROOM: the line
+        grows faster than the steps then add); the accumulated error after the step must
+        stay under the line too."""
+        line = self.tolerance * (FLOOR + SLOPE * (elapsed - h) / self.span)
+        room = max(MIN_ROOM, 1.0 - self.drift / line)
+        own = max(position, heading) / (LOCAL * room * self.tolerance * h / self.span)
+        line += self.tolerance * SLOPE * h / self.span
+        return own, max(own, drift / line)
 
-    def accept(self, ratio: float) -> None:
+    def accept(self, ratio: float, h: float, drift: float) -> None:
         r = max(ratio, 1e-10)
         factor = SAFETY * r ** -K_I * self.ratio_before ** K_P
-        # never more than the output interval: a long quiet stretch must not leave a step
-        # that takes many rejections to come down when the input turns
-        self.wanted = min(self.wanted * min(2.0, max(0.5, factor)), self.longest)
-        self.ratio_before = r
+        # never more than GROW x the output interval (a long quiet stretch must not leave a step
+        # that takes many rejections to come down when the input turns), nor than the step
+        # the error model (ratio ~ h^3) allows: no step that is sure to be rejected
+        self.wanted = min(self.wanted * min(2.0, max(0.5, factor)), GROW * self.longest,
+                          h * r ** (-1 / 3))
+        self.ratio_before, self.drift, self.last = r, drift, h
 
     def reject(self, ratio: float, h: float) -> None:
         self.wanted = h * max(0.2, min(0.9, SAFETY * ratio ** (-1 / 3)))
 
     def step_to(self, t: float, target: float) -> float:
-        """A step from t that lands on `target` (the next output time) in whole steps."""
-        n = max(1, math.ceil((target - t) / self.wanted - 1e-9))
-        return (target - t) / n
+        """A step from t that lands on `target` (the next stop) in whole steps: the last
+        step again while it lands there and the wanted step is neither shorter nor GROW x
+        longer (a change of step costs the hold's leading error term its telescoping:
+        |u''| |h_1^3 - h_2^3| / 24 per change)."""
+        left = target - t
+        n = max(1, math.ceil(left / min(self.wanted, self.longest) - 1e-9))
+        keep = round(left / self.last) if self.last else 0
+        if keep > n and abs(left / self.last - keep) < 1e-6 and \
+                math.ceil(left * GROW / self.wanted - 1e-9) >= keep:
+            n = keep
+        return left if n == 1 else left / n
 
 
 def first_step(tolerance: float, interval: float) -> float:
@@ -239,35 +306,28 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
     start, stop, interval = exp.start_time, exp.stop_time, exp.step_size
     program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
     control = Controller(tolerance, stop - start, first_step(tolerance, interval), interval)
+    stops = Stops(recorder.graph, start, stop, interval)
     real, ints = recorder.buffers.real, recorder.buffers.int
     saved_real, saved_int = real.copy(), ints.copy()    # the values at t_k, for a retry
     t, j = start, 0
     next_report = _time.perf_counter() + 1.0
     while j < recorder.n_steps:
         target = stop if j == recorder.n_steps - 1 else start + (j + 1) * interval
-        h = control.step_to(t, target)
+        goal = stops.next(t, target)
         _save(running, t)
         saved_real[:], saved_int[:] = real, ints
-        while True:
-            if ctrl_c[0]:
-                raise KeyboardInterrupt
-            _attempt(running, program, holds, t, h)
-            position, heading, updates = step_error(holds, stop - t - h)
-            drift = max([pose.after(h, u) for pose, u in zip(holds.poses, updates)])
-            ratio = control.ratio(position, heading, h, drift)
-            if ratio <= 1.0 or h <= 1e-12 * (stop - start):
-                break
-            counts["steps_rejected"] += 1
-            control.reject(ratio, h)
-            h = control.step_to(t, target)
-            _restore(running, t)
-            real[:], ints[:] = saved_real, saved_int
+        h, updates, (ratio, drift) = _take(running, program, holds, control,
+                                           (start, t, goal, stop),
+                                           ctrl_c, counts, (real, ints, saved_real, saved_int))
         _free(running, t)
         holds.commit()
         counts["steps_taken"] += 1
         for pose, update in zip(holds.poses, updates):
             pose.accept(h, update)
-        control.accept(ratio)
+        if h >= 0.1 * min(control.wanted, interval):   # not cut short by a stop: a step
+            control.accept(ratio, h, drift)             # of 1e-6 h_out says nothing of the next
+        else:
+            control.drift = drift
         if not np.isfinite(real).all():
             raise NonFinite(t + h)
         t = t + h
@@ -278,6 +338,33 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
             if progress is not None and _time.perf_counter() >= next_report:
                 progress((t - start) / (stop - start))
                 next_report = _time.perf_counter() + 0.5
+        elif abs(t - goal) <= 1e-9 * interval:
+            t = goal
+
+
+def _take(running, program, holds: AdaptiveHolds, control: Controller, times: tuple,
+          ctrl_c, counts: dict, values: tuple) -> tuple[float, list, float]:
+    """One accepted step from t towards `goal` (times: start, t, goal, stop): tried, rejected
+    and rolled back (the FMUs and the values) until its error ratio is at most 1.
+    (h, the poses' updates, the ratio)."""
+    start, t, goal, stop = times
+    real, ints, saved_real, saved_int = values
+    span = stop - start
+    h = control.step_to(t, goal)
+    while True:
+        if ctrl_c[0]:
+            raise KeyboardInterrupt
+        _attempt(running, program, holds, t, h)
+        position, heading, updates = step_error(holds, stop - t - h)
+        drift = max([pose.after(h, u) for pose, u in zip(holds.poses, updates)])
+        ratio, worst = control.ratios(position, heading, h, drift, t + h - start)
+        if worst <= 1.0 or h <= 1e-12 * span:
+            return h, updates, (ratio, drift)
+        counts["steps_rejected"] += 1
+        control.reject(worst, h)
+        h = control.step_to(t, goal)
+        _restore(running, t)
+        real[:], ints[:] = saved_real, saved_int
 
 
 def _attempt(running, program, holds: AdaptiveHolds, t: float, h: float) -> None:
