@@ -279,6 +279,8 @@ class Panel:
     title: str
     needs: Callable[[Results, Roles], bool]      # True when the panel has something to draw
     draw: Drawer
+    truth: bool = False     # it shows the ground truth: drawn once that exists (plots.Draft)
+    log: bool = False       # its y axis is logarithmic (when it has data): minor ticks
 
 
 def _has_pose(r: Results, ro: Roles) -> bool:
@@ -293,15 +295,17 @@ def _has_inputs(r: Results, ro: Roles) -> bool:
 # In this order on the dashboard, two a row: the path and its error first, the ICR last.
 PANELS: dict[str, Panel] = {
     "path": Panel("Path: simulated vs ground truth",
-                  lambda r, ro: _has_pose(r, ro) and not ro.follower, _draw_path),
+                  lambda r, ro: _has_pose(r, ro) and not ro.follower, _draw_path, truth=True),
     "error": Panel("Error vs ground truth",
                    lambda r, ro: _has_pose(r, ro) and not ro.follower and _has_inputs(r, ro),
-                   _draw_error),
+                   _draw_error, truth=True, log=True),
     # only when a PathFollower closes the loop (its reference is the ground truth)
     "tracking": Panel("Reference path vs actual path",
-                      lambda r, ro: bool(ro.follower) and _has_pose(r, ro), _draw_tracking_path),
+                      lambda r, ro: bool(ro.follower) and _has_pose(r, ro), _draw_tracking_path,
+                      truth=True),
     "tracking_error": Panel("Tracking error",
-                            lambda r, ro: bool(ro.follower) and _has_pose(r, ro), _draw_error),
+                            lambda r, ro: bool(ro.follower) and _has_pose(r, ro), _draw_error,
+                            truth=True, log=True),
     "velocities": Panel("Input velocities", _has_inputs, _draw_velocities),
     "vy": Panel("Vy(t)", lambda r, ro: bool(_col(r, ro.source, "vy")), _draw_vy),
     "wheels": Panel("Wheel speeds",
@@ -309,7 +313,8 @@ PANELS: dict[str, Panel] = {
                     _draw_wheels),
     "twist": Panel("Commanded vs reconstructed twist",
                    lambda r, ro: any(_col(r, forward_of(ro), v) for v in TWIST), _draw_twist),
-    "theta": Panel("Heading θ(t)", lambda r, ro: bool(_col(r, ro.pose, "theta")), _draw_theta),
+    "theta": Panel("Heading θ(t)", lambda r, ro: bool(_col(r, ro.pose, "theta")), _draw_theta,
+                   truth=True),
     "icr": Panel("Instantaneous centre of rotation (world frame)",
                  lambda r, ro: _has_pose(r, ro) and all(_col(r, ro.forward, v)
                                                         for v in ("icr_x", "icr_y", "has_icr")),
