@@ -40,7 +40,6 @@ TITLE_ROOM = 0.4                  # inches above a dashboard panel for its title
 LABEL_ROOM = 0.55                 # inches below it for tick labels and the x label
 SUPTITLE_FROM_TOP = 0.2          # inches from the top edge to the top of the dashboard title
 MAJOR_TICKS = 10                  # ticks made with the frame, per axis (more are made as needed)
-MINOR_TICKS = 96                  # on a log axis: eight a decade, at most ten decades and ends
 PAD = 6                           # pixels kept around a panel cut from the dashboard
 # Text without FreeType's hinting: drawing the dashboard takes a quarter less time (its text is
 # most of that), and at 100 dpi the glyphs look the same to the eye.
@@ -96,20 +95,18 @@ def dashboard_frame(results: Results, roles: Roles, title: str = "") -> Frame:
         ax = fig.add_subplot(rows, 2, i + 1)
         ax.set_title(panel_title(key, roles), y=1.0)      # a fixed y: no search for a free place
         if PANELS[key].truth:           # drawn after the truth: make its ticks now
-            _make_ticks(ax, PANELS[key].log)
+            _make_ticks(ax)
     # a fixed distance from the top edge (matplotlib's default is a fraction of the height),
     # clear of the first row's cells however tall the dashboard is
     fig.suptitle(_suptitle(results, keys, title), y=1 - SUPTITLE_FROM_TOP / height)
     return Frame(keys, fig)
 
 
-def _make_ticks(ax: Axes, log: bool) -> None:
+def _make_ticks(ax: Axes) -> None:
     """Make the ticks a panel will need now: an axis makes each tick (five artists) when a
-    draw first needs it, and that was a third of drawing the error panel after the truth."""
+    draw first needs it, a tenth of drawing a panel."""
     ax.xaxis.get_major_ticks(MAJOR_TICKS)
     ax.yaxis.get_major_ticks(MAJOR_TICKS)
-    if log:
-        ax.yaxis.get_minor_ticks(MINOR_TICKS)
 
 
 def _suptitle(results: Results, keys: list[str], title: str) -> str:
