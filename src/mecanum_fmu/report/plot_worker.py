@@ -72,13 +72,13 @@ class PlotWorker:
         they exist: it draws every panel but the ground truth's while this process
         evaluates the run."""
         if self._sent == 0:
-            self._send(None)        # no frame was asked for: the worker only warms up
+            self._send(None)        # no frame was asked for: the draft makes its own
         if self._sent == 1:
             self._send((results, roles, title))
 
     def _send(self, obj) -> None:
         """Write one message from a thread: a large one must not hold this process up while
-        the worker is still busy (importing, drawing the frame)."""
+        the worker is still busy (importing, building the frame)."""
         self._sent += 1
         if self._proc is None:
             return
