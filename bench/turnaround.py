@@ -10,6 +10,11 @@ machine's load hits all three), the ratios
 the same ratios in CPU seconds (user + sys of the process and its children, the plotting worker
 included: what the plots cost the machine rather than the user), the load average before and
 after, and the modules `validate` imports (it should need neither matplotlib nor scipy).
+
+Then, in this process (CPU seconds: less sensitive to the machine's load than the wall ratio),
+the seed circle's dashboard drawn as the plot worker draws it: the frame and the draft (every
+panel but the ground truth's) while the run integrates its truth, the rest after the truth.
+Only "after the truth" is on the critical path when a core is free.
 Run: make bench   (or: .venv/bin/python bench/turnaround.py [repetitions])
 """
 from __future__ import annotations
@@ -56,6 +61,32 @@ def validate_imports() -> list[str]:
     return sorted(names)
 
 
+def draw_times(reps: int) -> dict[str, float]:
+    """Median CPU seconds of the dashboard's stages in this process (the worker's order)."""
+    from mecanum_fmu.report import plots      # startup: matplotlib, for this part only
+    from mecanum_fmu.runner import prepare, run
+    stages = ("frame", "draft", "after the truth")
+    cpu: dict[str, list[float]] = {k: [] for k in stages}
+    with tempfile.TemporaryDirectory() as tmp:
+        outcome = run(prepare(SCENARIO), Path(tmp) / "run", plots=False)
+        results, roles, truth = outcome.results, outcome.evaluation.roles, outcome.truth
+        for _ in range(reps):
+            marks = [time.process_time()]
+            frame = plots.dashboard_frame(results, roles, "circle")
+            marks.append(time.process_time())
+            draft = plots.draft_dashboard(results, roles, "circle", frame)
+            marks.append(time.process_time())
+            plots.save_pngs(plots.finish_dashboard(draft, truth), Path(tmp) / "plots")
+            marks.append(time.process_time())
+            for kind, start, end in zip(stages, marks, marks[1:]):
+                cpu[kind].append(end - start)
+    times = {k: statistics.median(v) for k, v in cpu.items()}
+    print(f"  in-process dashboard (cpu s, median of {reps}): frame {times['frame']:.3f}, draft "
+          f"{times['draft']:.3f}, after the truth {times['after the truth']:.3f}; whole "
+          f"{sum(times.values()):.3f}; load average {os.getloadavg()[0]:.2f}")
+    return times
+
+
 def main(reps: int = 7) -> dict[str, float]:
     kinds = ("run --no-plots", "run", "validate")
     walls: dict[str, list[float]] = {k: [] for k in kinds}
@@ -86,6 +117,7 @@ def main(reps: int = 7) -> dict[str, float]:
     print(f"  validate imports {len(imports)} top-level packages; of {', '.join(HEAVY)}: "
           f"{', '.join(heavy) or 'none'}")
     print("    " + " ".join(n for n in imports if not n.startswith("_")))
+    draw_times(reps)
     return ratios
 
 

@@ -1,6 +1,7 @@
-"""The fast plot path (issue 11, item 8): each panel's PNG is cut whole from the one drawn
-dashboard, the drawing runs in a worker process, a failing worker costs only the plots, and
-`validate` loads neither matplotlib nor scipy."""
+"""The fast plot path (issue 11, item 8; issue 20, item 5): each panel's PNG is cut whole from
+the one drawn dashboard, the drawing runs in a worker process in two stages (every panel but the
+ground truth's as soon as the results exist, the truth's when it does), a failing worker costs
+only the plots, and `validate` loads neither matplotlib nor scipy."""
 from __future__ import annotations
 
 import json
@@ -8,8 +9,10 @@ import os
 import signal
 import subprocess
 import sys
+from dataclasses import replace
 from types import SimpleNamespace
 
+import matplotlib
 import numpy as np
 import pytest
 from matplotlib.image import imread
@@ -182,3 +185,72 @@ def test_without_a_worker_the_plots_are_drawn_here(tmp_path):
     paths = PlotWorker(None).finish(results, judged(ROLES, truth), tmp_path, title="circle")
     assert sorted(p.name for p in paths) == sorted(f"{k}.png" for k in ["dashboard"] + PANEL_KEYS)
     assert all(p.stat().st_size > 1000 for p in paths)
+
+
+def drawn(ax) -> list:
+    """What a panel drew: each line's label and points, each text (notes), the y scale."""
+    return ([(line.get_label(), line.get_xydata().tolist()) for line in ax.get_lines()]
+            + [text.get_text() for text in ax.texts] + [ax.get_yscale()])
+
+
+@pytest.mark.parametrize("roles", [ROLES, replace(ROLES, follower="source")],
+                         ids=["open loop", "closed loop"])
+def test_the_panels_marked_truth_are_those_that_draw_it(roles):
+    """The draft draws the panels not marked `truth` before the truth exists: each of them
+    must draw the same with and without it, and each marked one must draw it."""
+    results, truth = make_run()
+    keys = plots.available_panels(results, roles)
+    assert {k for k in keys if plots.PANELS[k].truth} == (
+        {"tracking", "tracking_error", "theta"} if roles.follower else {"path", "error", "theta"})
+    for key in keys:
+        with_truth, without = (plots.new_figure((4, 3)).add_subplot() for _ in range(2))
+        plots.PANELS[key].draw(with_truth, results, roles, truth)
+        plots.PANELS[key].draw(without, results, roles, None)
+        assert (drawn(with_truth) != drawn(without)) == plots.PANELS[key].truth, key
+
+
+def test_two_stages_give_the_pixels_of_one_whole_draw():
+    """The draft leaves the truth's cells empty; the finish draws them in: the dashboard is,
+    pixel for pixel, the one drawn at once with every panel."""
+    results, truth = make_run()
+    with matplotlib.rc_context(plots.DRAW_RC):
+        whole = plots.build_dashboard(results, ROLES, truth, title="circle")
+        whole.canvas.draw()
+    want = np.asarray(whole.canvas.buffer_rgba()).copy()
+    draft = plots.draft_dashboard(results, ROLES, "circle")
+    assert sorted(draft.pngs) == sorted(k for k in PANEL_KEYS if not plots.PANELS[k].truth)
+    early = np.asarray(draft.frame.figure.canvas.buffer_rgba()).copy()
+    for ax, key in zip(draft.frame.figure.axes, draft.frame.keys):
+        box = ax.get_window_extent()          # the axes' own area: blank until the truth
+        rows = slice(early.shape[0] - int(box.y1) + 2, early.shape[0] - int(box.y0) - 2)
+        cell = early[rows, int(box.x0) + 2:int(box.x1) - 2]
+        assert ink(cell).any() != plots.PANELS[key].truth, key
+    pngs = plots.finish_dashboard(draft, truth)
+    got = np.asarray(draft.frame.figure.canvas.buffer_rgba())
+    assert np.array_equal(got, want)
+    assert list(pngs) == ["dashboard"] + PANEL_KEYS
+
+
+def test_a_draft_sent_before_the_truth_gives_the_same_files(tmp_path):
+    results, truth = make_run()
+    here = plots.write_plots(results, ROLES, truth, tmp_path / "here", title="circle")
+    worker = PlotWorker.start()
+    worker.draft(results, ROLES, "circle")
+    there = worker.finish(results, judged(ROLES, truth), tmp_path / "there", title="circle")
+    assert [p.name for p in there] == [p.name for p in here]
+    for a, b in zip(here, there):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def test_cancel_while_a_large_draft_is_still_being_written():
+    """The draft is written from a thread (the worker may still be importing matplotlib);
+    a cancel then kills the worker, the write fails and the thread ends."""
+    results, _ = make_run(n=400_000)           # ~45 MB pickled: far more than a pipe holds
+    worker = PlotWorker.start()
+    proc = worker._proc
+    worker.draft(results, ROLES, "circle")
+    writer = worker._writer
+    assert writer is not None
+    worker.cancel()
+    assert proc.returncode == -signal.SIGKILL
+    assert not writer.is_alive() and worker._proc is None

@@ -410,3 +410,33 @@ def test_sweep_plots_colour_each_grid_point_with_its_own_truth_and_mean(tmp_path
         ax = fig.axes[0]
         fig.canvas.draw()
         assert ax.title.get_window_extent().width < fig.bbox.width * 0.95, ax.get_title()
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e-9, 1e-6, 1e-3, 1e-12])
+def test_minor_log_ticks_are_matplotlibs_own_pixels(run, offset):
+    """The error panel draws its log axis' minor ticks as one line of markers: the same
+    pixels as matplotlib's own minor ticks, for errors of many sizes (none past ten decades)."""
+    from matplotlib import ticker
+    from mecanum_fmu.report import panels
+    results, truth = run
+    truth = Truth(truth.time, truth.x + offset * truth.time, truth.y,
+                  truth.theta + offset * np.sin(truth.time), truth.vx, truth.vy, truth.w)
+
+    def pixels(own_ticks: bool):
+        with matplotlib.rc_context(plots.DRAW_RC):   # as drawn on the dashboard, in its cell
+            fig = plots.build_dashboard(results, ROLES, truth)
+            ax = fig.axes[PANEL_KEYS.index("error")]
+            if own_ticks:                     # matplotlib's minor ticks back, ours gone
+                mark = next(a for a in ax.artists if isinstance(a, panels.MinorLogTicks))
+                ax.yaxis.set_minor_locator(mark._locator)
+                ax.yaxis.set_minor_formatter(ticker.NullFormatter())
+                mark.remove()
+            fig.canvas.draw()
+        return np.asarray(fig.canvas.buffer_rgba()).copy(), ax
+
+    ours, ax = pixels(False)
+    theirs, ax_theirs = pixels(True)
+    assert len(ax.yaxis.get_minorticklocs()) == 0            # no Tick objects of ours
+    assert np.array_equal(ours, theirs)
+    if offset in (0.0, 1e-6):
+        assert len(ax_theirs.yaxis.get_minorticklocs()) > 20   # there were ticks to draw

@@ -165,6 +165,8 @@ def _silent(line: str) -> None:
 def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWorker | None,
             progress, log, animate: bool, keep_rows: int | None) -> RunOutcome:
     results, summary, files = _simulate_into(graph, topo, out, progress, keep_rows)
+    if plotter is not None:     # it draws what needs no truth while the truth is integrated
+        plotter.draft(results, topo.roles, graph.scenario.name)
     evaluation = evaluate(graph, results, topo=topo)    # after the tables: it costs only itself
     if added := evaluation.summary() | _estimate(graph, results):
         summary.update(added)
