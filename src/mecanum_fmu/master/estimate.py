@@ -21,10 +21,12 @@ from ..errors import SimulationError
 from ..graph import Graph
 from ..masters import DEFAULT_TOLERANCE, entry as master_entry
 from ..models.catalog import bundled_model
+from ..profiles import table_twist
 from ..results import BELOW_ROUND_OFF, Results
 
-METHOD = ("Richardson extrapolation: the run repeated at 2h and 4h, e ~ (y_h - y_2h)/(2^p - 1) "
-          "with the observed order p bounded to [1, {order}]")
+METHOD = ("Richardson extrapolation: the run repeated at {r1}h and {r2}h, e ~ (y_h - y_{r1}h)/"
+          "({r1}^p - 1) with the observed order p bounded to [1, {order}]")
+MAX_FACTOR = (8, 32)    # the coarser steps the estimate compares with, in run steps, at most
 ADAPTIVE_METHOD = ("the adaptive master's per-step errors (limited third differences of the "
                    "twist, the frame's turning, the heading's lever arm), summed")
 _END = np.iinfo(np.int64).max
@@ -55,10 +57,11 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "error_estimate_method": ADAPTIVE_METHOD,
                 "tolerance": exp.tolerance or DEFAULT_TOLERANCE,
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
-    if (exp.stop_time - exp.start_time) < 4 * exp.step_size * (1 - 1e-9):
+    factors = coarse_factors(graph, exp)
+    if factors is None:
         return _none("the run has fewer than 4 steps: no coarser runs to compare with")
     coarse = []
-    for factor in (2, 4):
+    for factor in factors:
         try:
             coarse.append(_coarse_run(graph, dataclasses.replace(
                 exp, step_size=factor * exp.step_size), names, simulate))
@@ -66,11 +69,38 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
             return _none(f"the same run at {factor}x the step failed ({err})")
     order = master_entry(exp.master).order
     fine = (results.time, {n: np.asarray(results[n], dtype=float) for n in names})
-    estimate = {n: _richardson(exp, results.steps, fine, coarse[0][1:], coarse[1][1:], n, order)
-                for n in names}
+    estimate = {n: _richardson(exp, results.steps, factors, fine, coarse[0][1:],
+                               coarse[1][1:], n, order) for n in names}
     cost = sum(c[0] for c in coarse) / max(results.wall_time, 1e-12)
-    return {"error_estimate": estimate, "error_estimate_method": METHOD.format(order=order),
+    return {"error_estimate": estimate,
+            "error_estimate_method": METHOD.format(r1=factors[0], r2=factors[1], order=order),
             "error_estimate_cost": round(cost, 3)}
+
+
+def breakpoints(graph: Graph) -> np.ndarray:
+    """The times where a table (or `segments:`) of the graph has a row: where its values jump
+    or kink."""
+    found = [table_twist(str(inst.start_values["table"]))[1] for inst in graph.instances
+             if isinstance(inst.start_values.get("table"), str) and inst.start_values["table"]]
+    return np.unique(np.concatenate(found)) if found else np.array([])
+
+
+def coarse_factors(graph: Graph, exp) -> tuple[int, int] | None:
+    """The two coarser steps (r1 h, r2 h) of the estimate: the smallest r1 >= 2 whose grid
+    keeps every breakpoint the run's own grid keeps, and r2 the smallest multiple of r1 that
+    does too (2 and 4 without breakpoints). A coarser run whose grid misses a breakpoint the
+    run steps on has an error of another kind (a jump inside a step): comparing the two says
+    nothing of the run's. None when the run has fewer than 4 steps."""
+    h, span = exp.step_size, exp.stop_time - exp.start_time
+    if span < 4 * h * (1 - 1e-9):
+        return None
+    k = (breakpoints(graph) - exp.start_time) / h
+    k = k[(k > 0.5) & (np.abs(k - np.round(k)) < 1e-6)]
+    kept = lambda r: bool(np.all(np.round(k) % r == 0))      # noqa: E731
+    fits = lambda r: kept(r) and r * h <= span * (1 + 1e-9)  # noqa: E731
+    pairs = ((r1, m * r1) for r1 in range(2, MAX_FACTOR[0] + 1) if kept(r1)
+             for m in range(2, MAX_FACTOR[1] // r1 + 1) if fits(m * r1))
+    return next(pairs, (2, 4))
 
 
 def _none(reason: str) -> dict:
@@ -105,27 +135,38 @@ def _common(exp, every: float, *runs: tuple) -> list[np.ndarray]:
     return [v[np.isin(k, shared)] for (_, v), k in zip(runs, keys)]
 
 
-def _richardson(exp, steps: int, fine: tuple, mid: tuple, coarse: tuple, name: str,
-                order: int) -> dict:
-    h = exp.step_size
+def _richardson(exp, steps: int, factors: tuple, fine: tuple, mid: tuple, coarse: tuple,
+                name: str, order: int) -> dict:
+    h, (r1, r2) = exp.step_size, factors
     pick = lambda run: (run[0], run[1][name])      # noqa: E731
-    f2, m2 = _common(exp, 2 * h, pick(fine), pick(mid))
-    f4, m4, c4 = _common(exp, 4 * h, pick(fine), pick(mid), pick(coarse))
+    f2, m2 = _common(exp, r1 * h, pick(fine), pick(mid))
+    f4, m4, c4 = _common(exp, r2 * h, pick(fine), pick(mid), pick(coarse))
     d1, d1_4, d2 = f2 - m2, f4 - m4, m4 - c4
     scale = max(1.0, float(np.max(np.abs(f2))))
     floor = _ROUND_OFF * scale * max(steps, 1)
     if np.max(np.abs(d1)) <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
-    p = _order(np.max(np.abs(d2)), np.max(np.abs(d1_4)), floor, order)
+    p = _order(np.max(np.abs(d2)), np.max(np.abs(d1_4)), floor, factors, order)
     # at the end the leading term may cancel (a path that closes): its own order where higher
-    p_end = max(p, _order(abs(d2[-1]), abs(d1_4[-1]), floor, order + 1))
-    end = abs(float(d1[-1])) / (2.0 ** p_end - 1.0)
-    return {"max": float(np.max(np.abs(d1))) / (2.0 ** p - 1.0),
+    p_end = max(p, _order(abs(d2[-1]), abs(d1_4[-1]), floor, factors, order + 1))
+    end = abs(float(d1[-1])) / (r1 ** p_end - 1.0)
+    return {"max": float(np.max(np.abs(d1))) / (r1 ** p - 1.0),
             "end": end if end > floor else BELOW_ROUND_OFF}
 
 
-def _order(coarse: float, fine: float, floor: float, highest: int) -> float:
-    """The observed order log2(coarse/fine), bounded to [1, highest]."""
+def _order(coarse: float, fine: float, floor: float, factors: tuple, highest: int) -> float:
+    """The observed order p, bounded to [1, highest]: with e = C h^p, the ratio
+    |y_r1h - y_r2h| / |y_h - y_r1h| is (r2^p - r1^p) / (r1^p - 1), increasing in p (r1^p
+    when r2 = r1^2), solved by bisection."""
     ratio = coarse / max(fine, floor)
-    return min(max(math.log2(ratio), 1.0), float(highest)) if ratio > 0 else 1.0
-
+    r1, r2 = factors
+    grows = lambda p: (r2 ** p - r1 ** p) / (r1 ** p - 1.0)     # noqa: E731
+    low, high = 1.0, float(highest)
+    if not ratio > grows(low):
+        return low
+    if ratio >= grows(high):
+        return high
+    for _ in range(50):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if grows(mid) < ratio else (low, mid)
+    return 0.5 * (low + high)
