@@ -93,6 +93,7 @@ def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, floa
     truth = true_errors(graph, results)
     estimate = found.get("error_estimate")
     lines, misses = [], 0
+    cost = float(found.get("error_estimate_cost", float("nan")))
     for output, true in truth.items():
         for which in ("max", "end"):
             est = estimate[output][which] if estimate else found.get("error_estimate_method")
@@ -100,8 +101,9 @@ def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, floa
             misses += bool(miss)
             shown = est if isinstance(est, str) else f"{est:.3e}"
             lines.append(f"{scenario:<32} {name:<12} {exp.step_size:>6g} {output:<11} "
-                         f"{which:<3} {true[which]:>10.3e} {shown:>16} {ratio:>10} {miss}")
-    return lines, misses, float(found.get("error_estimate_cost", float("nan")))
+                         f"{which:<3} {true[which]:>10.3e} {shown:>16} {ratio:>10} "
+                         f"{cost:>5.2f} {miss}")
+    return lines, misses, cost
 
 
 def main() -> None:
@@ -111,7 +113,7 @@ def main() -> None:
     parser.add_argument("--master", action="append", help="only these masters")
     args = parser.parse_args()
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "
-          f"{'estimate':>16} {'est/true':>10}")
+          f"{'estimate':>16} {'est/true':>10} {'cost':>5}")
     total, misses, costs = 0, 0, []
     for scenario in [s for s in scenarios() if args.only in s]:
         for name in args.master or FIXED:

@@ -82,3 +82,33 @@ def test_run_writes_and_prints_the_estimate(tmp_path):
     assert _close(x["end"], true_end)
     assert summary["error_estimate_method"].startswith("Richardson")
     assert any(line.strip().startswith("pose.x: max") for line in lines)
+
+
+def _within_3x_of_the_truth(path, name: str, factor: int, axes=("x", "y", "theta")):
+    """Every estimate (max and end) within 3x of |run - ground truth|; a true error at or
+    below 1e-9 (the truth is solved to rtol 1e-10) must have no number or one as small."""
+    graph, results, found = _at_step(path, name, factor)
+    truth = ground_truth(graph, results.time)
+    assert len(truth.time) == len(results.time)
+    for k in axes:
+        error = np.abs(results[f"pose.{k}"] - getattr(truth, k))
+        e = found["error_estimate"][f"pose.{k}"]
+        for which, true in (("max", error.max()), ("end", error[-1])):
+            if true <= 1e-9:
+                assert e[which] == BELOW_ROUND_OFF or e[which] <= 1e-9, (k, which, e, true)
+            else:
+                assert e[which] != BELOW_ROUND_OFF and _close(e[which], true), \
+                    (k, which, e, true)
+
+
+# segments that jump at odd seconds: at h = 0.04 a run at 2h would step over the jumps the run
+# steps on (its error of another kind); the coarser runs keep them
+@pytest.mark.parametrize("name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
+def test_segments_estimate_keeps_the_jumps(name):
+    _within_3x_of_the_truth(ROOT / "scenarios" / "modes" / "showcase.yaml", name, 4)
+
+
+# a 20 Hz table at h = 0.01: the run steps on every row; the coarser runs must too
+@pytest.mark.parametrize("name", ["quadratic", "trapezoidal"])
+def test_table_estimate_keeps_the_rows(name):
+    _within_3x_of_the_truth(ROOT / "scenarios" / "profiles" / "joystick.yaml", name, 1)
