@@ -1,14 +1,18 @@
 """The coupling error of a run, estimated by Richardson extrapolation between step sizes.
 
-The same graph is stepped again by the same master at 2h and 4h (0.75x the run's doStep
-calls). On the times the three runs share, d1 = y_h - y_2h and d2 = y_2h - y_4h. The observed
-order p = log2(max|d2| / max|d1|), bounded to [1, the master's order], gives the error of the
-run itself, e_h ~ d1 / (2^p - 1), at every multiple of 2h; at the end, where the leading
-term may cancel (a path that closes on itself), the end values' own observed order is taken
-where it is higher, up to the order + 1 (docs/masters.md,
-"The error estimate"). A difference that is within the round-off of the outputs is reported
-as "below round-off", never as a made-up number; where the coarser runs cannot be made
-(fewer than four steps, a coarser run that fails) the estimate says why and gives no number.
+The same graph is stepped again by the same master at r1 h and r2 h: 3/2 h and 3 h (1.0x the
+run's doStep calls), or the first pair of CANDIDATES whose grids step on the same breakpoints
+as the run's (table rows, segments, the times an expression compares t with, the stop time):
+a coarser run that steps over a jump the run steps on makes an error of another kind. On the
+times the three runs share, d1 = y_h - y_r1h and d2 = y_r1h - y_r2h; the observed order p,
+from max|d2| / max|d1| and bounded to [1, the master's order], gives the error of the run,
+e_h ~ d1 / (r1^p - 1), on the times the run shares with the r1 h run: their max. At the end,
+where the leading term may cancel (a path that closes, an error that turns), two terms of
+the error, a h^p + b h^(p+1), are fitted to the end's d1 and d2 (p the end's own order where
+its differences agree in sign and fall faster) (docs/masters.md, "The error estimate"). A
+difference that is within the round-off of the outputs is reported as "below round-off",
+never as a made-up number; where the coarser runs cannot be made (fewer than four steps, a
+coarser run that fails) the estimate says why and gives no number.
 """
 from __future__ import annotations
 
