@@ -12,8 +12,9 @@ times (the truth's grid when it thins a long run), its max and its last value.
 How a tiny error is counted (docs/masters.md, "The error estimate"): a true error at or below
 FLOOR (1e-9 in the output's unit: the ground truth is solved to rtol 1e-10) is "none"; an
 estimate of "below round-off", or a number at or below FLOOR, is "none" too. None against none
-is a hit; none against a number is a MISS. Wall times are on whatever else the machine runs:
-compare the cost ratios within one run.
+is a hit; none against a number is a MISS. An estimate the coarser runs cannot resolve
+("unresolved", no number) is counted apart: WITHHELD. Wall times are on whatever else the
+machine runs: compare the cost ratios within one run.
 
 Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING]
 """
@@ -79,6 +80,8 @@ def true_errors(graph, results) -> dict:
 
 def verdict(estimate, true: float) -> tuple[str, str]:
     """(ratio text, "" or "MISS")."""
+    if isinstance(estimate, str) and estimate.startswith("unresolved"):
+        return "unresolved", "WITHHELD"
     est = None if isinstance(estimate, str) or estimate is None or estimate <= FLOOR \
         else float(estimate)
     if true <= FLOOR:
@@ -101,19 +104,20 @@ def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, tupl
     found = master.estimate_error(graph, results)
     truth = true_errors(graph, results)
     estimate = found.get("error_estimate")
-    lines, misses = [], 0
+    lines, misses, withheld = [], 0, 0
     cost = float(found.get("error_estimate_cost", float("nan")))
     steps = calls(graph, exp, results.steps)
     for output, true in truth.items():
         for which in ("max", "end"):
             est = estimate[output][which] if estimate else found.get("error_estimate_method")
             ratio, miss = verdict(est, true[which])
-            misses += bool(miss)
-            shown = est if isinstance(est, str) else f"{est:.3e}"
+            misses += miss == "MISS"
+            withheld += miss == "WITHHELD"
+            shown = est[:16] if isinstance(est, str) else f"{est:.3e}"
             lines.append(f"{scenario:<32} {name:<12} {exp.step_size:>6g} {output:<11} "
                          f"{which:<3} {true[which]:>10.3e} {shown:>16} {ratio:>10} "
                          f"{steps:>5.2f} {cost:>5.2f} {miss}")
-    return lines, misses, (steps, cost)
+    return lines, (misses, withheld), (steps, cost)
 
 
 def main() -> None:
@@ -124,16 +128,18 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "
           f"{'estimate':>16} {'est/true':>10} {'calls':>5} {'wall':>5}")
-    total, misses, costs = 0, 0, []
+    total, misses, withheld, costs = 0, 0, 0, []
     for scenario in [s for s in scenarios() if args.only in s]:
         for name in args.master or FIXED:
             for factor in FACTORS[:1] if args.quick else FACTORS:
                 lines, missed, cost = measure(scenario, name, factor)
                 print("\n".join(lines), flush=True)
-                total, misses = total + len(lines), misses + missed
+                total, misses, withheld = (total + len(lines), misses + missed[0],
+                                           withheld + missed[1])
                 costs.append(cost)
     steps, walls = np.array(costs).T
-    print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth)")
+    print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth), "
+          f"{withheld} WITHHELD (no number: the coarser runs out of the h^p range)")
     print(f"estimate's doStep calls / the run's: max {steps.max():.2f}, median "
           f"{np.median(steps):.2f}; its stepping time / the run's: max {np.nanmax(walls):.2f}, "
           f"median {np.nanmedian(walls):.2f} over {len(walls)} runs (wall: noisy, see above)")

@@ -27,6 +27,7 @@ from ..errors import SimulationError
 from ..graph import Graph
 from ..masters import DEFAULT_TOLERANCE, entry as master_entry
 from ..models.catalog import bundled_model
+from ..models.blocks.profile_table import TableError, parse_table
 from ..profiles import table_twist
 from ..results import BELOW_ROUND_OFF, Results
 
@@ -41,6 +42,10 @@ CANDIDATES = tuple((Fraction(a), Fraction(b)) for a, b in (
 ADAPTIVE_METHOD = ("the adaptive master's per-step errors (limited third differences of the "
                    "twist, the frame's turning, the heading's lever arm), summed")
 _END = np.iinfo(np.int64).max
+# the coarser runs' differences growing more than this times as fast as the master's order
+# allows: they are out of the range where the error goes as h^p, and no number is given
+OUT_OF_RANGE = 1.3
+UNRESOLVED = "unresolved (the coarser runs are out of the h^p range)"
 _ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
 
 
@@ -97,10 +102,18 @@ def breakpoints(graph: Graph) -> np.ndarray:
     for inst in graph.instances:
         for name, value in inst.start_values.items():
             if name == "table" and isinstance(value, str) and value:
-                found.append(np.asarray(table_twist(value)[1], dtype=float))
+                found.append(_table_times(value))
             elif name.endswith("_expr") and isinstance(value, str):
                 found.append(np.array(_compared_times(value)))
     return np.unique(np.concatenate(found))
+
+
+def _table_times(text: str) -> np.ndarray:
+    """The time column of a twist table (NumPy's parser) or of any other (a path's)."""
+    try:
+        return np.asarray(table_twist(text)[1], dtype=float)
+    except TableError:
+        return np.asarray(parse_table(text, columns=("time",), quote=False)[0], dtype=float)
 
 
 def _compared_times(text: str) -> list[float]:
@@ -190,6 +203,8 @@ def _richardson(exp, steps: int, factors: tuple, fine: tuple, mid: tuple, coarse
     if np.max(np.abs(d1)) <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
     r1, r2 = float(r1), float(r2)
+    if np.max(np.abs(d2)) > OUT_OF_RANGE * _grows(r1, r2, order) * np.max(np.abs(d1_4)):
+        return {"max": UNRESOLVED, "end": UNRESOLVED}
     p = _order(np.max(np.abs(d2)), np.max(np.abs(d1_4)), floor, (r1, r2), order)
     # the end's own order where its differences agree in sign and fall faster (a figure
     # eight that closes cancels two terms); else the run's
@@ -215,8 +230,7 @@ def _order(coarse: float, fine: float, floor: float, factors: tuple, highest: in
     |y_r1h - y_r2h| / |y_h - y_r1h| is (r2^p - r1^p) / (r1^p - 1), increasing in p (r1^p
     when r2 = r1^2), solved by bisection."""
     ratio = coarse / max(fine, floor)
-    r1, r2 = factors
-    grows = lambda p: (r2 ** p - r1 ** p) / (r1 ** p - 1.0)     # noqa: E731
+    grows = lambda p: _grows(*factors, p)       # noqa: E731
     low, high = 1.0, float(highest)
     if not ratio > grows(low):
         return low
@@ -226,3 +240,8 @@ def _order(coarse: float, fine: float, floor: float, factors: tuple, highest: in
         mid = 0.5 * (low + high)
         low, high = (mid, high) if grows(mid) < ratio else (low, mid)
     return 0.5 * (low + high)
+
+
+def _grows(r1: float, r2: float, p: float) -> float:
+    """|y_r1h - y_r2h| / |y_h - y_r1h| for an error C h^p."""
+    return (r2 ** p - r1 ** p) / (r1 ** p - 1.0)
