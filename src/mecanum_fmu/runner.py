@@ -181,7 +181,8 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
 
 
 def _estimate(graph: Graph, results: Results) -> dict:
-    """The coupling error estimate (the run again at 2h and 4h; the adaptive master's own)."""
+    """The coupling error estimate (the run again at two coarser steps; the adaptive
+    master's own)."""
     from .master import estimate_error  # here: `validate` needs no FMI runtime
     return estimate_error(graph, results)
 

@@ -160,5 +160,5 @@ def _failure(r: RunningInstance, function: str, status: int, when: float,
 
 def estimate_error(graph: Graph, results: Results) -> dict:
     """The run's coupling error, for summary.json (master/estimate.py): the graph stepped
-    again at 2h and 4h."""
+    again at two coarser steps (3/2 h and 3 h, or a pair that keeps the breakpoints)."""
     return error_estimate(graph, results, simulate)

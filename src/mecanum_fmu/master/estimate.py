@@ -1,19 +1,25 @@
 """The coupling error of a run, estimated by Richardson extrapolation between step sizes.
 
-The same graph is stepped again by the same master at 2h and 4h (0.75x the run's doStep
-calls). On the times the three runs share, d1 = y_h - y_2h and d2 = y_2h - y_4h. The observed
-order p = log2(max|d2| / max|d1|), bounded to [1, the master's order], gives the error of the
-run itself, e_h ~ d1 / (2^p - 1), at every multiple of 2h; at the end, where the leading
-term may cancel (a path that closes on itself), the end values' own observed order is taken
-where it is higher, up to the order + 1 (docs/masters.md,
-"The error estimate"). A difference that is within the round-off of the outputs is reported
-as "below round-off", never as a made-up number; where the coarser runs cannot be made
-(fewer than four steps, a coarser run that fails) the estimate says why and gives no number.
+The same graph is stepped again by the same master at r1 h and r2 h: 3/2 h and 3 h (1.0x the
+run's doStep calls), or the first pair of CANDIDATES whose grids step on the same breakpoints
+as the run's (table rows, segments, the times an expression compares t with, the stop time):
+a coarser run that steps over a jump the run steps on makes an error of another kind. On the
+times the three runs share, d1 = y_h - y_r1h and d2 = y_r1h - y_r2h; the observed order p,
+from max|d2| / max|d1| and bounded to [1, the master's order], gives the error of the run,
+e_h ~ d1 / (r1^p - 1), on the times the run shares with the r1 h run: their max. At the end,
+where the leading term may cancel (a path that closes, an error that turns), two terms of
+the error, a h^p + b h^(p+1), are fitted to the end's d1 and d2 (p the end's own order where
+its differences agree in sign and fall faster) (docs/masters.md, "The error estimate"). A
+difference that is within the round-off of the outputs is reported as "below round-off",
+never as a made-up number; where the coarser runs cannot be made (fewer than four steps, a
+coarser run that fails) the estimate says why and gives no number.
 """
 from __future__ import annotations
 
+import ast
 import dataclasses
 import math
+from fractions import Fraction
 
 import numpy as np
 
@@ -21,13 +27,25 @@ from ..errors import SimulationError
 from ..graph import Graph
 from ..masters import DEFAULT_TOLERANCE, entry as master_entry
 from ..models.catalog import bundled_model
+from ..models.blocks.profile_table import TableError, parse_table
+from ..profiles import table_twist
 from ..results import BELOW_ROUND_OFF, Results
 
-METHOD = ("Richardson extrapolation: the run repeated at 2h and 4h, e ~ (y_h - y_2h)/(2^p - 1) "
-          "with the observed order p bounded to [1, {order}]")
+METHOD = ("Richardson extrapolation: the run repeated at {r1} h and {r2} h, e ~ (y_h - y_r1h)/"
+          "(r1^p - 1) with the observed order p bounded to [1, {order}]")
+ONE = Fraction(1)
+# the coarser steps (in run steps) the estimate compares with, in order of preference
+# (doStep calls: 1/r1 + 1/r2 of the run's, 1.0 for 3/2 and 3, at most 1.2)
+CANDIDATES = tuple((Fraction(a), Fraction(b)) for a, b in (
+    ("3/2", "3"), ("5/4", "5/2"), ("5/3", "5"), ("2", "4"), ("2", "10"), ("5/2", "5"),
+    ("5", "10"), ("5", "25")))
 ADAPTIVE_METHOD = ("the adaptive master's per-step errors (limited third differences of the "
                    "twist, the frame's turning, the heading's lever arm), summed")
 _END = np.iinfo(np.int64).max
+# the coarser runs' differences growing more than this times as fast as the master's order
+# allows: they are out of the range where the error goes as h^p, and no number is given
+OUT_OF_RANGE = 1.3
+UNRESOLVED = "unresolved (the coarser runs are out of the h^p range)"
 _ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
 
 
@@ -55,10 +73,12 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "error_estimate_method": ADAPTIVE_METHOD,
                 "tolerance": exp.tolerance or DEFAULT_TOLERANCE,
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
-    if (exp.stop_time - exp.start_time) < 4 * exp.step_size * (1 - 1e-9):
+    factors = coarse_factors(graph, exp)
+    if factors is None:
         return _none("the run has fewer than 4 steps: no coarser runs to compare with")
     coarse = []
-    for factor in (2, 4):
+    for factor in factors:
+        factor = float(factor)
         try:
             coarse.append(_coarse_run(graph, dataclasses.replace(
                 exp, step_size=factor * exp.step_size), names, simulate))
@@ -66,11 +86,70 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
             return _none(f"the same run at {factor}x the step failed ({err})")
     order = master_entry(exp.master).order
     fine = (results.time, {n: np.asarray(results[n], dtype=float) for n in names})
-    estimate = {n: _richardson(exp, results.steps, fine, coarse[0][1:], coarse[1][1:], n, order)
-                for n in names}
+    estimate = {n: _richardson(exp, results.steps, factors, fine, coarse[0][1:],
+                               coarse[1][1:], n, order) for n in names}
     cost = sum(c[0] for c in coarse) / max(results.wall_time, 1e-12)
-    return {"error_estimate": estimate, "error_estimate_method": METHOD.format(order=order),
+    return {"error_estimate": estimate,
+            "error_estimate_method": METHOD.format(r1=str(factors[0]), r2=str(factors[1]),
+                                                   order=order),
             "error_estimate_cost": round(cost, 3)}
+
+
+def breakpoints(graph: Graph) -> np.ndarray:
+    """The times where a source's values may jump or kink: the rows of a table (or of
+    `segments:`) and the numbers an expression compares t with (`where(t < 8, ...)`)."""
+    found = [np.array([])]
+    for inst in graph.instances:
+        for name, value in inst.start_values.items():
+            if name == "table" and isinstance(value, str) and value:
+                found.append(_table_times(value))
+            elif name.endswith("_expr") and isinstance(value, str):
+                found.append(np.array(_compared_times(value)))
+    return np.unique(np.concatenate(found))
+
+
+def _table_times(text: str) -> np.ndarray:
+    """The time column of a twist table (NumPy's parser) or of any other (a path's)."""
+    try:
+        return np.asarray(table_twist(text)[1], dtype=float)
+    except TableError:
+        return np.asarray(parse_table(text, columns=("time",), quote=False)[0], dtype=float)
+
+
+def _compared_times(text: str) -> list[float]:
+    """The numbers t is compared with in an expression (t < 8, 2 <= t): plain literals only."""
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except (SyntaxError, ValueError):
+        return []               # the loader refused it already; nothing to add here
+    times = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare):
+            sides = [node.left, *node.comparators]
+            if any(isinstance(n, ast.Name) and n.id == "t" for n in sides):
+                times += [float(n.value) for n in sides if isinstance(n, ast.Constant)
+                          and isinstance(n.value, (int, float))]
+    return times
+
+
+def coarse_factors(graph: Graph, exp) -> tuple[Fraction, Fraction] | None:
+    """The two coarser steps (r1 h, r2 h) of the estimate: the first pair of CANDIDATES whose
+    grids step on the same breakpoints (of tables and segments) as the run's own grid, with
+    room for 2 steps of r2 h (2h and 4h when none does). A coarser run that steps over a
+    breakpoint the run steps on (or the reverse) has an error of another kind there (a jump
+    inside a step): comparing the two says nothing of the run's. None when the run has fewer
+    than 4 steps."""
+    h, span = exp.step_size, exp.stop_time - exp.start_time
+    if span < 4 * h * (1 - 1e-9):
+        return None
+    k = (np.append(breakpoints(graph), exp.stop_time) - exp.start_time) / h
+    k = k[k > 0.5]          # the stop time too: a short last step is an error of its own
+    on = lambda r: np.abs(k / r - np.round(k / r)) < 1e-3     # noqa: E731 (a recorded
+    # table's 0.049999872 s is on the 0.05 s grid: a jump 1e-7 s off a step costs nothing)
+    mine = on(1.0)
+    kept = lambda r: bool(np.array_equal(on(float(r)), mine))  # noqa: E731
+    return next((pair for pair in CANDIDATES if all(map(kept, pair))
+                 and 2 * pair[1] * h <= span * (1 + 1e-9)), (Fraction(2), Fraction(4)))
 
 
 def _none(reason: str) -> dict:
@@ -105,27 +184,64 @@ def _common(exp, every: float, *runs: tuple) -> list[np.ndarray]:
     return [v[np.isin(k, shared)] for (_, v), k in zip(runs, keys)]
 
 
-def _richardson(exp, steps: int, fine: tuple, mid: tuple, coarse: tuple, name: str,
-                order: int) -> dict:
-    h = exp.step_size
+def _shared(*factors: Fraction) -> Fraction:
+    """The step of the grid that steps of factors x h share (the least common multiple)."""
+    num = math.lcm(*(f.numerator for f in factors))
+    return Fraction(num, math.gcd(*(f.denominator for f in factors)))
+
+
+def _richardson(exp, steps: int, factors: tuple, fine: tuple, mid: tuple, coarse: tuple,
+                name: str, order: int) -> dict:
+    h, (r1, r2) = exp.step_size, factors
     pick = lambda run: (run[0], run[1][name])      # noqa: E731
-    f2, m2 = _common(exp, 2 * h, pick(fine), pick(mid))
-    f4, m4, c4 = _common(exp, 4 * h, pick(fine), pick(mid), pick(coarse))
+    f2, m2 = _common(exp, float(_shared(ONE, r1)) * h, pick(fine), pick(mid))
+    f4, m4, c4 = _common(exp, float(_shared(ONE, r1, r2)) * h, pick(fine), pick(mid),
+                         pick(coarse))
     d1, d1_4, d2 = f2 - m2, f4 - m4, m4 - c4
     scale = max(1.0, float(np.max(np.abs(f2))))
     floor = _ROUND_OFF * scale * max(steps, 1)
     if np.max(np.abs(d1)) <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
-    p = _order(np.max(np.abs(d2)), np.max(np.abs(d1_4)), floor, order)
-    # at the end the leading term may cancel (a path that closes): its own order where higher
-    p_end = max(p, _order(abs(d2[-1]), abs(d1_4[-1]), floor, order + 1))
-    end = abs(float(d1[-1])) / (2.0 ** p_end - 1.0)
-    return {"max": float(np.max(np.abs(d1))) / (2.0 ** p - 1.0),
+    r1, r2 = float(r1), float(r2)
+    if np.max(np.abs(d2)) > OUT_OF_RANGE * _grows(r1, r2, order) * np.max(np.abs(d1_4)):
+        return {"max": UNRESOLVED, "end": UNRESOLVED}
+    p = _order(np.max(np.abs(d2)), np.max(np.abs(d1_4)), floor, (r1, r2), order)
+    # the end's own order where its differences agree in sign and fall faster (a figure
+    # eight that closes cancels two terms); else the run's
+    e1, e2 = float(-d1_4[-1]), float(-d2[-1])
+    p_end = max(p, _order(abs(e2), abs(e1), floor, (r1, r2), order + 2)) if e1 * e2 > 0 else p
+    end = _two_terms(e1, e2, r1, r2, p_end)
+    return {"max": float(np.max(np.abs(d1))) / (r1 ** p - 1.0),
             "end": end if end > floor else BELOW_ROUND_OFF}
 
 
-def _order(coarse: float, fine: float, floor: float, highest: int) -> float:
-    """The observed order log2(coarse/fine), bounded to [1, highest]."""
-    ratio = coarse / max(fine, floor)
-    return min(max(math.log2(ratio), 1.0), float(highest)) if ratio > 0 else 1.0
+def _two_terms(d1: float, d2: float, r1: float, r2: float, p: float) -> float:
+    """|e_h| at one time from y_r1h - y_h = d1 and y_r2h - y_r1h = d2, with two terms of the
+    error, e(r h) = a r^p + b r^(p+1): the end point, where the leading term may cancel (a
+    path that closes, an error that turns) and the next one decides."""
+    q = p + 1.0
+    m = np.array([[r1 ** p - 1.0, r1 ** q - 1.0], [r2 ** p - r1 ** p, r2 ** q - r1 ** q]])
+    a, b = np.linalg.solve(m, np.array([d1, d2]))
+    return abs(float(a + b))
 
+
+def _order(coarse: float, fine: float, floor: float, factors: tuple, highest: int) -> float:
+    """The observed order p, bounded to [1, highest]: with e = C h^p, the ratio
+    |y_r1h - y_r2h| / |y_h - y_r1h| is (r2^p - r1^p) / (r1^p - 1), increasing in p (r1^p
+    when r2 = r1^2), solved by bisection."""
+    ratio = coarse / max(fine, floor)
+    grows = lambda p: _grows(*factors, p)       # noqa: E731
+    low, high = 1.0, float(highest)
+    if not ratio > grows(low):
+        return low
+    if ratio >= grows(high):
+        return high
+    for _ in range(50):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if grows(mid) < ratio else (low, mid)
+    return 0.5 * (low + high)
+
+
+def _grows(r1: float, r2: float, p: float) -> float:
+    """|y_r1h - y_r2h| / |y_h - y_r1h| for an error C h^p."""
+    return (r2 ** p - r1 ** p) / (r1 ** p - 1.0)

@@ -1,0 +1,149 @@
+"""The error estimate against the true error: per bundled scenario with a ground truth, per
+fixed-step master and per step (the scenario's, 2x and 4x), the true max and end error of
+pose.x, pose.y, pose.theta, the estimate (master/estimate.py), their ratio, MISS where the
+ratio is outside [1/3, 3], and the estimate's cost: its coarser runs' doStep calls against
+the run's ("calls", exact) and their stepping time against the run's ("wall", measured).
+
+The scenarios are those whose single pose has a ground truth (report/ground_truth.py); a
+closed loop's "truth" is the path its follower is asked to follow (the tracking error, not the
+coupling error), so closed loops are left out. The true error is |run - truth| on the run's
+times (the truth's grid when it thins a long run), its max and its last value.
+
+How a tiny error is counted (docs/masters.md, "The error estimate"): a true error at or below
+FLOOR (1e-9 in the output's unit: the ground truth is solved to rtol 1e-10) is "none"; an
+estimate of "below round-off", or a number at or below FLOOR, is "none" too. None against none
+is a hit; none against a number is a MISS. An estimate the coarser runs cannot resolve
+("unresolved", no number) is counted apart: WITHHELD. Wall times are on whatever else the
+machine runs: compare the cost ratios within one run.
+
+Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+
+from mecanum_fmu import master
+from mecanum_fmu.errors import MecanumError
+from mecanum_fmu.master.estimate import coarse_factors
+from mecanum_fmu.masters import MASTERS, entry
+from mecanum_fmu.models.topology import topology
+from mecanum_fmu.report.ground_truth import ground_truth
+from mecanum_fmu.runner import prepare
+
+ROOT = Path(__file__).resolve().parents[1]
+FIXED = tuple(m for m in MASTERS if not entry(m).adaptive)
+FACTORS = (1, 2, 4)
+AXES = ("x", "y", "theta")
+FACTOR = 3.0
+FLOOR = 1e-9
+
+
+def scenarios() -> list[str]:
+    """The bundled scenarios whose single pose has a ground truth (open loop)."""
+    found = []
+    for path in sorted((ROOT / "scenarios").rglob("*.yaml")):
+        try:
+            graph = prepare(path)
+        except MecanumError:
+            continue                 # a sweep file, not a scenario
+        drives = topology(graph).drives
+        if len(drives) != 1 or drives[0].model == "PathFollower":
+            continue
+        exp = graph.scenario.experiment
+        if ground_truth(graph, np.array([exp.start_time, exp.stop_time])) is not None:
+            found.append(str(path.relative_to(ROOT / "scenarios")))
+    return found
+
+
+def at_step(graph, name: str, factor: int):
+    exp = dataclasses.replace(graph.scenario.experiment, master=name,
+                              step_size=graph.scenario.experiment.step_size * factor)
+    return dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
+                                                                   experiment=exp)), exp
+
+
+def true_errors(graph, results) -> dict:
+    truth = ground_truth(graph, results.time)
+    rows = np.searchsorted(results.time, truth.time)
+    pose = next(n[:-len(".theta")] for n in results.names if n.endswith(".theta"))
+    out = {}
+    for k in AXES:
+        err = np.abs(np.asarray(results[f"{pose}.{k}"], dtype=float)[rows] - getattr(truth, k))
+        out[f"{pose}.{k}"] = {"max": float(err.max()), "end": float(err[-1])}
+    return out
+
+
+def verdict(estimate, true: float) -> tuple[str, str]:
+    """(ratio text, "" or "MISS")."""
+    if isinstance(estimate, str) and estimate.startswith("unresolved"):
+        return "unresolved", "WITHHELD"
+    est = None if isinstance(estimate, str) or estimate is None or estimate <= FLOOR \
+        else float(estimate)
+    if true <= FLOOR:
+        return ("none/none", "") if est is None else ("num/none", "MISS")
+    if est is None:
+        return ("none/num", "MISS")
+    ratio = est / true
+    return f"{ratio:.3g}", "" if 1 / FACTOR <= ratio <= FACTOR else "MISS"
+
+
+def calls(graph, exp, steps: int) -> float:
+    """The coarser runs' steps against the run's (doStep calls: the same per step)."""
+    factors = coarse_factors(graph, exp)
+    return sum(math.ceil(steps / float(r) - 1e-9) for r in factors) / steps if factors else 0.0
+
+
+def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, tuple]:
+    graph, exp = at_step(prepare(ROOT / "scenarios" / scenario), name, factor)
+    results = master.simulate(graph, exp)
+    found = master.estimate_error(graph, results)
+    truth = true_errors(graph, results)
+    estimate = found.get("error_estimate")
+    lines, misses, withheld = [], 0, 0
+    cost = float(found.get("error_estimate_cost", float("nan")))
+    steps = calls(graph, exp, results.steps)
+    for output, true in truth.items():
+        for which in ("max", "end"):
+            est = estimate[output][which] if estimate else found.get("error_estimate_method")
+            ratio, miss = verdict(est, true[which])
+            misses += miss == "MISS"
+            withheld += miss == "WITHHELD"
+            shown = est[:16] if isinstance(est, str) else f"{est:.3e}"
+            lines.append(f"{scenario:<32} {name:<12} {exp.step_size:>6g} {output:<11} "
+                         f"{which:<3} {true[which]:>10.3e} {shown:>16} {ratio:>10} "
+                         f"{steps:>5.2f} {cost:>5.2f} {miss}")
+    return lines, (misses, withheld), (steps, cost)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="the scenario's step only")
+    parser.add_argument("--only", default="", help="scenarios whose name contains this")
+    parser.add_argument("--master", action="append", help="only these masters")
+    args = parser.parse_args()
+    print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "
+          f"{'estimate':>16} {'est/true':>10} {'calls':>5} {'wall':>5}")
+    total, misses, withheld, costs = 0, 0, 0, []
+    for scenario in [s for s in scenarios() if args.only in s]:
+        for name in args.master or FIXED:
+            for factor in FACTORS[:1] if args.quick else FACTORS:
+                lines, missed, cost = measure(scenario, name, factor)
+                print("\n".join(lines), flush=True)
+                total, misses, withheld = (total + len(lines), misses + missed[0],
+                                           withheld + missed[1])
+                costs.append(cost)
+    steps, walls = np.array(costs).T
+    print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth), "
+          f"{withheld} WITHHELD (no number: the coarser runs out of the h^p range)")
+    print(f"estimate's doStep calls / the run's: max {steps.max():.2f}, median "
+          f"{np.median(steps):.2f}; its stepping time / the run's: max {np.nanmax(walls):.2f}, "
+          f"median {np.nanmedian(walls):.2f} over {len(walls)} runs (wall: noisy, see above)")
+
+
+if __name__ == "__main__":
+    main()
