@@ -71,9 +71,13 @@ def test_segment_jumps_meet_the_tolerance_without_a_storm_of_rejections(toleranc
 OMNI = ROOT / "scenarios" / "chassis" / "omni_field_circle.yaml"
 
 
-@pytest.mark.parametrize("path,tolerance", [(OMNI, 1e-4), (CIRCLE, 1e-4)])
+@pytest.mark.parametrize("path,tolerance", [(OMNI, 1e-4), (CIRCLE, 1e-4), (CIRCLE, 1e-5),
+                                            (CIRCLE, 1e-6)])
 def test_smooth_scenario_costs_at_most_1_5x_the_best_fixed_step(path, tolerance):
-    # the longest fixed step h_out / m that meets the tolerance, by the ground truth
+    # the longest fixed step h_out / m that meets the tolerance, by the ground truth (the
+    # circle at 1e-5: h_out, whose end error of 2.7e-6 owes much to its start-up; at 1e-6:
+    # h_out / 2): the adaptive master's steps ramp up from a short first step, so it reaches
+    # these only with a hold better than the fixed master's parabola (the cubic)
     for m in range(1, 9):
         fixed_graph, fixed = _run(path, master_name="quadratic", divide=m)
         if _end_error(fixed_graph, fixed) <= tolerance:
