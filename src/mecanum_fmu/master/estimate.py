@@ -25,7 +25,7 @@ from ..results import BELOW_ROUND_OFF, Results
 
 METHOD = ("Richardson extrapolation: the run repeated at 2h and 4h, e ~ (y_h - y_2h)/(2^p - 1) "
           "with the observed order p bounded to [1, {order}]")
-ADAPTIVE_METHOD = ("the adaptive master's per-step errors (limited third differences of the "
+ADAPTIVE_METHOD = ("the adaptive master's per-step errors (the cubic hold's next term from the "
                    "twist, the frame's turning, the heading's lever arm), summed")
 _END = np.iinfo(np.int64).max
 _ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
