@@ -139,3 +139,16 @@ def test_validate_refuses_a_tolerance_the_graph_cannot_meet(tmp_path, capsys, fm
         code, out, err = run_main(capsys, "validate", str(path))
         assert code == 2 and says in err and "experiment.master" in err, (code, out, err)
         assert "Traceback" not in err
+
+
+def test_a_cubic_input_is_held_exactly_once_there_is_history(tmp_path):
+    # vx = t^3, vy = w = 0: x(t) = t^4 / 4 (x(2) = 4). The parabola's mean errs h^4 u''' / 24
+    # per step (the fixed quadratic master ends 1.8e-4 m off at h = 0.05); the mean of the
+    # cubic through the last four values is exact, so only the short first steps err
+    text = CIRCLE.read_text().replace('vx_expr: "sin(t)", vy_expr: "cos(t)"',
+                                      'vx_expr: "t**3", vy_expr: "0"')
+    path = write_scenario(tmp_path, "cubic", text.replace("stop_time: 10.0", "stop_time: 2.0"))
+    graph, results = _run(path, 1e-6)
+    assert len(results.time) == 41
+    assert abs(results["pose.x"][-1] - 4.0) <= 1e-9 and results["pose.y"][-1] == 0.0
+    assert results.steps_taken + results.steps_rejected <= 50     # h_out after a short ramp
