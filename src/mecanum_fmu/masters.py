@@ -33,7 +33,7 @@ REGISTRY: dict[str, Master] = {m.name: m for m in (
     Master("jacobi", "zoh", True, False, 1,
            "every component steps on the values of t_k, zero-order hold"),
     Master("adaptive", "quadratic", False, True, 3,
-           "the quadratic hold on a step chosen to meet a tolerance (--tolerance)",
+           "a cubic hold (where smooth) on a step chosen to meet a tolerance (--tolerance)",
            adaptive=True),
 )}
 MASTERS = tuple(REGISTRY)

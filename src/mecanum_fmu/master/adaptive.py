@@ -1,14 +1,17 @@
-"""The adaptive master: the quadratic hold on a step chosen to meet a tolerance.
+"""The adaptive master: a cubic (or the quadratic) hold on a step chosen to meet a tolerance.
 
 Per step, after the pass (docs/masters.md, "The adaptive master"):
-- the hold is the quadratic master's on unequal steps: the mean over the step of the parabola
-  through u_k-1, u_k, u_k+1 (its second difference limited by the previous one, minmod);
+- the hold is the mean over the step of the cubic through u_k-2 ... u_k+1 on their own times
+  where the third differences of this step and the last agree in sign (a smooth input), else
+  the quadratic master's on unequal steps: the parabola through u_k-1, u_k, u_k+1, its second
+  difference limited by the previous one (minmod: a kink or a jump in a table adds nothing);
   in a loop the step is predicted with the linear extrapolation, rolled back and corrected;
 - the step's error comes from the pose's twist before and after the step (no extra doStep):
-  the hold's next term, |u'''| h^3 / 24 on the mean, u''' the third divided difference
-  limited by the last step's (minmod: a jump or a kink in a table adds nothing, no storm of
-  rejections); the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error
-  moves every later point by J (p - p_t);
+  the cubic's next term, 19/720 h^4 |u4| on the mean, u4 (the fourth derivative) from
+  the change of the third difference (nothing where the parabola holds: no storm of
+  rejections at a kink or a jump);
+  the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error moves every
+  later point by J (p - p_t);
 - the signed sum of the accepted steps' errors must stay under the line
   TOL (FLOOR + SLOPE (t - start) / span), and a step's own error under LOCAL x its share
   TOL h / span times the room that sum leaves under the line; a rejected step rolls every FMU
@@ -100,14 +103,19 @@ class _VarBlend:
 
     def fill(self) -> None:
         np.take(self.buffer, self.src, out=self.rows[0])
-        now, u, u1, u2 = self.rows
+        now, u, u1, _ = self.rows
         hs = self.holds
-        h, g, f = hs.h, hs.g, hs.f
+        h, g = hs.h, hs.g
         mean = 0.5 * (now + u)
         if hs.steps >= 2:
+            # the parabola's correction to the trapezoid, its second difference limited
             second = 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
-            before = 2 * ((u - u1) / g + (u2 - u1) / f) / (g + f)
-            mean = mean - _minmod(second, before) * h * h / 12
+            correction = _minmod(second, 2 * self._second_before()) * h * h / 12
+            if hs.steps >= 3:       # the cubic's where the third differences agree in sign
+                third = self._third()
+                cubic = second * h * h / 12 + third * h * h * (h + 2 * g) / 72
+                correction = np.where(third * self.third_before > 0, cubic, correction)
+            mean = mean - correction
         if hs.mode == hs.PREDICT:
             slope = (u - u1) / g
             self.staging[:] = np.where(self.ahead, u + slope * h / 2,
@@ -115,17 +123,32 @@ class _VarBlend:
         else:
             self.staging[:] = np.where(self.fed, now, mean)
 
-    def error(self) -> np.ndarray:
-        """The error of this step's held mean, per input: |u'''| h^3 / 24, u''' limited."""
+    def _second_before(self) -> np.ndarray:
+        """The second divided difference over u_k-2, u_k-1, u_k."""
+        _, u, u1, u2 = self.rows
+        g, f = self.holds.g, self.holds.f
+        return ((u - u1) / g - (u1 - u2) / f) / (g + f)
+
+    def _third(self) -> np.ndarray:
+        """u''', 6x the third divided difference over u_k-2 ... u_k+1."""
         now, u, u1, u2 = self.rows
+        h, g, f = self.holds.h, self.holds.g, self.holds.f
+        d2a = ((now - u) / h - (u - u1) / g) / (h + g)
+        return 6 * (d2a - self._second_before()) / (h + g + f)
+
+    def error(self) -> np.ndarray:
+        """The error of this step's held mean, per input: where the hold is the cubic (the
+        third differences agree in sign), its next term 19/720 h^4 |u4| (uniform steps' form),
+        u4 the change of the third difference; elsewhere (the limited parabola where a kink
+        or a jump sits among the last four values, or u3 crosses zero) nothing."""
         hs = self.holds
         h, g, f = hs.h, hs.g, hs.f
-        d2a = ((now - u) / h - (u - u1) / g) / (h + g)
-        d2b = ((u - u1) / g - (u1 - u2) / f) / (g + f)
-        self.third[:] = 6 * (d2a - d2b) / (h + g + f)
+        self.third[:] = self._third()
         if hs.steps < 3:       # no history yet: the step is kept short instead (first_step)
             return np.zeros_like(self.third)
-        return np.abs(_minmod(self.third, self.third_before)) * h ** 3 / 24
+        smooth = self.third * self.third_before > 0
+        fourth = 2 * (self.third - self.third_before) / (h + f)
+        return np.where(smooth, 19 / 720 * h ** 4 * np.abs(fourth), 0.0)
 
     def commit(self) -> None:
         self.older[:] = self.old
