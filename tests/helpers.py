@@ -6,6 +6,7 @@ import csv
 import os
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -155,3 +156,18 @@ def run_main(capsys, *args) -> tuple[int, str, str]:
     code = cli.main([str(a) for a in args])
     captured = capsys.readouterr()
     return code, captured.out, captured.err
+
+
+def pose_without_state_save(fmu_dir: Path, folder: Path) -> Path:
+    """folder/PoseNoState.fmu: PoseIntegrator whose model description says it cannot get and
+    set its state (canGetAndSetFMUstate="false")."""
+    fmu = folder / "PoseNoState.fmu"
+    with zipfile.ZipFile(fmu_dir / "PoseIntegrator.fmu") as src, \
+            zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as dst:
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename == "modelDescription.xml":
+                data = data.replace(b'canGetAndSetFMUstate="true"',
+                                    b'canGetAndSetFMUstate="false"')
+            dst.writestr(info, data)
+    return fmu

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from helpers import ROOT, run_child, run_main, write_scenario
+from helpers import ROOT, pose_without_state_save, run_child, run_main, write_scenario
 from mecanum_fmu import master, runner
 from mecanum_fmu.report.ground_truth import ground_truth
 
@@ -110,26 +110,11 @@ def test_bad_tolerance_is_refused(tmp_path, args, says):
     assert not (tmp_path / "o" / "results.csv").exists()
 
 
-def _no_state_copy(fmu_dir, folder):
-    """A copy of PoseIntegrator whose model description says it cannot save its state."""
-    import zipfile
-    fmu = folder / "PoseNoState.fmu"
-    with zipfile.ZipFile(fmu_dir / "PoseIntegrator.fmu") as src, \
-            zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as dst:
-        for info in src.infolist():
-            data = src.read(info)
-            if info.filename == "modelDescription.xml":
-                data = data.replace(b'canGetAndSetFMUstate="true"',
-                                    b'canGetAndSetFMUstate="false"')
-            dst.writestr(info, data)
-    return fmu
-
-
 def test_validate_refuses_a_tolerance_the_graph_cannot_meet(tmp_path, capsys, fmu_dir):
     # a tolerance needs every FMU to roll back and a PoseIntegrator to control: `validate`
     # says so (exit 2), before any run
     text = CIRCLE.read_text().replace("  master: quadratic ", "  tolerance: 1e-4\n  #")
-    _no_state_copy(fmu_dir, tmp_path)
+    pose_without_state_save(fmu_dir, tmp_path)
     no_state = write_scenario(tmp_path, "no_state", text.replace("{fmu: PoseIntegrator}",
                                                                  "{fmu: PoseNoState.fmu}"))
     no_pose = write_scenario(tmp_path, "no_pose", "\n".join(   # the pose and its links gone

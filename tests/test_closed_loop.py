@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from helpers import ROOT, write_scenario
+from helpers import ROOT, pose_without_state_save, write_scenario
 from mecanum_fmu import master
 from mecanum_fmu.models.catalog import find_roles
 from mecanum_fmu.report.plots import available_panels
@@ -193,16 +193,7 @@ def test_quadratic_master_corrects_the_loop_and_widens_its_stable_steps(fmu_dir)
 def test_quadratic_master_without_state_support_steps_the_loop_once(fmu_dir, tmp_path):
     """An FMU in the loop that cannot get and set its state: a warning that says what happens,
     and the run goes on single-pass (as the trapezoidal master does for the loop's inputs)."""
-    import zipfile
-    fmu = tmp_path / "PoseNoState.fmu"
-    with zipfile.ZipFile(fmu_dir / "PoseIntegrator.fmu") as src, \
-            zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as dst:
-        for info in src.infolist():
-            data = src.read(info)
-            if info.filename == "modelDescription.xml":
-                data = data.replace(b'canGetAndSetFMUstate="true"',
-                                    b'canGetAndSetFMUstate="false"')
-            dst.writestr(info, data)
+    pose_without_state_save(fmu_dir, tmp_path)
     scenario = tmp_path / "no_state.yaml"
     scenario.write_text(CIRCLE.read_text().replace("{fmu: PoseIntegrator,",
                                                    "{fmu: PoseNoState.fmu,"))
