@@ -3,6 +3,7 @@ failures, clean-up, recording and the trapezoidal fall-back."""
 import json
 import os
 import re
+import shutil
 import signal
 import threading
 
@@ -311,3 +312,19 @@ def test_default_records_every_output(tmp_path, capsys):
     assert SPEC_OUTPUTS <= set(expected)
     assert header[0] == "time"
     assert sorted(header[1:]) == sorted(expected)
+
+
+def test_a_rebuilt_fmu_at_the_same_path_is_extracted_anew(tmp_path, built_fmus):
+    """The extraction is keyed by the FMU's content; its hash is kept per file (inode, size,
+    modification time), so a file written again at the same path is hashed and unpacked
+    again, and an unchanged one is not."""
+    fmu = tmp_path / "Block.fmu"
+    shutil.copyfile(built_fmus["Center2Wheel"], fmu)
+    first = master.RUNTIME.extracted(fmu)
+    assert master.RUNTIME.extracted(fmu) == first
+    shutil.copyfile(built_fmus["Wheel2Center"], fmu)      # the same inode, new content
+    second = master.RUNTIME.extracted(fmu)
+    assert second != first
+    assert read_model_description(fmu).modelName == "Wheel2Center"
+    assert read_model_description(second).modelName == "Wheel2Center"
+    assert read_model_description(first).modelName == "Center2Wheel"
