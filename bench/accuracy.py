@@ -28,6 +28,7 @@ from mecanum_fmu.interop.ssp_write import export_ssp
 from mecanum_fmu.masters import MASTERS, entry
 from mecanum_fmu.process import exit_now
 from mecanum_fmu.report.ground_truth import ground_truth
+from mecanum_fmu.results import BELOW_ROUND_OFF
 from mecanum_fmu.runner import prepare
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,10 +52,16 @@ def measure(graph, **changes) -> dict:
     pose = next(n[:-2] for n in res.names if n.endswith(".x") and n[:-2] + ".theta" in res.names)
     err = float(np.hypot(res[pose + ".x"][-1] - truth.x[-1], res[pose + ".y"][-1] - truth.y[-1]))
     own = res.extra.get("error_estimate", {})        # the adaptive master's own, at the end
-    estimate = float(np.hypot(own[pose + ".x"]["end"], own[pose + ".y"]["end"])) \
-        if pose + ".x" in own else None
+    ends = [own[pose + k]["end"] for k in (".x", ".y")] if pose + ".x" in own else None
+    # "below round-off" (a string) for both: shown as such; for one: that one counts 0
+    estimate = None if ends is None else BELOW_ROUND_OFF if all(map(_below, ends)) else \
+        float(np.hypot(*(0.0 if _below(e) else e for e in ends)))
     return {"master": exp.master, "h": exp.step_size, "tol": exp.tolerance, "err": err,
             "estimate": estimate, "passes": _passes(graph, res), "wall": res.wall_time}
+
+
+def _below(value) -> bool:
+    return value == BELOW_ROUND_OFF
 
 
 def _passes(graph, res) -> int:
@@ -135,7 +142,9 @@ def print_scenario(name: str, rows: list[dict], table: list[tuple], host: str) -
     for tol, row, best in table:
         fixed = f"{best['passes']:>10d} {best['h']:>9.3g} {row['passes'] / best['passes']:>6.2f}" \
             if best is not None else f"{'none':>10}"
-        print(f"{tol:>7.0e} {row['err']:>9.2e} {row['estimate']:>9.2e} "
+        shown = f"{row['estimate']:.2e}" if isinstance(row["estimate"], float) else \
+            str(row["estimate"])
+        print(f"{tol:>7.0e} {row['err']:>9.2e} {shown:>9} "
               f"{str(row['err'] <= tol):>6} {row['passes']:>7d} {fixed}")
     print(f"host: {host}")
 

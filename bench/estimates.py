@@ -2,7 +2,9 @@
 fixed-step master and per step (the scenario's, 2x and 4x), the true max and end error of
 pose.x, pose.y, pose.theta, the estimate (master/estimate.py), their ratio, MISS where the
 ratio is outside [1/3, 3], and the estimate's cost: its coarser runs' doStep calls against
-the run's ("calls", exact) and their stepping time against the run's ("wall", measured).
+the run's ("calls", exact) and their stepping time against the run's ("wall", measured once);
+then, per scenario at its own step, the same cost as medians of 5 repetitions, of the stepping
+loops and of the whole (each run's set-up included).
 
 The scenarios are those whose single pose has a ground truth (report/ground_truth.py); a
 closed loop's "truth" is the path its follower is asked to follow (the tracking error, not the
@@ -23,6 +25,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -120,6 +123,40 @@ def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, tupl
     return lines, (misses, withheld), (steps, cost)
 
 
+def cost(scenario: str, reps: int = 5) -> tuple[float, float, float, float]:
+    """Medians over `reps` interleaved repetitions, at the scenario's own step and master:
+    (the run's stepping loop, the estimate's stepping loops, the run's whole simulate, the
+    whole estimate), in seconds. Whole = with each run's set-up (reset, start values)."""
+    graph = prepare(ROOT / "scenarios" / scenario)
+    times = []
+    for _ in range(reps):
+        tick = time.perf_counter()
+        results = master.simulate(graph, graph.scenario.experiment)
+        whole = time.perf_counter() - tick
+        tick = time.perf_counter()
+        found = master.estimate_error(graph, results)
+        estimate = time.perf_counter() - tick
+        times.append((results.wall_time, found["error_estimate_cost"] * results.wall_time,
+                      whole, estimate))
+    return tuple(float(v) for v in np.median(np.array(times), axis=0))
+
+
+def cost_table(names: list[str]) -> None:
+    print(f"\nthe estimate's cost at each scenario's own step and master, medians of 5 "
+          f"interleaved repetitions:\n{'scenario':<32} {'run loop':>9} {'est loops':>9} "
+          f"{'ratio':>6} {'run whole':>9} {'est whole':>9} {'ratio':>6}")
+    loops, wholes = [], []
+    for scenario in names:
+        run_loop, est_loops, run_whole, est_whole = cost(scenario)
+        loops.append(est_loops / run_loop)
+        wholes.append(est_whole / run_whole)
+        print(f"{scenario:<32} {run_loop * 1e3:>7.1f}ms {est_loops * 1e3:>7.1f}ms "
+              f"{loops[-1]:>6.2f} {run_whole * 1e3:>7.1f}ms {est_whole * 1e3:>7.1f}ms "
+              f"{wholes[-1]:>6.2f}")
+    print(f"stepping loops: max {max(loops):.2f}, median {np.median(loops):.2f}; whole: max "
+          f"{max(wholes):.2f}, median {np.median(wholes):.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the scenario's step only")
@@ -137,6 +174,7 @@ def main() -> None:
                 total, misses, withheld = (total + len(lines), misses + missed[0],
                                            withheld + missed[1])
                 costs.append(cost)
+    cost_table([s for s in scenarios() if args.only in s])
     steps, walls = np.array(costs).T
     print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth), "
           f"{withheld} WITHHELD (no number: the coarser runs out of the h^p range)")

@@ -8,8 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
-BELOW_ROUND_OFF = "below round-off"    # an error estimate within the outputs' round-off
 from .storage import atomic_open
+
+BELOW_ROUND_OFF = "below round-off"    # an error estimate within the outputs' round-off
+_ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
+
+
+def round_off(values, steps: int) -> float:
+    """The round-off an output can gather in `steps` steps: 8 eps per step, relative to its
+    largest size (at least 1). An error estimate at or below it is BELOW_ROUND_OFF."""
+    scale = max(1.0, float(np.max(np.abs(values)))) if len(values) else 1.0
+    return float(_ROUND_OFF * scale * max(steps, 1))
 
 
 @dataclass

@@ -34,6 +34,7 @@ import numpy as np
 from ..graph import Instance, Port
 from ..models.blocks.profile_table import parse_table
 from ..models.catalog import bundled_model
+from ..results import BELOW_ROUND_OFF, round_off
 from .instance import RunningInstance
 from .plan import Holds
 from .recorder import Recorder
@@ -426,5 +427,8 @@ def estimate_of(graph, results, counts: dict, holds: AdaptiveHolds) -> dict:
             name = f"{pose.name}.{k}"
             if name in results.names:
                 values = rows[:, i, column]
-                estimate[name] = {"max": float(values.max()), "end": float(values[-1])}
+                floor = round_off(np.asarray(results[name], dtype=float),
+                                  counts["steps_taken"])
+                estimate[name] = {w: float(v) if v > floor else BELOW_ROUND_OFF
+                                  for w, v in (("max", values.max()), ("end", values[-1]))}
     return estimate

@@ -32,7 +32,7 @@ from ..masters import DEFAULT_TOLERANCE, entry as master_entry
 from ..models.catalog import bundled_model
 from ..models.blocks.profile_table import TableError, parse_table
 from ..profiles import table_twist
-from ..results import BELOW_ROUND_OFF, Results
+from ..results import BELOW_ROUND_OFF, Results, round_off
 
 METHOD = ("Richardson extrapolation: the run repeated at {r1} h and {r2} h, e ~ (y_h - y_r1h)/"
           "(r1^p - 1) with the observed order p bounded to [1, {order}]")
@@ -61,7 +61,6 @@ UNRESOLVED_END = "unresolved (the coarser runs are off by 70% of the output's ra
 # the highest order the error can have where the run steps across a kink or jump of a table
 # or segments (a breakpoint off its grid): the hold cannot follow a corner inside a step
 ACROSS_ORDER = 2
-_ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
 
 
 def pose_outputs(graph: Graph, results: Results) -> list[str]:
@@ -227,8 +226,7 @@ def _richardson(exp, steps: int, factors: tuple, fine: tuple, mid: tuple, coarse
     f4, m4, c4 = _common(exp, float(_shared(ONE, r1, r2)) * h, pick(fine), pick(mid),
                          pick(coarse))
     d1, d1_4, d2 = f2 - m2, f4 - m4, m4 - c4
-    scale = max(1.0, float(np.max(np.abs(f2))))
-    floor = _ROUND_OFF * scale * max(steps, 1)
+    floor = round_off(f2, steps)
     if np.max(np.abs(d1)) <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
     r1, r2 = float(r1), float(r2)
