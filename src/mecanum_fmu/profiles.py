@@ -209,7 +209,7 @@ def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
     return params
 
 
-def _numpy_columns(text: str) -> list[np.ndarray]:
+def table_columns(text: str) -> list[np.ndarray]:
     """time, vx, vy, w of a checked table text as arrays, read by NumPy's C parser (a 10^6-row
     table in a fraction of the pure-Python parse); parse_table when NumPy cannot read it."""
     import io
@@ -233,7 +233,7 @@ def table_twist(text: str, interpolation: str = "linear"):
     implementation independent of the FMU's (blocks/profile_table.py samples row by row).
     A scalar t costs one bisection (np.interp's formula, O(log n)); the last one is kept, as
     the ground truth asks for the three channels of one t in turn."""
-    times, *cols = _numpy_columns(text)
+    times, *cols = table_columns(text)
     if interpolation not in INTERPOLATIONS:
         table_sampler(text, interpolation)      # raises the message
     hold = interpolation == "hold"

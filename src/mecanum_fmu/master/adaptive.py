@@ -32,9 +32,9 @@ from typing import Callable
 import numpy as np
 
 from ..graph import Instance, Port
-from ..models.blocks.profile_table import parse_table
 from ..models.catalog import bundled_model
 from ..results import BELOW_ROUND_OFF, round_off
+from .breakpoints import graph_breaks
 from .instance import RunningInstance
 from .plan import Holds
 from .recorder import Recorder
@@ -143,7 +143,7 @@ class _VarBlend:
         u4 the change of the third difference; elsewhere (the limited parabola where a kink
         or a jump sits among the last four values, or u3 crosses zero) nothing."""
         hs = self.holds
-        h, g, f = hs.h, hs.g, hs.f
+        h, f = hs.h, hs.f
         self.third[:] = self._third()
         if hs.steps < 3:       # no history yet: the step is kept short instead (first_step)
             return np.zeros_like(self.third)
@@ -234,14 +234,9 @@ class Stops:
     JUMP = 1e-6
 
     def __init__(self, graph, start: float, stop: float, interval: float):
-        times = []
-        for inst in graph.instances:
-            model = bundled_model(inst.model)
-            text = inst.value("table") if model is not None and \
-                model.name == "VelocitySource" else ""
-            if isinstance(text, str) and text.strip():
-                times += _breakpoints(text, str(inst.value("interpolation")),
-                                      self.JUMP * interval)
+        breaks = graph_breaks(graph)
+        times = [float(x) for x in (*breaks.kinks, *breaks.jumps,
+                                    *(breaks.jumps - self.JUMP * interval))]
         near = 1e-9 * interval
         self.times = sorted(x for x in set(times) if start + near < x < stop - near)
         self.near, self.i = near, 0
@@ -253,17 +248,6 @@ class Stops:
         if self.i < len(self.times) and self.times[self.i] < target - self.near:
             return self.times[self.i]
         return target
-
-
-def _breakpoints(text: str, interpolation: str, before: float) -> list[float]:
-    """The times of a table's jumps (each with one `before` it) or kinks."""
-    times, *columns = (np.asarray(c, dtype=float) for c in parse_table(text))
-    values = np.stack(columns, axis=1)
-    if interpolation == "hold":
-        at = times[1:][np.any(values[1:] != values[:-1], axis=1)]
-        return list(at) + list(at - before)
-    slopes = np.diff(values, axis=0) / np.diff(times)[:, None]
-    return list(times[1:-1][np.any(slopes[1:] != slopes[:-1], axis=1)])
 
 
 class Controller:

@@ -19,7 +19,6 @@ estimate says why and gives no number.
 """
 from __future__ import annotations
 
-import ast
 import dataclasses
 import math
 from fractions import Fraction
@@ -30,9 +29,8 @@ from ..errors import SimulationError
 from ..graph import Graph
 from ..masters import DEFAULT_TOLERANCE, entry as master_entry
 from ..models.catalog import bundled_model
-from ..models.blocks.profile_table import TableError, parse_table
-from ..profiles import table_twist
 from ..results import BELOW_ROUND_OFF, Results, round_off
+from .breakpoints import graph_breaks
 
 METHOD = ("Richardson extrapolation: the run repeated at {r1} h and {r2} h, e ~ (y_h - y_r1h)/"
           "(r1^p - 1) with the observed order p bounded to [1, {order}]")
@@ -87,7 +85,7 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "error_estimate_method": ADAPTIVE_METHOD,
                 "tolerance": exp.tolerance or DEFAULT_TOLERANCE,
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
-    marks = breakpoints(graph)
+    marks = graph_breaks(graph).times()
     factors = coarse_factors(graph, exp, marks)
     if factors is None:
         return _none("the run has fewer than 4 steps: no coarser runs to compare with")
@@ -111,43 +109,6 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
             "error_estimate_cost": round(cost, 3)}
 
 
-def breakpoints(graph: Graph) -> np.ndarray:
-    """The times where a source's values may jump or kink: the rows of a table (or of
-    `segments:`) and the numbers an expression compares t with (`where(t < 8, ...)`)."""
-    found = [np.array([])]
-    for inst in graph.instances:
-        for name, value in inst.start_values.items():
-            if name == "table" and isinstance(value, str) and value:
-                found.append(_table_times(value))
-            elif name.endswith("_expr") and isinstance(value, str):
-                found.append(np.array(_compared_times(value)))
-    return np.unique(np.concatenate(found))
-
-
-def _table_times(text: str) -> np.ndarray:
-    """The time column of a twist table (NumPy's parser) or of any other (a path's)."""
-    try:
-        return np.asarray(table_twist(text)[1], dtype=float)
-    except TableError:
-        return np.asarray(parse_table(text, columns=("time",), quote=False)[0], dtype=float)
-
-
-def _compared_times(text: str) -> list[float]:
-    """The numbers t is compared with in an expression (t < 8, 2 <= t): plain literals only."""
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except (SyntaxError, ValueError):
-        return []               # the loader refused it already; nothing to add here
-    times = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Compare):
-            sides = [node.left, *node.comparators]
-            if any(isinstance(n, ast.Name) and n.id == "t" for n in sides):
-                times += [float(n.value) for n in sides if isinstance(n, ast.Constant)
-                          and isinstance(n.value, (int, float))]
-    return times
-
-
 def steps_across(marks: np.ndarray, exp) -> bool:
     """Whether the run's grid steps across a breakpoint (one off its grid, inside the run)."""
     k = (marks[(marks > exp.start_time) & (marks < exp.stop_time)] - exp.start_time) \
@@ -162,11 +123,11 @@ def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
     room for 2 steps of r2 h (2h and 4h when none does). A coarser run that steps over a
     breakpoint the run steps on (or the reverse) has an error of another kind there (a jump
     inside a step): comparing the two says nothing of the run's. None when the run has fewer
-    than 4 steps. `marks`: breakpoints(graph), when known."""
+    than 4 steps. `marks`: graph_breaks(graph).times(), when known."""
     h, span = exp.step_size, exp.stop_time - exp.start_time
     if span < 4 * h * (1 - 1e-9):
         return None
-    marks = breakpoints(graph) if marks is None else marks
+    marks = graph_breaks(graph).times() if marks is None else marks
     k = (np.append(marks, exp.stop_time) - exp.start_time) / h
     k = k[k > 0.5]          # the stop time too: a short last step is an error of its own
     on = lambda r: np.abs(k / r - np.round(k / r)) < 1e-3     # noqa: E731 (a recorded
