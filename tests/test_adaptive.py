@@ -144,3 +144,17 @@ def test_a_cubic_input_is_held_exactly_once_there_is_history(tmp_path):
     assert len(results.time) == 41
     assert abs(results["pose.x"][-1] - 4.0) <= 1e-9 and results["pose.y"][-1] == 0.0
     assert results.steps_taken + results.steps_rejected <= 50     # h_out after a short ramp
+
+
+@pytest.mark.parametrize("tolerance", [1e-3, 1e-4, 1e-5])
+def test_circle_estimate_is_within_3x_of_the_closed_form(tolerance):
+    # the closed form x = 1 - cos t, y = sin t (docs/spec.md); with the cubic's term taken
+    # as a bound on every step the estimate was 3-10x over (y's end at 1e-4: 9.2x)
+    graph, results = _run(CIRCLE, tolerance)
+    t = results.time
+    true = {"pose.x": np.abs(results["pose.x"] - (1 - np.cos(t))),
+            "pose.y": np.abs(results["pose.y"] - np.sin(t))}
+    for name, error in true.items():
+        e = results.extra["error_estimate"][name]
+        for which, value in (("max", error.max()), ("end", error[-1])):
+            assert value / 3 <= e[which] <= 3 * value, (name, which, e, value)

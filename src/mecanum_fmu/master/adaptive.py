@@ -138,8 +138,9 @@ class _VarBlend:
         return 6 * (d2a - self._second_before()) / (h + g + f)
 
     def error(self) -> np.ndarray:
-        """The error of this step's held mean, per input: where the hold is the cubic (the
-        third differences agree in sign), its next term 19/720 h^4 |u4| (uniform steps' form),
+        """The signed error of this step's held mean (held - true), per input: where the hold
+        is the cubic (the third differences agree in sign), its next term 19/720 h^4 u4
+        (uniform steps' form: the cubic through four points, its mean over the last interval),
         u4 the change of the third difference; elsewhere (the limited parabola where a kink
         or a jump sits among the last four values, or u3 crosses zero) nothing."""
         hs = self.holds
@@ -149,7 +150,7 @@ class _VarBlend:
             return np.zeros_like(self.third)
         smooth = self.third * self.third_before > 0
         fourth = 2 * (self.third - self.third_before) / (h + f)
-        return np.where(smooth, 19 / 720 * h ** 4 * np.abs(fourth), 0.0)
+        return np.where(smooth, 19 / 720 * h ** 4 * fourth, 0.0)
 
     def commit(self) -> None:
         self.older[:] = self.old
@@ -165,9 +166,12 @@ class PoseError:
         self.blend, self.index, self.name = blend, index, inst.name
         self.theta = float(inst.value("theta0"))
         self.p = np.zeros(2)
-        self.e = np.zeros(2)          # position errors made on the steps, world frame
-        self.heading = 0.0            # sum of the heading errors
-        self.moment = np.zeros(2)     # sum of p_t * heading error_t
+        # per sum: position errors made on the steps (world frame), the heading errors and
+        # the sum of p_t * heading error_t; [0] with the cubic's term as a bound (|u4|: the
+        # controller's), [1] signed (the run's estimate: errors that cancel do)
+        self.e = np.zeros((2, 2))
+        self.heading = np.zeros(2)
+        self.moment = np.zeros((2, 2))
 
     def step(self, h: float, left: float) -> tuple[float, float, tuple]:
         """(position error bound, |heading error|) of this step for the controller, and the
@@ -180,33 +184,39 @@ class PoseError:
         # held minus true: the cubic's term (the third derivative's, h^4/24 over the step)
         # and the frame turning within the step, -J (w dv - dw v) h^2 / 12 (docs/masters.md)
         tx, ty = (w * dvx - dw * vx) * h * h / 12, (w * dvy - dw * vy) * h * h / 12
-        body = (h * e[ivx] + ty, h * e[ivy] - tx)
-        e_theta = h * e[iw]
-        bound = math.hypot(*body) + abs(e_theta) * math.hypot(vx, vy) * left
-        return bound, abs(e_theta), (body, e_theta, (vx, vy, w))
+        body = np.array([(h * abs(e[ivx]) + ty, h * abs(e[ivy]) - tx),
+                         (h * e[ivx] + ty, h * e[ivy] - tx)])
+        e_theta = np.array([h * abs(e[iw]), h * e[iw]])
+        bound = math.hypot(*body[0]) + e_theta[0] * math.hypot(vx, vy) * left
+        return bound, float(e_theta[0]), (body, e_theta, (vx, vy, w))
 
     def after(self, h: float, update: tuple) -> float:
         """The largest |error| of x, y, theta if the step were accepted."""
-        saved = (self.theta, self.p.copy(), self.e.copy(), self.heading, self.moment.copy())
+        saved = (self.theta, self.p.copy(), self.e.copy(), self.heading.copy(),
+                 self.moment.copy())
         self.accept(h, update)
         worst = max(self.now())
         self.theta, self.p, self.e, self.heading, self.moment = saved
         return worst
 
     def accept(self, h: float, update: tuple) -> None:
-        (bx, by), e_theta, (vx, vy, w) = update
+        body, e_theta, (vx, vy, w) = update
         c, s = math.cos(self.theta), math.sin(self.theta)
-        self.e += (c * bx - s * by, s * bx + c * by)
+        self.e += np.column_stack((c * body[:, 0] - s * body[:, 1],
+                                   s * body[:, 0] + c * body[:, 1]))
         self.p += (h * (c * vx - s * vy), h * (s * vx + c * vy))
         self.theta += h * w
         self.heading += e_theta
-        self.moment += self.p * e_theta
+        self.moment += np.outer(e_theta, self.p)
 
-    def now(self) -> tuple[float, float, float]:
-        """|error| of x, y, theta now: the steps' own, plus J (p S - sum p_t e_t) of the
-        heading errors (a heading error e_t at p_t moves every later point by J (p - p_t))."""
-        carried = self.p * self.heading - self.moment
-        return (abs(self.e[0] - carried[1]), abs(self.e[1] + carried[0]), abs(self.heading))
+    def now(self, signed: bool = False) -> tuple[float, float, float]:
+        """|error| of x, y, theta now (the bound, or `signed`: the estimate): the steps' own,
+        plus J (p S - sum p_t e_t) of the heading errors (a heading error e_t at p_t moves
+        every later point by J (p - p_t))."""
+        k = int(signed)
+        carried = self.p * self.heading[k] - self.moment[k]
+        return (abs(self.e[k, 0] - carried[1]), abs(self.e[k, 1] + carried[0]),
+                abs(self.heading[k]))
 
 
 def step_error(holds: AdaptiveHolds, left: float) -> tuple[float, float, list]:
@@ -342,7 +352,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
         if abs(t - target) <= 1e-9 * interval:
             t, j = target, j + 1
             recorder.record()
-            counts["estimates"].append([pose.now() for pose in holds.poses])
+            counts["estimates"].append([pose.now(signed=True) for pose in holds.poses])
             if progress is not None and _time.perf_counter() >= next_report:
                 progress((t - start) / (stop - start))
                 next_report = _time.perf_counter() + 0.5
