@@ -18,7 +18,10 @@ is a hit; none against a number is a MISS. An estimate the coarser runs cannot r
 ("unresolved", no number) is counted apart: WITHHELD. Wall times are on whatever else the
 machine runs: compare the cost ratios within one run.
 
-Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING]
+With --adaptive: the adaptive master's own estimate against the true error instead, on the
+scenarios of bench/accuracy.py at TOL 1e-2 ... 1e-6.
+
+Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING] [--adaptive]
 """
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from accuracy import SCENARIOS as ACCURACY_SCENARIOS
 from mecanum_fmu import master
 from mecanum_fmu.errors import MecanumError
 from mecanum_fmu.master.estimate import coarse_factors
@@ -157,12 +161,42 @@ def cost_table(names: list[str]) -> None:
           f"{max(wholes):.2f}, median {np.median(wholes):.2f}")
 
 
+def adaptive_table(names: list[str], tolerances=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6)) -> None:
+    """The adaptive master's own estimate (summary.json's error_estimate) against the true
+    error, per scenario, TOL and output, counted as in the big table."""
+    print(f"{'scenario':<32} {'TOL':>6} {'output':<11} {'':<3} {'true':>10} {'estimate':>16} "
+          f"{'est/true':>10}")
+    total, misses = 0, 0
+    for scenario in names:
+        for tol in tolerances:
+            graph = prepare(ROOT / "scenarios" / scenario, master_name="adaptive")
+            exp = dataclasses.replace(graph.scenario.experiment, tolerance=tol)
+            graph = dataclasses.replace(graph, scenario=dataclasses.replace(
+                graph.scenario, experiment=exp))
+            results = master.simulate(graph, exp)
+            estimate = results.extra["error_estimate"]
+            for output, true in true_errors(graph, results).items():
+                for which in ("max", "end"):
+                    est = estimate[output][which]
+                    ratio, miss = verdict(est, true[which])
+                    total, misses = total + 1, misses + (miss == "MISS")
+                    shown = est[:16] if isinstance(est, str) else f"{est:.3e}"
+                    print(f"{scenario:<32} {tol:>6.0e} {output:<11} {which:<3} "
+                          f"{true[which]:>10.3e} {shown:>16} {ratio:>10} {miss}", flush=True)
+    print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the scenario's step only")
     parser.add_argument("--only", default="", help="scenarios whose name contains this")
     parser.add_argument("--master", action="append", help="only these masters")
+    parser.add_argument("--adaptive", action="store_true",
+                        help="the adaptive master's own estimate at TOL 1e-2 ... 1e-6, on the "
+                             "scenarios of bench/accuracy.py")
     args = parser.parse_args()
+    if args.adaptive:
+        return adaptive_table([s for s in ACCURACY_SCENARIOS if args.only in s])
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "
           f"{'estimate':>16} {'est/true':>10} {'calls':>5} {'wall':>5}")
     total, misses, withheld, costs = 0, 0, 0, []

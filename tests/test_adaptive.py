@@ -146,10 +146,11 @@ def test_a_cubic_input_is_held_exactly_once_there_is_history(tmp_path):
     assert results.steps_taken + results.steps_rejected <= 50     # h_out after a short ramp
 
 
-@pytest.mark.parametrize("tolerance", [1e-3, 1e-4, 1e-5])
+@pytest.mark.parametrize("tolerance", [1e-2, 1e-3, 1e-4, 1e-5])
 def test_circle_estimate_is_within_3x_of_the_closed_form(tolerance):
     # the closed form x = 1 - cos t, y = sin t (docs/spec.md); with the cubic's term taken
-    # as a bound on every step the estimate was 3-10x over (y's end at 1e-4: 9.2x)
+    # as a bound on every step the estimate was 3-10x over (y's end at 1e-4: 9.2x); without
+    # the first two steps' trapezoids, 12x under at 1e-2 (their h^3 u''/12 is y's error there)
     graph, results = _run(CIRCLE, tolerance)
     t = results.time
     true = {"pose.x": np.abs(results["pose.x"] - (1 - np.cos(t))),

@@ -137,20 +137,34 @@ class _VarBlend:
         d2a = ((now - u) / h - (u - u1) / g) / (h + g)
         return 6 * (d2a - self._second_before()) / (h + g + f)
 
-    def error(self) -> np.ndarray:
-        """The signed error of this step's held mean (held - true), per input: where the hold
-        is the cubic (the third differences agree in sign), its next term 19/720 h^4 u4
-        (uniform steps' form: the cubic through four points, its mean over the last interval),
-        u4 the change of the third difference; elsewhere (the limited parabola where a kink
-        or a jump sits among the last four values, or u3 crosses zero) nothing."""
+    def error(self) -> tuple[np.ndarray, np.ndarray]:
+        """The signed error of this step's held mean (held - true), per input, (for the
+        controller, for the estimate): where the hold is the cubic (the third differences
+        agree in sign), its next term 19/720 h^4 u4 (uniform steps' form: the cubic through
+        four points, its mean over the last interval; u4 the change of the third difference)
+        for both; on the first steps none for the controller (they are short) and the
+        trapezoids' for the estimate; elsewhere (the limited parabola where a kink or a jump
+        sits among the last four values, or u3 crosses zero) nothing."""
         hs = self.holds
         h, f = hs.h, hs.f
         self.third[:] = self._third()
         if hs.steps < 3:       # no history yet: the step is kept short instead (first_step)
-            return np.zeros_like(self.third)
+            return np.zeros_like(self.third), self._start_up()
         smooth = self.third * self.third_before > 0
         fourth = 2 * (self.third - self.third_before) / (h + f)
-        return np.where(smooth, 19 / 720 * h ** 4 * fourth, 0.0)
+        signed = np.where(smooth, 19 / 720 * h ** 4 * fourth, 0.0)
+        return signed, signed
+
+    def _start_up(self) -> np.ndarray:
+        """The signed error of the first two steps' held means, told at the second step (the
+        first with a second difference): each a trapezoid, held - true = h^2 u'' / 12, the
+        first step's (g long) carried on this step's mean as g^3 / h u'' / 12."""
+        if self.holds.steps != 1:
+            return np.zeros_like(self.third)
+        now, u, u1, _ = self.rows
+        h, g = self.holds.h, self.holds.g
+        second = 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
+        return second * (h * h + g ** 3 / h) / 12
 
     def commit(self) -> None:
         self.older[:] = self.old
@@ -176,7 +190,7 @@ class PoseError:
     def step(self, h: float, left: float) -> tuple[float, float, tuple]:
         """(position error bound, |heading error|) of this step for the controller, and the
         signed update to apply if the step is accepted."""
-        e = self.blend.error()
+        e, signed = self.blend.error()
         ivx, ivy, iw = self.index
         now, u, mean = self.blend.rows[0], self.blend.rows[1], self.blend.staging
         vx, vy, w = mean[ivx], mean[ivy], mean[iw]
@@ -185,8 +199,8 @@ class PoseError:
         # and the frame turning within the step, -J (w dv - dw v) h^2 / 12 (docs/masters.md)
         tx, ty = (w * dvx - dw * vx) * h * h / 12, (w * dvy - dw * vy) * h * h / 12
         body = np.array([(h * abs(e[ivx]) + ty, h * abs(e[ivy]) - tx),
-                         (h * e[ivx] + ty, h * e[ivy] - tx)])
-        e_theta = np.array([h * abs(e[iw]), h * e[iw]])
+                         (h * signed[ivx] + ty, h * signed[ivy] - tx)])
+        e_theta = np.array([h * abs(e[iw]), h * signed[iw]])
         bound = math.hypot(*body[0]) + e_theta[0] * math.hypot(vx, vy) * left
         return bound, float(e_theta[0]), (body, e_theta, (vx, vy, w))
 
