@@ -55,7 +55,8 @@ CANCELLED = 0.05
 # largest share whose end was still within 3x (0.63) and the smallest that was not (0.76) on
 # the bundled scenarios (bench/estimates.py)
 FAR = 0.7
-UNRESOLVED_END = "unresolved (the coarser runs are off by 70% of the output's range or more)"
+UNRESOLVED_END = (f"unresolved (the coarser runs are off by {FAR:.0%} of the output's range "
+                  "or more)")
 # the highest order the error can have where the run steps across a kink or jump of a table
 # or segments (a breakpoint off its grid): the hold cannot follow a corner inside a step
 ACROSS_ORDER = 2
