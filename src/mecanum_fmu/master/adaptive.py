@@ -6,13 +6,14 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   the quadratic master's on unequal steps: the parabola through u_k-1, u_k, u_k+1, its second
   difference limited by the previous one (minmod: a kink or a jump in a table adds nothing);
   in a loop the step is predicted with the linear extrapolation, rolled back and corrected;
+  after a breakpoint no value from before it enters a hold (two trapezoids first);
 - the step's error comes from the pose's twist before and after the step (no extra doStep):
-  the cubic's next term, 19/720 h^4 |u4| on the mean, u4 (the fourth derivative) from
+  the cubic's next term, 19/720 h^4 u4 on the mean, u4 (the fourth derivative) from
   the change of the third difference (nothing where the parabola holds: no storm of
-  rejections at a kink or a jump);
+  rejections at a kink or a jump), as |u4| for the controller and signed for the estimate;
   the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error moves every
   later point by J (p - p_t);
-- the signed sum of the accepted steps' errors must stay under the line
+- the sum of the accepted steps' errors (|u4|) must stay under the line
   TOL (FLOOR + SLOPE (t - start) / span), and a step's own error under LOCAL x its share
   TOL h / span times the room that sum leaves under the line; a rejected step rolls every FMU
   back (fmi2SetFMUstate) and is retried, shorter;
@@ -21,10 +22,12 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   step is kept unless the controller wants GROW x it or less than it; steps land on the
   output grid (every step_size seconds: results.csv's rows) and on the breakpoints of the
   VelocitySources' tables and segments (Stops: a jump gets a step of 1e-6 h_out before it).
-The sum of the accepted steps' errors is the run's error estimate.
+The signed sum of the accepted steps' errors (u4 signed, plus the first two steps' trapezoids
+and each jump's own step) is the run's error estimate.
 """
 from __future__ import annotations
 
+import bisect
 import math
 import time as _time
 from typing import Callable
@@ -64,6 +67,17 @@ class AdaptiveHolds(Holds):
         super().__init__("quadratic")
         self.h = self.g = self.f = 1.0
         self.poses: list["PoseError"] = []     # per PoseIntegrator: its vx, vy, w
+        self.since = None       # committed steps since the last breakpoint (None: none yet)
+        self.jump_next = False  # the next step ends on a jump (it started JUMP before it)
+
+    @property
+    def history(self) -> int:
+        """The committed steps whose values the holds may use: none from before the last
+        breakpoint (a table's corner or jump), where the input is another polynomial."""
+        return self.steps if self.since is None else min(self.steps, self.since)
+
+    def at_breakpoint(self, before_jump: bool) -> None:
+        self.since, self.jump_next = 0, before_jump
 
     def add(self, buffer, src, roles, targets: list[Port], inst: Instance) -> "_VarBlend":
         blend = _VarBlend(self, buffer, src, roles)
@@ -85,6 +99,9 @@ class AdaptiveHolds(Holds):
             b.third_before[:] = b.third
         super().commit()
         self.f, self.g = self.g, self.h
+        if self.since is not None:
+            self.since += 1
+        self.jump_next = False
 
 
 class _VarBlend:
@@ -108,11 +125,11 @@ class _VarBlend:
         hs = self.holds
         h, g = hs.h, hs.g
         mean = 0.5 * (now + u)
-        if hs.steps >= 2:
+        if hs.history >= 2:
             # the parabola's correction to the trapezoid, its second difference limited
             second = 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
             correction = _minmod(second, 2 * self._second_before()) * h * h / 12
-            if hs.steps >= 3:       # the cubic's where the third differences agree in sign
+            if hs.history >= 3:     # the cubic's where the third differences agree in sign
                 third = self._third()
                 cubic = second * h * h / 12 + third * h * h * (h + 2 * g) / 72
                 correction = np.where(third * self.third_before > 0, cubic, correction)
@@ -148,7 +165,10 @@ class _VarBlend:
         hs = self.holds
         h, f = hs.h, hs.f
         self.third[:] = self._third()
-        if hs.steps < 3:       # no history yet: the step is kept short instead (first_step)
+        if hs.jump_next:       # held - true = (new - old) / 2 on the mean: the jump's own
+            now, u, _, _ = self.rows
+            return np.zeros_like(self.third), 0.5 * (now - u)
+        if hs.history < 3:     # no history yet: the step is kept short instead (first_step)
             return np.zeros_like(self.third), self._start_up()
         smooth = self.third * self.third_before > 0
         fourth = 2 * (self.third - self.third_before) / (h + f)
@@ -253,7 +273,8 @@ class Stops:
     VelocitySources' tables (segments are hold tables). A kink (linear) is one stop; a jump
     (hold) two: JUMP x the output interval before it, then on it, so that the step that sees
     the new value at its end is that short (the hold's mean blends the two values: the jump
-    costs the step before it h |jump| / 2, under every hold, whatever the tolerance)."""
+    costs the step before it h |jump| / 2, under every hold, whatever the tolerance). A stop
+    is a breakpoint for the holds too (AdaptiveHolds.at_breakpoint)."""
 
     JUMP = 1e-6
 
@@ -263,7 +284,18 @@ class Stops:
                                     *(breaks.jumps - self.JUMP * interval))]
         near = 1e-9 * interval
         self.times = sorted(x for x in set(times) if start + near < x < stop - near)
+        self.before = sorted(float(x) for x in breaks.jumps - self.JUMP * interval)
         self.near, self.i = near, 0
+
+    def on(self, t: float, times: list[float] | None = None) -> bool:
+        """Whether t is one of the stops (or of `times`)."""
+        times = self.times if times is None else times
+        i = bisect.bisect_left(times, t - self.near)
+        return i < len(times) and times[i] <= t + self.near
+
+    def before_jump(self, t: float) -> bool:
+        """Whether t is the stop just before a jump: the next step is the jump's own."""
+        return self.on(t, self.before)
 
     def next(self, t: float, target: float) -> float:
         """The first stop after t, or target when none comes before it."""
@@ -372,6 +404,8 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
                 next_report = _time.perf_counter() + 0.5
         elif abs(t - goal) <= 1e-9 * interval:
             t = goal
+        if stops.on(t):
+            holds.at_breakpoint(stops.before_jump(t))
 
 
 def _take(running, program, holds: AdaptiveHolds, control: Controller, times: tuple,
