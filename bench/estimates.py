@@ -186,7 +186,7 @@ def adaptive_table(names: list[str], tolerances=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6)) 
     print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth)")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the scenario's step only")
     parser.add_argument("--only", default="", help="scenarios whose name contains this")
@@ -194,7 +194,7 @@ def main() -> None:
     parser.add_argument("--adaptive", action="store_true",
                         help="the adaptive master's own estimate at TOL 1e-2 ... 1e-6, on the "
                              "scenarios of bench/accuracy.py")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.adaptive:
         return adaptive_table([s for s in ACCURACY_SCENARIOS if args.only in s])
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "

@@ -17,6 +17,7 @@ from pathlib import Path
 import accuracy
 import closed_loop_order
 import endurance
+import estimates
 import loop_overhead
 import memory
 import other_hosts
@@ -44,6 +45,10 @@ LONG = (
     ("the same run in other FMI hosts (bench/other_hosts.py)", other_hosts.main),
     ("accuracy per cost, every scenario and tolerance (bench/accuracy.py)",
      lambda: accuracy.main([])),
+    ("the error estimate against the truth, every scenario, fixed master and step "
+     "(bench/estimates.py)", lambda: estimates.main([])),
+    ("the adaptive master's own estimate against the truth (bench/estimates.py --adaptive)",
+     lambda: estimates.main(["--adaptive"])),
     ("peak memory against run length (bench/memory.py)", memory.main),
     ("sweeps on Dask, the whole 1000-sample study (bench/sweep.py)", lambda: sweep.main([])),
     ("command-line turnaround, 7 repetitions (bench/turnaround.py)", turnaround.main),
