@@ -40,8 +40,9 @@ ONE = Fraction(1)
 CANDIDATES = tuple((Fraction(a), Fraction(b)) for a, b in (
     ("3/2", "3"), ("5/4", "5/2"), ("5/3", "5"), ("2", "4"), ("2", "10"), ("5/2", "5"),
     ("5", "10"), ("5", "25")))
-ADAPTIVE_METHOD = ("the adaptive master's per-step errors (the cubic hold's next term from the "
-                   "twist, the frame's turning, the heading's lever arm), summed")
+ADAPTIVE_METHOD = ("the adaptive master's per-step errors, signed and summed: the cubic "
+                   "hold's next term from the twist, the first two steps' trapezoids, each "
+                   "jump's own step, the frame's turning, the heading's lever arm")
 _END = np.iinfo(np.int64).max
 # the coarser runs' differences growing more than this times as fast as the master's order
 # allows: they are out of the range where the error goes as h^p, and no number is given
