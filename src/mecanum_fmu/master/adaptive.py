@@ -127,7 +127,7 @@ class _VarBlend:
         mean = 0.5 * (now + u)
         if hs.history >= 2:
             # the parabola's correction to the trapezoid, its second difference limited
-            second = 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
+            second = self._second()
             correction = _minmod(second, 2 * self._second_before()) * h * h / 12
             if hs.history >= 3:     # the cubic's where the third differences agree in sign
                 third = self._third()
@@ -141,6 +141,12 @@ class _VarBlend:
         else:
             self.staging[:] = np.where(self.fed, now, mean)
 
+    def _second(self) -> np.ndarray:
+        """u'', 2x the second divided difference over u_k-1, u_k, u_k+1."""
+        now, u, u1, _ = self.rows
+        h, g = self.holds.h, self.holds.g
+        return 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
+
     def _second_before(self) -> np.ndarray:
         """The second divided difference over u_k-2, u_k-1, u_k."""
         _, u, u1, u2 = self.rows
@@ -149,10 +155,8 @@ class _VarBlend:
 
     def _third(self) -> np.ndarray:
         """u''', 6x the third divided difference over u_k-2 ... u_k+1."""
-        now, u, u1, u2 = self.rows
         h, g, f = self.holds.h, self.holds.g, self.holds.f
-        d2a = ((now - u) / h - (u - u1) / g) / (h + g)
-        return 6 * (d2a - self._second_before()) / (h + g + f)
+        return 6 * (0.5 * self._second() - self._second_before()) / (h + g + f)
 
     def error(self) -> tuple[np.ndarray, np.ndarray]:
         """The signed error of this step's held mean (held - true), per input, (for the
@@ -181,10 +185,8 @@ class _VarBlend:
         first step's (g long) carried on this step's mean as g^3 / h u'' / 12."""
         if self.holds.steps != 1:
             return np.zeros_like(self.third)
-        now, u, u1, _ = self.rows
         h, g = self.holds.h, self.holds.g
-        second = 2 * ((now - u) / h + (u1 - u) / g) / (h + g)
-        return second * (h * h + g ** 3 / h) / 12
+        return self._second() * (h * h + g ** 3 / h) / 12
 
     def commit(self) -> None:
         self.older[:] = self.old
@@ -280,11 +282,11 @@ class Stops:
 
     def __init__(self, graph, start: float, stop: float, interval: float):
         breaks = graph_breaks(graph)
-        times = [float(x) for x in (*breaks.kinks, *breaks.jumps,
-                                    *(breaks.jumps - self.JUMP * interval))]
+        before = breaks.jumps - self.JUMP * interval
+        times = [float(x) for x in (*breaks.kinks, *breaks.jumps, *before)]
         near = 1e-9 * interval
         self.times = sorted(x for x in set(times) if start + near < x < stop - near)
-        self.before = sorted(float(x) for x in breaks.jumps - self.JUMP * interval)
+        self.before = sorted(float(x) for x in before)
         self.near, self.i = near, 0
 
     def on(self, t: float, times: list[float] | None = None) -> bool:

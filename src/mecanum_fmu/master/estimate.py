@@ -115,7 +115,14 @@ def steps_across(marks: np.ndarray, exp) -> bool:
     """Whether the run's grid steps across a breakpoint (one off its grid, inside the run)."""
     k = (marks[(marks > exp.start_time) & (marks < exp.stop_time)] - exp.start_time) \
         / exp.step_size
-    return bool(np.any(np.abs(k - np.round(k)) >= 1e-3))
+    return not _on_grid(k, 1.0).all()
+
+
+def _on_grid(k: np.ndarray, r: float) -> np.ndarray:
+    """Which times, k in run steps from the start, a grid of steps of r run steps steps on
+    (a recorded table's 0.049999872 s is on the 0.05 s grid: a jump 1e-7 s off a step
+    costs nothing)."""
+    return np.abs(k / r - np.round(k / r)) < 1e-3
 
 
 def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
@@ -132,10 +139,8 @@ def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
     marks = graph_breaks(graph).times() if marks is None else marks
     k = (np.append(marks, exp.stop_time) - exp.start_time) / h
     k = k[k > 0.5]          # the stop time too: a short last step is an error of its own
-    on = lambda r: np.abs(k / r - np.round(k / r)) < 1e-3     # noqa: E731 (a recorded
-    # table's 0.049999872 s is on the 0.05 s grid: a jump 1e-7 s off a step costs nothing)
-    mine = on(1.0)
-    kept = lambda r: bool(np.array_equal(on(float(r)), mine))  # noqa: E731
+    mine = _on_grid(k, 1.0)
+    kept = lambda r: bool(np.array_equal(_on_grid(k, float(r)), mine))  # noqa: E731
     return next((pair for pair in CANDIDATES if all(map(kept, pair))
                  and 2 * pair[1] * h <= span * (1 + 1e-9)), (Fraction(2), Fraction(4)))
 
@@ -189,18 +194,19 @@ def _richardson(exp, steps: int, factors: tuple, fine: tuple, mid: tuple, coarse
     f4, m4, c4 = _common(exp, float(_shared(ONE, r1, r2)) * h, pick(fine), pick(mid),
                          pick(coarse))
     d1, d1_4, d2 = f2 - m2, f4 - m4, m4 - c4
+    big1, big1_4, big2 = (float(np.max(np.abs(d))) for d in (d1, d1_4, d2))
     floor = round_off(f2, steps)
-    if np.max(np.abs(d1)) <= floor:
+    if big1 <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
     r1, r2 = float(r1), float(r2)
-    if np.max(np.abs(d2)) > OUT_OF_RANGE * _grows(r1, r2, order) * np.max(np.abs(d1_4)):
+    if big2 > OUT_OF_RANGE * _grows(r1, r2, order) * big1_4:
         return {"max": UNRESOLVED, "end": UNRESOLVED}
-    p = _order(np.max(np.abs(d2)), np.max(np.abs(d1_4)), floor, (r1, r2), top)
-    largest = float(np.max(np.abs(d1))) / (r1 ** p - 1.0)
-    if np.max(np.abs(d2)) >= FAR * np.ptp(f2):
+    p = _order(big2, big1_4, floor, (r1, r2), top)
+    largest = big1 / (r1 ** p - 1.0)
+    if big2 >= FAR * np.ptp(f2):
         return {"max": largest, "end": UNRESOLVED_END}
-    end = min(_end(float(-d1_4[-1]), float(-d2[-1]), np.max(np.abs(d1_4)), floor,
-                   (r1, r2), p, order), largest)       # an end above the run's largest: no
+    end = min(_end(float(-d1_4[-1]), float(-d2[-1]), big1_4, floor, (r1, r2), p, order),
+              largest)       # an end above the run's largest: no
     return {"max": largest, "end": end if end > floor else BELOW_ROUND_OFF}
 
 
