@@ -26,14 +26,13 @@ Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING] [--adaptiv
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import time
 from pathlib import Path
 
 import numpy as np
 
-from accuracy import SCENARIOS as ACCURACY_SCENARIOS
+from accuracy import SCENARIOS as ACCURACY_SCENARIOS, with_experiment
 from mecanum_fmu import master
 from mecanum_fmu.errors import MecanumError
 from mecanum_fmu.master.estimate import coarse_factors
@@ -68,10 +67,8 @@ def scenarios() -> list[str]:
 
 
 def at_step(graph, name: str, factor: int):
-    exp = dataclasses.replace(graph.scenario.experiment, master=name,
-                              step_size=graph.scenario.experiment.step_size * factor)
-    return dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
-                                                                   experiment=exp)), exp
+    return with_experiment(graph, master=name,
+                           step_size=graph.scenario.experiment.step_size * factor)
 
 
 def true_errors(graph, results) -> dict:
@@ -169,10 +166,8 @@ def adaptive_table(names: list[str], tolerances=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6)) 
     total, misses = 0, 0
     for scenario in names:
         for tol in tolerances:
-            graph = prepare(ROOT / "scenarios" / scenario, master_name="adaptive")
-            exp = dataclasses.replace(graph.scenario.experiment, tolerance=tol)
-            graph = dataclasses.replace(graph, scenario=dataclasses.replace(
-                graph.scenario, experiment=exp))
+            graph, exp = with_experiment(prepare(ROOT / "scenarios" / scenario,
+                                                 master_name="adaptive"), tolerance=tol)
             results = master.simulate(graph, exp)
             estimate = results.extra["error_estimate"]
             for output, true in true_errors(graph, results).items():
