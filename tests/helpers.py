@@ -3,6 +3,7 @@ reading results.csv."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import os
 import subprocess
 import sys
@@ -61,6 +62,14 @@ def test_fmus(tmp_path_factory) -> dict[str, Path]:
 
 
 test_fmus.__test__ = False   # not a test, despite the name
+
+
+def with_experiment(graph, **changes):
+    """(the graph with its experiment changed, that experiment): a run at another step,
+    master or tolerance without writing a scenario."""
+    exp = dataclasses.replace(graph.scenario.experiment, **changes)
+    return dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
+                                                                   experiment=exp)), exp
 
 
 def write_scenario(folder: Path, name: str, text: str) -> Path:

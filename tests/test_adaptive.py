@@ -1,13 +1,13 @@
 """The adaptive master (--tolerance): its end error against the ground truth (the circle's closed
 form, docs/spec.md, and report/ground_truth.py's truth), its rows on the output grid, its step
 counts against fixed steps, the jumps of a segments table, and the tolerance's input checks."""
-import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-from helpers import ROOT, pose_without_state_save, run_child, run_main, write_scenario
+from helpers import (ROOT, pose_without_state_save, run_child, run_main, with_experiment,
+                     write_scenario)
 from mecanum_fmu import master, runner
 from mecanum_fmu.report.ground_truth import ground_truth
 from mecanum_fmu.results import BELOW_ROUND_OFF
@@ -18,9 +18,8 @@ QUIET_BUSY = ROOT / "scenarios" / "profiles" / "quiet_then_busy.yaml"
 
 def _run(path, tolerance: float | None = None, master_name: str = "adaptive", divide: int = 1):
     graph = runner.prepare(path, master_name=master_name)
-    exp = dataclasses.replace(graph.scenario.experiment, tolerance=tolerance,
-                              step_size=graph.scenario.experiment.step_size / divide)
-    graph = dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario, experiment=exp))
+    graph, exp = with_experiment(graph, tolerance=tolerance,
+                                 step_size=graph.scenario.experiment.step_size / divide)
     return graph, master.simulate(graph, exp)
 
 

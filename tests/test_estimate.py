@@ -1,13 +1,12 @@
 """The error estimate of every run (master/estimate.py), checked against the true error: the
 seed circle's closed form (docs/spec.md: vx = sin t, vy = cos t, w = 0 from the origin gives
 x = 1 - cos t, y = sin t, theta = 0) and the ground truth of a turning scenario."""
-import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-from helpers import ROOT
+from helpers import ROOT, with_experiment
 from mecanum_fmu import master, runner
 from mecanum_fmu.report.ground_truth import ground_truth
 from mecanum_fmu.master.estimate import UNRESOLVED, UNRESOLVED_END
@@ -19,9 +18,7 @@ FACTOR = 3.0        # the target: the estimate within a factor 3 of the true err
 
 def _at_step(path, master_name: str, factor: int):
     graph = runner.prepare(path, master_name=master_name)
-    exp = graph.scenario.experiment
-    exp = dataclasses.replace(exp, step_size=exp.step_size * factor)
-    graph = dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario, experiment=exp))
+    graph, exp = with_experiment(graph, step_size=graph.scenario.experiment.step_size * factor)
     results = master.simulate(graph, exp)
     return graph, results, master.estimate_error(graph, results)
 
