@@ -11,9 +11,11 @@ run: $(STAMP)
 	$(PY) -m mecanum_fmu fmus
 	$(PY) -m mecanum_fmu run scenarios/circle.yaml
 
+# the tests on every core (pytest-xdist), each process with a TMPDIR of its own (tests/conftest.py);
+# the 15 slowest are listed at the end
 test: $(STAMP)
 	$(PY) -m mecanum_fmu fmus
-	$(PY) -m pytest
+	$(PY) -m pytest -n auto --durations=15
 
 fmus: $(STAMP)
 	$(PY) -m mecanum_fmu fmus

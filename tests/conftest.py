@@ -1,11 +1,38 @@
-"""Shared fixtures: the four bundled FMUs, built once per test session."""
+"""Shared fixtures: the bundled FMUs, built once per test session; the session's own TMPDIR."""
+import fcntl
+import json
 import os
+import shutil
 import signal
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 from hypothesis import settings
+
+# The tests look at what a run leaves in TMPDIR, and a machine is never idle (a compiler
+# elsewhere leaves cc*.s in /tmp): each test process gets a TMPDIR of its own, set before the
+# tests create any temporary, and the processes they start inherit it (helpers.child_env).
+# The session's process makes one folder in the machine's TMPDIR; pytest-xdist's workers
+# inherit its path through SESSION_TMP and each take a sub-folder of it (gw0, gw1, ...).
+SESSION_TMP = "MECANUM_FMU_TEST_SESSION_TMP"
+
+
+def _own_tmpdir() -> Path:
+    session = os.environ.get(SESSION_TMP)
+    if session is None or not os.path.isdir(session):
+        session = tempfile.mkdtemp(prefix="mecanum_fmu_tests_")
+        os.environ[SESSION_TMP] = session
+    own = Path(session) / os.environ.get("PYTEST_XDIST_WORKER", "main")
+    own.mkdir(exist_ok=True)
+    os.environ["TMPDIR"] = str(own)
+    tempfile.tempdir = str(own)        # gettempdir() may have cached the old one already
+    return own
+
+
+OWN_TMPDIR = _own_tmpdir()
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 # Started in the background (nohup, `make test &`), the shell hands every process an ignored
@@ -31,21 +58,39 @@ MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator
                "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource")
 
 
+BUILD = """import json, sys
+from mecanum_fmu.models.build import build_all
+print(json.dumps([str(p) for p in build_all(sys.argv[1])]))
+"""
+
+
 @pytest.fixture(scope="session")
-def fmu_dir(tmp_path_factory):
-    """The folder of the bundled FMUs (a scenario's --fmu-dir), built once into a fresh
-    temporary folder.
+def fmu_dir():
+    """The folder of the bundled FMUs (a scenario's --fmu-dir), built once per session into a
+    fresh temporary folder that the session's xdist workers share: the first to need it
+    builds under a lock, the others wait for it and check what it holds.
 
-    Build before any FMU is loaded into this process: the build imports each slave script
-    under its FMU module name and must not meet an already loaded copy.
+    The build runs in a child process: it imports each slave script under its FMU module
+    name and must not meet a copy that this process has already loaded.
     """
-    from mecanum_fmu.models.build import build_all
-
-    dest = tmp_path_factory.mktemp("built_fmus")
-    paths = [Path(p) for p in build_all(dest)]
-    assert sorted(p.stem for p in paths) == sorted(MODEL_NAMES)
-    for path in paths:
-        assert path.is_file() and path.parent == dest
+    session = Path(os.environ[SESSION_TMP])
+    dest = session / "built_fmus"
+    with open(session / "built_fmus.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not dest.is_dir():
+            partial = session / "built_fmus.partial"
+            shutil.rmtree(partial, ignore_errors=True)
+            src = str(Path(__file__).resolve().parents[1] / "src")
+            env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+                [src] + [p for p in [os.environ.get("PYTHONPATH")] if p])}
+            proc = subprocess.run([sys.executable, "-c", BUILD, str(partial)],
+                                  capture_output=True, text=True, env=env)
+            assert proc.returncode == 0, proc.stderr[-3000:]
+            paths = [Path(p) for p in json.loads(proc.stdout.splitlines()[-1])]
+            assert all(path.is_file() and path.parent == partial for path in paths)
+            assert sorted(p.stem for p in paths) == sorted(MODEL_NAMES)
+            partial.rename(dest)
+    assert sorted(p.stem for p in dest.iterdir()) == sorted(MODEL_NAMES)
     return dest
 
 
@@ -59,10 +104,24 @@ def pytest_sessionfinish(session, exitstatus):
     session.config._mecanum_exitstatus = int(exitstatus)
 
 
+def _remove_session_tmp(exitstatus: int) -> None:
+    """The session's process (not an xdist worker) removes the session's TMPDIR when every test
+    passed; after a failure it stays, for the failed tests' tmp_path folders."""
+    if "PYTEST_XDIST_WORKER" in os.environ:
+        return
+    session = os.environ[SESSION_TMP]
+    if exitstatus == 0:
+        shutil.rmtree(session, ignore_errors=True)
+    else:
+        print(f"the session's TMPDIR is kept: {session}")
+
+
 @pytest.hookimpl(trylast=True)
 def pytest_unconfigure(config):
     """Leave without interpreter shutdown, as `mecanum_fmu.cli.exit_with` does: with pythonfmu
-    FMUs loaded, CPython's finalization aborts now and then. The report is printed by now."""
+    FMUs loaded, CPython's finalization aborts now and then. The report is printed by now (an
+    xdist worker has sent its results)."""
     if hasattr(config, "_mecanum_exitstatus"):
         from mecanum_fmu.process import exit_now
+        _remove_session_tmp(config._mecanum_exitstatus)
         exit_now(config._mecanum_exitstatus)

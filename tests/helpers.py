@@ -135,12 +135,14 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 
 def child_env(tmp: Path | None = None, **extra: str) -> dict[str, str]:
     """A minimal environment for a child `python -m mecanum_fmu`: this checkout's src first,
-    Agg plots, no bytecode; TMPDIR=tmp when given (to see what a run leaves behind)."""
+    Agg plots, no bytecode; TMPDIR=tmp when given (to see what a run leaves behind), else this
+    test process's own (tests/conftest.py)."""
     env = {"PYTHONPATH": os.pathsep.join([str(ROOT / "src")] + [p for p in [
                os.environ.get("PYTHONPATH")] if p]),
            "PATH": os.environ.get("PATH", "/usr/bin:/bin"), "MPLBACKEND": "Agg",
            "PYTHONDONTWRITEBYTECODE": "1"}
-    for key in ("HOME", "XDG_CACHE_HOME", "MECANUM_FMU_REQUIRE_TOOLS", "LD_LIBRARY_PATH"):
+    for key in ("HOME", "XDG_CACHE_HOME", "MECANUM_FMU_REQUIRE_TOOLS", "LD_LIBRARY_PATH",
+                "TMPDIR"):
         if key in os.environ:
             env[key] = os.environ[key]
     if tmp is not None:
