@@ -1,6 +1,7 @@
 """Where the sources' values jump or kink: the one reader of a graph's breakpoints. The
-adaptive master ends its steps on the twist tables' (Stops, master/adaptive.py); the error
-estimate keeps all of them on its coarser grids (master/estimate.py)."""
+adaptive master ends its steps on the twist tables' (Stops, master/adaptive.py); the fixed-step
+masters cut the step that ends on a jump (step_cuts); the error estimate keeps all of them on
+its coarser grids (master/estimate.py)."""
 from __future__ import annotations
 
 import ast
@@ -77,3 +78,50 @@ def compared_times(text: str) -> list[float]:
                 times += [float(n.value) for n in sides if isinstance(n, ast.Constant)
                           and isinstance(n.value, (int, float))]
     return times
+
+
+NEAR = 1e-3     # [steps] a breakpoint this close to a communication point is on it (as
+                # master/estimate.py's _on_grid: a recorded 0.049999872 s is on the 0.05 s grid)
+CUT = 1e-9      # [steps] the piece of a step between the left value and a jump on its end
+
+
+@dataclass(frozen=True)
+class Cut:
+    """How step k is taken in pieces: it ends at each of `inside` (times between its ends)
+    and then at its own end; after a piece whose `restart` flag is set (one per inside
+    time, then one for the step's end) the holds' history starts afresh."""
+    inside: tuple[float, ...]
+    restart: tuple[bool, ...]
+
+
+def step_cuts(breaks: np.ndarray, start: float, h: float, n_steps: int, stop: float
+              ) -> dict[int, Cut]:
+    """The steps to cut, by index, for breakpoints `breaks` (jumps, or any that may be one):
+    a breakpoint b on a communication point t_j (within NEAR steps) is reached from the left
+    first. At or before t_j, the step that ends there is cut at b - delta: its first piece
+    ends on the left value, the short second one on t_j, after which the holds restart. Just
+    after t_j, the next step is cut at b - delta and at b, the holds restarting at b. A
+    breakpoint inside a step (off the grid) is left alone: O(h) for a fixed step."""
+    pieces: dict[int, dict[float, bool]] = {}
+    for b in np.unique(breaks[(breaks > start) & (breaks <= stop)]):
+        j = int(round((b - start) / h))
+        t_j = stop if j >= n_steps else start + j * h
+        if abs(b - t_j) > NEAR * h:
+            continue
+        before = float(b - max(CUT * h, 64 * np.spacing(b)))
+        k, end = (j - 1, True) if b <= t_j else (j, False)
+        t_k = start + k * h
+        mine = pieces.setdefault(k, {})
+        if before > t_k:
+            mine.setdefault(before, False)
+        if end:
+            mine[np.inf] = True
+        elif float(b) > t_k:
+            mine[float(b)] = True
+    return {k: _cut(p) for k, p in pieces.items()}
+
+
+def _cut(pieces: dict[float, bool]) -> Cut:
+    times = sorted(pieces)
+    inside = tuple(t for t in times if t != np.inf)
+    return Cut(inside, tuple(pieces[t] for t in inside) + (pieces.get(np.inf, False),))
