@@ -1,83 +1,24 @@
-"""Where the sources' values jump or kink: the one reader of a graph's breakpoints. The
+"""Where the sources' values jump or kink: the one reader of a graph's breakpoints for the
+master (the graph carries them; this module knows no model). The
 adaptive master ends its steps on the twist tables' (Stops, master/adaptive.py); the fixed-step
 masters cut the step that ends on a jump (step_cuts); the error estimate keeps all of them on
 its coarser grids (master/estimate.py)."""
 from __future__ import annotations
 
-import ast
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..graph import Graph
-from ..models.blocks.profile_table import TableError, parse_table
-from ..models.catalog import bundled_model
-from ..profiles import table_columns
+from ..tables import Breaks
 
-
-@dataclass(frozen=True)
-class Breaks:
-    kinks: np.ndarray    # a twist table's value turns: the corners of a linear table
-    jumps: np.ndarray    # a twist table's value jumps: a hold table's changes (segments)
-    others: np.ndarray   # either, or neither: the numbers an expression compares t with
-    # (`where(t < 8, ...)`) and the rows of any other table (a path's)
-
-    def times(self) -> np.ndarray:
-        """Every breakpoint, sorted, once."""
-        return np.unique(np.concatenate((self.kinks, self.jumps, self.others)))
+__all__ = ["Breaks", "Cut", "graph_breaks", "step_cuts"]
 
 
 def graph_breaks(graph: Graph) -> Breaks:
-    """The breakpoints of every source in the graph."""
-    kinks, jumps, others = [np.array([])], [np.array([])], [np.array([])]
-    for inst in graph.instances:
-        model = bundled_model(inst.model)
-        for name, value in inst.start_values.items():
-            if name == "table" and isinstance(value, str) and value.strip():
-                if model is not None and model.name == "VelocitySource":
-                    kink, jump = table_breaks(value, str(inst.value("interpolation")))
-                    kinks.append(kink)
-                    jumps.append(jump)
-                else:
-                    others.append(_row_times(value))
-            elif name.endswith("_expr") and isinstance(value, str):
-                others.append(np.array(compared_times(value), dtype=float))
-    return Breaks(*(np.unique(np.concatenate(p)) for p in (kinks, jumps, others)))
-
-
-def table_breaks(text: str, interpolation: str) -> tuple[np.ndarray, np.ndarray]:
-    """(kinks, jumps) of a twist table: under `hold`, the rows where a value changes (jumps);
-    else the rows between two rows where a slope changes (kinks)."""
-    times, *columns = table_columns(text)
-    values = np.stack(columns, axis=1)
-    if interpolation == "hold":
-        return np.array([]), times[1:][np.any(values[1:] != values[:-1], axis=1)]
-    slopes = np.diff(values, axis=0) / np.diff(times)[:, None]
-    return times[1:-1][np.any(slopes[1:] != slopes[:-1], axis=1)], np.array([])
-
-
-def _row_times(text: str) -> np.ndarray:
-    """The time column of a table that is no twist table (a path's)."""
-    try:
-        return np.asarray(parse_table(text, columns=("time",), quote=False)[0], dtype=float)
-    except TableError:
-        return np.array([])        # the loader refused it already; nothing to add here
-
-
-def compared_times(text: str) -> list[float]:
-    """The numbers t is compared with in an expression (t < 8, 2 <= t): plain literals only."""
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except (SyntaxError, ValueError):
-        return []               # the loader refused it already; nothing to add here
-    times = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Compare):
-            sides = [node.left, *node.comparators]
-            if any(isinstance(n, ast.Name) and n.id == "t" for n in sides):
-                times += [float(n.value) for n in sides if isinstance(n, ast.Constant)
-                          and isinstance(n.value, (int, float))]
-    return times
+    """The breakpoints of every source in the graph: what the graph carries (Graph.breaks,
+    computed by the scenario layer from its tables and expressions, tables.py)."""
+    return graph.breaks
 
 
 NEAR = 1e-3     # [steps] a breakpoint this close to a communication point is on it (as
