@@ -10,7 +10,8 @@ Graph.warnings.
   through the integrator the masters are stable for h k below STABILITY_LIMIT (docs/masters.md).
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
-.value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of graph.py.
+.value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of
+graph.py.
 """
 from __future__ import annotations
 

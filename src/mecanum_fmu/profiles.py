@@ -55,8 +55,9 @@ def table_text(value: str, scenario_dir: Path, label: str, place: str, report: R
 
 
 def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: str,
-            label: str, report: Report) -> str | None:
-    """The text of a `table: {file: ..., columns: ..., units: ...}` mapping (recorded.py)."""
+            label: str, report: Report) -> Table | None:
+    """The table of a `table: {file: ..., columns: ..., units: ...}` mapping (recorded.py),
+    read once more in our columns: its times must still increase after units and offset."""
     columns, optional = COLUMNS[model]
     if not isinstance(raw, dict):
         report(Problem(label, place, f"expected a mapping like {{file: log.csv, columns: "
@@ -68,7 +69,8 @@ def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: 
     if source is None:
         return None
     try:
-        return mapped_table(source, raw, columns, optional, start_time)
+        return read_table(mapped_table(source, raw, columns, optional, start_time), model,
+                          False)
     except TableError as err:
         report_table_error(err, source, label, place, report)
         return None
@@ -200,8 +202,8 @@ def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
         text = waypoints_table(spec["waypoints"], start_time, f"{place}.waypoints", report,
                                label)
     elif given == ["table"]:
-        text = _mapped(spec["table"], model, scenario_dir, start_time, f"{place}.table", label,
-                       report)
+        table = _mapped(spec["table"], model, scenario_dir, start_time, f"{place}.table",
+                        label, report)
     elif isinstance(params.get("table"), str) and params["table"]:
         table = table_text(params["table"], scenario_dir, label, f"{place}.parameters.table",
                            report, model)

@@ -1,10 +1,10 @@
 """Closed-loop scenarios: the ground truth of a PathFollower run is the reference it follows.
 
 The reference pose comes from the follower's expressions (the same safe evaluator) or from its
-recorded path (its tables.Table, with NumPy's interp: linear between rows); its rates (the twist the
-plots show as "reference") are central differences of the expressions, or the table's slopes
-(zero outside the table), in the body frame of the reference heading. The summary's error is
-then the tracking error at the end time.
+recorded path (its tables.Table, with NumPy's interp: linear between rows); its rates (the
+twist the plots show as "reference") are central differences of the expressions, or the
+table's slopes (zero outside the table), in the body frame of the reference heading. The
+summary's error is then the tracking error at the end time.
 """
 from __future__ import annotations
 
