@@ -93,3 +93,33 @@ def test_output_piped_into_a_reader_that_leaves_is_no_traceback():
     proc.wait(timeout=60)
     assert "Traceback" not in err and "BrokenPipe" not in err, err
     assert proc.returncode in (0, 141)
+
+
+def _imported(path: Path) -> set[str]:
+    """The modules a file imports, absolute (mecanum_fmu.x.y), nested imports included."""
+    package = ".".join(path.relative_to(SRC.parent).with_suffix("").parts[:-1])
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            base = package.rsplit(".", node.level - 1)[0] if node.level else ""
+            found.add(".".join(p for p in (base, node.module) if p))
+        elif isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+    return found
+
+
+def test_the_master_core_knows_no_model():
+    """The stepping core and the breakpoints read what the graph carries: no models/ import."""
+    for name in ("breakpoints", "plan", "stepping"):
+        imports = _imported(SRC / "master" / f"{name}.py")
+        assert not [m for m in imports if m.startswith("mecanum_fmu.models")], name
+
+
+def test_nothing_below_the_runner_imports_it():
+    """runner.py is the library's `run`; only the commands above it (cli, sweep) import it."""
+    below = [p for sub in ("master", "report", "models", "interop") for p in
+             (SRC / sub).rglob("*.py")] + [SRC / f"{m}.py" for m in (
+                 "graph", "scenario", "profiles", "tables", "plausibility", "recorded")]
+    offenders = [p.relative_to(ROOT).as_posix() for p in below
+                 if "mecanum_fmu.runner" in _imported(p)]
+    assert not offenders, offenders

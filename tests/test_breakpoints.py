@@ -5,20 +5,21 @@ import numpy as np
 
 from helpers import ROOT
 from mecanum_fmu import runner
-from mecanum_fmu.master.breakpoints import compared_times, graph_breaks, table_breaks
+from mecanum_fmu.master.breakpoints import graph_breaks
+from mecanum_fmu.tables import compared_times, read_table
 
 TABLE = "time,vx,vy,w\n0,0,0,0\n1,1,0,0\n2,2,0,0\n3,2,0,0\n4,0,0.5,0\n"
 
 
 def test_a_linear_table_breaks_where_a_slope_changes():
     # slopes per row interval: vx 1, 1, 0, -2; vy 0, 0, 0, 0.5: corners at 2 and 3, not at 1
-    kinks, jumps = table_breaks(TABLE, "linear")
+    kinks, jumps = read_table(TABLE).breaks("linear")
     assert kinks.tolist() == [2.0, 3.0] and jumps.size == 0
 
 
 def test_a_hold_table_breaks_where_a_value_changes():
     # held values: (0,0) (1,0) (2,0) (2,0) (0,0.5): jumps at 1, 2 and 4, not at 3
-    kinks, jumps = table_breaks(TABLE, "hold")
+    kinks, jumps = read_table(TABLE).breaks("hold")
     assert jumps.tolist() == [1.0, 2.0, 4.0] and kinks.size == 0
 
 

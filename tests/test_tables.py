@@ -21,6 +21,7 @@ from mecanum_fmu.models.blocks import profile_table
 from mecanum_fmu.models.blocks.profile_table import (MAX_LINE, MAX_REPORTED, TableError,
                                                      parse_table, table_sampler)
 from mecanum_fmu.profiles import table_twist
+from mecanum_fmu.tables import read_table
 from mecanum_fmu.scenario import load_scenario
 
 SOURCE = """\
@@ -181,7 +182,7 @@ def test_scalar_and_array_lookups_agree_with_np_interp():
     values = rng.normal(size=(3, 300))
     text = "time,vx,vy,w\n" + "".join(",".join(repr(float(v)) for v in row) + "\n"
                                       for row in zip(times, *values))
-    twist, _ = table_twist(text)
+    twist, _ = table_twist(read_table(text))
     probe = np.concatenate([rng.uniform(-1, times[-1] + 1, 400), times])
     by_hand = np.array([np.interp(probe, times, v) for v in values])
     assert np.array_equal(np.array(twist(probe)), by_hand)
@@ -283,7 +284,7 @@ def test_a_random_table_gives_its_rows_back(case):
     for row in rows:
         assert sample(row[0]) == pytest.approx(row[1:]) and hold(row[0]) == row[1:]
     times = [r[0] for r in rows]
-    twist, breaks = table_twist(text)       # the ground truth's reader (NumPy's parser)
+    twist, breaks = table_twist(read_table(text))      # the ground truth's reader (NumPy)
     assert breaks.tolist() == times
     assert np.array(twist(np.array(times))).T.tolist() == [list(r[1:]) for r in rows]
     mid = [(a + b) / 2 for a, b in zip(times, times[1:])]

@@ -7,7 +7,8 @@ drivers, parameters, and algebraic loops found from the FMUs' ModelStructure dep
 from __future__ import annotations
 
 import graphlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 from fmpy.model_description import ModelDescription, ScalarVariable
@@ -18,6 +19,7 @@ from .models.catalog import bundled_model
 from .errors import Problem, ScenarioError
 from .masters import DEFAULT, entry as master_entry
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
+from .tables import Breaks, Table, source_breaks, table_or_none
 
 VALUE_TYPES = ("Real", "Integer", "Boolean")    # what moves between FMUs and is recorded
 
@@ -38,6 +40,7 @@ class Instance:
     model: ModelDescription
     start_values: dict[str, Scalar]
     declared_at: str
+    table: Table | None = field(default=None, repr=False)   # its `table`, read (tables.py)
 
     @property
     def model_name(self) -> str:
@@ -72,6 +75,12 @@ class Graph:
     def instance(self, name: str) -> Instance:
         return next(i for i in self.instances if i.name == name)
 
+    @cached_property
+    def breaks(self) -> Breaks:
+        """Where its sources jump or kink (tables.source_breaks), from the start values it
+        runs with (a sweep's graph has its own)."""
+        return source_breaks(self.instances)
+
     def find_model(self, model_name: str) -> Instance | None:
         """The single instance of a model, or None when there is none or several."""
         found = [i for i in self.instances if i.model_name == model_name]
@@ -94,7 +103,9 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
     if check.problems:
         raise ScenarioError(check.problems)
     instances = [Instance(c.name, check.models[c.name][0], check.models[c.name][1],
-                          start_values[c.name], c.place) for c in scenario.components]
+                          start_values[c.name], c.place,
+                          _table(c, start_values[c.name], check.models[c.name][1].modelName))
+                 for c in scenario.components]
     order, link_order = _dependency_order(instances, links, scenario.label)
     refused = _adaptive_problems(scenario, order, links)
     if refused:
@@ -103,6 +114,14 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
                  tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
                        + _rollback_warning(scenario, order, links)
                        + plausibility.warnings(scenario, order)))
+
+
+def _table(comp, values: dict[str, Scalar], model_name: str) -> Table | None:
+    """The component's table as the loader read it, or (an SSP's, a start value the loader
+    did not read) read now."""
+    if comp.table is not None and comp.table.text == values.get("table"):
+        return comp.table
+    return table_or_none(values.get("table"), model_name)
 
 
 def _adaptive_problems(scenario: Scenario, order: list[Instance], links: list[Link]

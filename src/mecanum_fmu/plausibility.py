@@ -10,14 +10,14 @@ Graph.warnings.
   through the integrator the masters are stable for h k below STABILITY_LIMIT (docs/masters.md).
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
-.value(name), .can_get_set_state; this module imports nothing of graph.py.
+.value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of
+graph.py.
 """
 from __future__ import annotations
 
 import math
 
 from .errors import Problem
-from .models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS
 
 # h k below which the closed loop x' = -k x through the integrator is stable, per way of
 # stepping a loop (docs/masters.md, "The rollback"): the one home of these numbers. Measured
@@ -31,7 +31,6 @@ LENGTHS = {"R": (0.005, 1.0), "L": (0.01, 5.0), "W": (0.01, 5.0), "l": (0.05, 10
 LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2Center",
                  "Bicycle")
 ANGLES = {"PoseIntegrator": ("theta0",)}
-TABLE_MODELS = {"VelocitySource": TABLE_COLUMNS, "PathFollower": PATH_COLUMNS}
 _SMALLER = (("millimetres", 1e-3), ("centimetres", 1e-2))
 
 
@@ -99,12 +98,11 @@ def _units(scenario, inst) -> list[tuple[str, str]]:
 
 
 def _table_span(scenario, inst) -> list[tuple[str, str]]:
-    text = inst.start_values.get("table") if inst.model_name in TABLE_MODELS else None
-    if not isinstance(text, str) or not text:
+    if inst.table is None:
         return []
-    span = table_span(text)
+    span = inst.table.span
     exp = scenario.experiment
-    if span is None or (span[0] <= exp.start_time and span[1] >= exp.stop_time):
+    if span[0] <= exp.start_time and span[1] >= exp.stop_time:
         return []
     first, last = span
     outside = last <= exp.start_time or first >= exp.stop_time
@@ -114,22 +112,6 @@ def _table_span(scenario, inst) -> list[tuple[str, str]]:
              f"the run {exp.start_time:g} to {exp.stop_time:g} s: {held} (timestamps in "
              "another unit or epoch? use table: {file: ..., units: {time: ms}, start: "
              "first_row} or an offset)")]
-
-
-def table_span(text: str) -> tuple[float, float] | None:
-    """(first, last) time of a checked table text, from its first and last data lines only."""
-    lines = [line.strip() for line in text.splitlines()]
-    data = [line for line in lines if line and not line.startswith("#")]
-    if len(data) < 2:
-        return None
-    header = [c.strip().lower() for c in data[0].lstrip("\ufeff").split(",")]
-    if "time" not in header:
-        return None
-    column = header.index("time")
-    try:
-        return float(data[1].split(",")[column]), float(data[-1].split(",")[column])
-    except (ValueError, IndexError):
-        return None
 
 
 def _stability(scenario, inst, instances) -> list[tuple[str, str]]:

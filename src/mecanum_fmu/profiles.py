@@ -22,25 +22,25 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .models.blocks.profile_table import INTERPOLATIONS, PATH_COLUMNS, TABLE_COLUMNS, \
-    TableError, parse_table, table_sampler
+from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, \
+    table_sampler
 from .errors import Problem
 from .values import is_finite
 from .recorded import TableSource, check_options, mapped_table, read_table_file, \
     report_table_error
+from .tables import COLUMNS, Table, read_table
 
 SEGMENT_KEYS = ("duration", "vx", "vy", "w")
 WAYPOINT_KEYS = ("points", "speed")
 # the component keys that make a table, per model (besides its `table` parameter)
 PROFILE_KEYS = {"VelocitySource": ("segments", "table"), "PathFollower": ("table", "waypoints")}
-COLUMNS = {"VelocitySource": (TABLE_COLUMNS, ()), "PathFollower": (PATH_COLUMNS, ("theta",))}
 Report = Callable[[Problem], None]
 
 
 def table_text(value: str, scenario_dir: Path, label: str, place: str, report: Report,
-               model: str = "VelocitySource") -> str | None:
-    """The CSV text behind a `table` parameter (a path or the text itself), checked; None
-    (and reported problems) when it cannot be used."""
+               model: str = "VelocitySource") -> Table | None:
+    """The table behind a `table` parameter (a path or the CSV text itself), read and checked
+    once; None (and reported problems) when it cannot be used."""
     if "\n" in value:
         source = TableSource(value, label, True)
     else:
@@ -48,16 +48,16 @@ def table_text(value: str, scenario_dir: Path, label: str, place: str, report: R
         if source is None:
             return None
     try:
-        parse_table(source.text, *COLUMNS[model], source.quote)
+        return read_table(source.text, model, source.quote)
     except TableError as err:
         report_table_error(err, source, label, place, report)
         return None
-    return source.text
 
 
 def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: str,
-            label: str, report: Report) -> str | None:
-    """The text of a `table: {file: ..., columns: ..., units: ...}` mapping (recorded.py)."""
+            label: str, report: Report) -> Table | None:
+    """The table of a `table: {file: ..., columns: ..., units: ...}` mapping (recorded.py),
+    read once more in our columns: its times must still increase after units and offset."""
     columns, optional = COLUMNS[model]
     if not isinstance(raw, dict):
         report(Problem(label, place, f"expected a mapping like {{file: log.csv, columns: "
@@ -69,7 +69,8 @@ def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: 
     if source is None:
         return None
     try:
-        return mapped_table(source, raw, columns, optional, start_time)
+        return read_table(mapped_table(source, raw, columns, optional, start_time), model,
+                          False)
     except TableError as err:
         report_table_error(err, source, label, place, report)
         return None
@@ -176,21 +177,23 @@ def _unknown(label: str, place: str, report: Report) -> bool:
 
 
 def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
-                    start_time: float, place: str, label: str, report: Report) -> dict:
+                    start_time: float, place: str, label: str, report: Report
+                    ) -> tuple[dict, Table | None]:
     """A VelocitySource's or PathFollower's parameters with its table (a path, segments,
-    waypoints or a `table:` mapping) replaced by the CSV text."""
+    waypoints or a `table:` mapping) replaced by the CSV text, and the Table read from it
+    (None when it has none or it is bad: then reported)."""
     params = dict(params)
     given = [k for k in PROFILE_KEYS[model] if k in spec]
     if len(given) + ("table" in params) > 1:
         report(Problem(label, f"{place}.{given[0]}", "give one of "
                        + ", ".join(PROFILE_KEYS[model])
                        + " or a table parameter, not several"))
-        return params
+        return params, None
     if "interpolation" in params and params["interpolation"] not in INTERPOLATIONS:
         report(Problem(label, f"{place}.parameters.interpolation",
                        f"{str(params['interpolation'])[:40]!r} is unknown; use "
                        f"{' or '.join(INTERPOLATIONS)}"))
-    text = None
+    text, table = None, None
     if given == ["segments"]:
         text = segments_table(spec["segments"], start_time, f"{place}.segments", report, label)
         if text is not None:
@@ -199,43 +202,26 @@ def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
         text = waypoints_table(spec["waypoints"], start_time, f"{place}.waypoints", report,
                                label)
     elif given == ["table"]:
-        text = _mapped(spec["table"], model, scenario_dir, start_time, f"{place}.table", label,
-                       report)
+        table = _mapped(spec["table"], model, scenario_dir, start_time, f"{place}.table",
+                        label, report)
     elif isinstance(params.get("table"), str) and params["table"]:
-        text = table_text(params["table"], scenario_dir, label, f"{place}.parameters.table",
-                          report, model)
-    if text is not None:
-        params["table"] = text
-    return params
+        table = table_text(params["table"], scenario_dir, label, f"{place}.parameters.table",
+                           report, model)
+    if table is None and text is not None:
+        table = read_table(text, model)     # made here from checked values: it reads
+    if table is not None:
+        params["table"] = table.text
+    return params, table
 
 
-def table_columns(text: str) -> list[np.ndarray]:
-    """time, vx, vy, w of a checked table text as arrays, read by NumPy's C parser (a 10^6-row
-    table in a fraction of the pure-Python parse); parse_table when NumPy cannot read it."""
-    import io
-    body = text[1:] if text.startswith("\ufeff") else text
-    lines = (line.strip() for line in body.split("\n", 200))
-    header = next((i, line) for i, line in enumerate(lines) if line and not line.startswith("#"))
-    names = [cell.strip().lower() for cell in header[1].split(",")]
-    try:
-        where = [names.index(c) for c in TABLE_COLUMNS]
-        data = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", usecols=where,
-                          skiprows=header[0] + 1, dtype=float, ndmin=2)
-        if data.shape[0] and np.all(np.diff(data[:, 0]) > 0) and np.isfinite(data).all():
-            return [data[:, k].copy() for k in range(len(TABLE_COLUMNS))]
-    except (ValueError, StopIteration):
-        pass
-    return [np.asarray(c, dtype=float) for c in parse_table(text)]
-
-
-def table_twist(text: str, interpolation: str = "linear"):
-    """(twist function of t for arrays or scalars, breakpoints) of a table, with NumPy: an
-    implementation independent of the FMU's (blocks/profile_table.py samples row by row).
+def table_twist(table: Table, interpolation: str = "linear"):
+    """(twist function of t for arrays or scalars, breakpoints) of a twist table, with NumPy:
+    an implementation independent of the FMU's (blocks/profile_table.py samples row by row).
     A scalar t costs one bisection (np.interp's formula, O(log n)); the last one is kept, as
     the ground truth asks for the three channels of one t in turn."""
-    times, *cols = table_columns(text)
+    times, cols = table.times, [table.columns[c] for c in TABLE_COLUMNS[1:]]
     if interpolation not in INTERPOLATIONS:
-        table_sampler(text, interpolation)      # raises the message
+        table_sampler(table.text, interpolation)      # raises the message
     hold = interpolation == "hold"
     rows, last = np.stack(cols, axis=1).tolist(), [None, None]
 

@@ -132,8 +132,9 @@ def check_options(raw: dict, columns: tuple[str, ...], place: str, label: str,
 
 def mapped_table(source: TableSource, raw: dict, columns: tuple[str, ...],
                  optional: tuple[str, ...], start_time: float) -> str:
-    """The table text with our header `columns`, in SI units and shifted in time. Raises
-    TableError (about the file's own columns and lines)."""
+    """The table text with our header `columns`, in SI units and shifted in time (whose
+    times the caller checks again: tables.read_table). Raises TableError (about the file's
+    own columns and lines)."""
     mapping = raw.get("columns", {})
     names = [str(mapping.get(c, c)).strip() for c in columns]
     signs = [-1.0 if n.startswith("-") else 1.0 for n in names]
@@ -151,6 +152,4 @@ def mapped_table(source: TableSource, raw: dict, columns: tuple[str, ...],
         data[i] = [signs[i] * scales[i] * v for v in data[i]]
     header = ",".join(columns[i] for i in present)
     rows = zip(*(data[i] for i in present))
-    text = header + "\n" + "".join(",".join(map(repr, row)) + "\n" for row in rows)
-    parse_table(text, tuple(columns[i] for i in present), (), False)  # times still increase
-    return text
+    return header + "\n" + "".join(",".join(map(repr, row)) + "\n" for row in rows)

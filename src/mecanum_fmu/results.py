@@ -4,11 +4,9 @@ from __future__ import annotations
 import csv
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from .storage import atomic_open
 
 BELOW_ROUND_OFF = "below round-off"    # an error estimate within the outputs' round-off
 _ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
@@ -47,14 +45,6 @@ class Results:
         return float(self.data[name][-1])
 
 
-def write_csv(results: Results, path: Path) -> None:
-    """One `time` column and one column per recorded variable, full precision (repr).
-    Written under a temporary name beside `path` and renamed when complete: an interrupted
-    or failed write leaves no file that looks complete."""
-    with atomic_open(path, "w", newline="") as fh:
-        write_rows(csv_writer(fh, results.names), results.data)
-
-
 def csv_writer(fh, names: tuple[str, ...]):
     """A CSV writer on fh with the header written: `time`, then the recorded names."""
     writer = csv.writer(fh, lineterminator="\n")
@@ -63,7 +53,7 @@ def csv_writer(fh, names: tuple[str, ...]):
 
 
 def write_rows(writer, data: np.ndarray) -> None:
-    """The rows of a structured array (fields: time, then the names), as write_csv does."""
+    """The rows of a structured array (fields: time, then the names), as results.csv holds them."""
     columns = [data[n] for n in data.dtype.names]
     for row in zip(*(c.tolist() for c in columns)):
         writer.writerow([format_value(v) for v in row])

@@ -13,8 +13,7 @@ from .arguments import check_prepare, check_run
 from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
                      SimulationError)
 from .graph import Graph, compile_graph
-from .models.catalog import MODELS
-from .models.library import bundled_fmu_path, default_fmu_dir, is_current
+from .models.library import build_bundled
 from .models.topology import Topology, topology
 from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines
 from .report.truth import Truth
@@ -99,20 +98,6 @@ def _read(path: str | Path | dict, parameters: dict | None) -> tuple[Scenario | 
                                  "SSD, or export-ssp the scenario with them")])
         return load_ssp(path), []
     return read_scenario(path, parameters)
-
-
-def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:
-    """Build the bundled FMUs the scenario names that are missing or stale."""
-    from .models.build import build_fmu     # startup: pythonfmu, only when building
-    fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
-    for comp in scenario.components:
-        if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):
-            try:
-                build_fmu(comp.fmu, fmu_dir)
-            except Exception as err:  # the build is ours; report it with the place
-                raise ScenarioError([Problem(scenario.label, f"{comp.place}.fmu",
-                                             f"building the bundled FMU {comp.fmu} into "
-                                             f"{fmu_dir} failed: {err}")]) from err
 
 
 def default_out_dir(scenario: Scenario) -> Path:

@@ -56,6 +56,7 @@ class Component:
     fmu: str                      # as written: a bundled model name or a path
     parameters: dict[str, Scalar]
     place: str                    # where it is declared, for messages
+    table: Any = None             # its table, read once (tables.Table; profiles.py)
 
 
 @dataclass(frozen=True)
@@ -403,9 +404,9 @@ def _profiles(components: tuple[Component, ...], raw: Any, path: Path, start_tim
     for comp in components:
         spec = raw[comp.name] if isinstance(raw[comp.name], dict) else {}
         if comp.fmu in PROFILE_KEYS:
-            params = resolve_profile(comp.fmu, spec, comp.parameters, path.parent, start_time,
-                                     comp.place, str(path), problems.append)
-            comp = Component(comp.name, comp.fmu, params, comp.place)
+            params, table = resolve_profile(comp.fmu, spec, comp.parameters, path.parent,
+                                            start_time, comp.place, str(path), problems.append)
+            comp = Component(comp.name, comp.fmu, params, comp.place, table)
         for key in (k for k in ("segments", "table", "waypoints") if k in spec):
             if key not in PROFILE_KEYS.get(comp.fmu, ()):
                 problems.append(Problem(str(path), f"{comp.place}.{key}", f"{key}: only a "

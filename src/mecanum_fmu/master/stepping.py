@@ -8,6 +8,7 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from ..graph import Graph, port_type
+from .breakpoints import Cut, graph_breaks, step_cuts
 from .instance import FmuCallError, RunningInstance
 from .plan import Holds
 from .recorder import Recorder
@@ -77,12 +78,14 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
              freeze: Callable[[], None] | None, progress: Callable[[float], None] | None,
              holds: Holds, rollback: bool) -> None:
     """The hot loop: everything it touches was prepared. With `rollback`, every step is taken
-    twice: predicted, rolled back to t_k (fmi2SetFMUstate), corrected (plan.HOLDS). Raises
-    StepFailure, NonFinite, KeyboardInterrupt."""
+    twice: predicted, rolled back to t_k (fmi2SetFMUstate), corrected (plan.HOLDS). A step
+    that ends on a jump is taken in pieces (jump_cuts). Raises StepFailure, NonFinite,
+    KeyboardInterrupt."""
     exp = recorder.experiment
     start, stop, h, n_steps = exp.start_time, exp.stop_time, exp.step_size, recorder.n_steps
     program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
     record, commit = recorder.record, (holds.commit if holds.blends else None)
+    cuts = jump_cuts(recorder.graph, exp, n_steps) if freeze is None else {}
     # One dot product per step finds any NaN or infinity in the Real values (0 * inf is NaN,
     # 0 * finite is 0, and a sum of zeros cannot overflow).
     real_dot, zeros = recorder.buffers.real.dot, np.zeros_like(recorder.buffers.real)
@@ -94,13 +97,16 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
         h_k = h if k < n_steps - 1 else stop - t
         if freeze is not None:
             freeze()
-        if rollback:
-            _predict(running, program, holds, t, h_k)
-        _one_pass(program, t, h_k)
-        if commit is not None:
-            commit()
-        if real_dot(zeros) != 0.0:
-            raise NonFinite(t + h_k)
+        if k in cuts:
+            _pieces(running, program, holds, rollback, t, t + h_k, cuts[k], real_dot, zeros)
+        else:
+            if rollback:
+                _predict(running, program, holds, t, h_k)
+            _one_pass(program, t, h_k)
+            if commit is not None:
+                commit()
+            if real_dot(zeros) != 0.0:
+                raise NonFinite(t + h_k)
         record()
         if progress is not None and not k & 255:
             now = _time.perf_counter()
@@ -109,6 +115,31 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
                 next_report = now + 0.5
     if ctrl_c[0]:                 # pressed during the last step
         raise KeyboardInterrupt
+
+
+def jump_cuts(graph: Graph, exp, n_steps: int) -> dict[int, Cut]:
+    """The steps that end on (or start just before) a jump or a breakpoint that may be one
+    (an expression's comparison with t, a path's row): breakpoints.step_cuts. A kink needs no
+    cut (the limited holds integrate a piecewise-linear input exactly)."""
+    breaks = graph_breaks(graph)
+    return step_cuts(np.concatenate((breaks.jumps, breaks.others)), exp.start_time,
+                     exp.step_size, n_steps, exp.stop_time)
+
+
+def _pieces(running: list[RunningInstance], program: list, holds: Holds, rollback: bool,
+            t: float, end: float, cut: Cut, real_dot, zeros) -> None:
+    """One step taken in pieces, t -> cut.inside... -> end, each predicted and corrected as
+    a whole step would be and committed; the holds restart after a piece flagged so (its
+    values become their whole history: none from before the jump enters a blend after it)."""
+    for until, restart in zip((*cut.inside, end), cut.restart):
+        if rollback:
+            _predict(running, program, holds, t, until - t)
+        _one_pass(program, t, until - t)
+        if holds.blends:
+            holds.prime() if restart else holds.commit()
+        if real_dot(zeros) != 0.0:
+            raise NonFinite(until)
+        t = until
 
 
 def _one_pass(program: list, t: float, h_k: float) -> None:

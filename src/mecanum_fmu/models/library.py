@@ -14,7 +14,7 @@ import fmpy
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
 
-from ..errors import did_you_mean
+from ..errors import Problem, ScenarioError, did_you_mean
 from ..archive import ZIP_ERRORS, ArchiveError, checked_members, read_member
 from .catalog import MODELS
 from .embed import runtime_or_none
@@ -232,3 +232,18 @@ def _slave_script_problem(path: Path, names: set[str], md: ModelDescription) -> 
         return (f"{path.name} is a pythonfmu FMU whose slave script resources/{module[:80]}.py "
                 "is missing; export the FMU again")
     return None
+
+
+def build_bundled(scenario, fmu_dir: Path | None = None) -> None:
+    """Build the bundled FMUs the scenario (a scenario.Scenario: .components, .label) names
+    that are missing or stale. Raises ScenarioError naming the component whose build failed."""
+    from .build import build_fmu     # startup: pythonfmu, only when building
+    fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
+    for comp in scenario.components:
+        if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):
+            try:
+                build_fmu(comp.fmu, fmu_dir)
+            except Exception as err:  # the build is ours; report it with the place
+                raise ScenarioError([Problem(scenario.label, f"{comp.place}.fmu",
+                                             f"building the bundled FMU {comp.fmu} into "
+                                             f"{fmu_dir} failed: {err}")]) from err

@@ -19,7 +19,9 @@ from .. import master
 from ..errors import MecanumError, ScenarioError
 from ..process import exit_now
 from ..results import Results
-from ..runner import prepare
+from ..graph import Graph, compile_graph
+from ..models.library import build_bundled
+from ..scenario import read_scenario
 from .evaluation import Evaluation, evaluate, report_lines
 from .plots import new_figure
 
@@ -53,6 +55,16 @@ def compare_figure(results: Results, evaluation: Evaluation,
     return fig
 
 
+def _load(path: str) -> Graph:
+    """The scenario's checked graph, its bundled FMUs built when missing (as runner.prepare,
+    which sits above this module, without its overrides). Raises ScenarioError."""
+    scenario, problems = read_scenario(path)
+    if problems:
+        raise ScenarioError(problems)
+    build_bundled(scenario)
+    return compile_graph(scenario)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m mecanum_fmu.report.chassis_compare",
                                      description=__doc__.splitlines()[0])
@@ -60,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="results/compare/chassis_compare.png")
     args = parser.parse_args(argv)
     try:
-        graph = prepare(args.scenario)
+        graph = _load(args.scenario)
         results = master.simulate(graph, graph.scenario.experiment)
     except MecanumError as err:     # bad input (2) or a failed run (1): the message says why
         print(err, file=sys.stderr)

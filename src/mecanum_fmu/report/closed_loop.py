@@ -1,17 +1,16 @@
 """Closed-loop scenarios: the ground truth of a PathFollower run is the reference it follows.
 
 The reference pose comes from the follower's expressions (the same safe evaluator) or from its
-recorded path (the table, with NumPy's interp: linear between rows); its rates (the twist the
-plots show as "reference") are central differences of the expressions, or the table's slopes
-(zero outside the table), in the body frame of the reference heading. The summary's error is
-then the tracking error at the end time.
+recorded path (its tables.Table, with NumPy's interp: linear between rows); its rates (the
+twist the plots show as "reference") are central differences of the expressions, or the
+table's slopes (zero outside the table), in the body frame of the reference heading. The
+summary's error is then the tracking error at the end time.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..models.blocks.expression import compile_expression
-from ..models.blocks.profile_table import path_table
 from .truth import Truth
 
 REFERENCE = ("x_ref_expr", "y_ref_expr", "theta_ref_expr")
@@ -20,22 +19,17 @@ REFERENCE = ("x_ref_expr", "y_ref_expr", "theta_ref_expr")
 def reference_pose(follower, times: np.ndarray) -> np.ndarray:
     """The reference (x, y, theta) of a PathFollower instance at `times`, shape 3 x n."""
     times = np.asarray(times, dtype=float)
-    if _table(follower):
-        rows, *columns = (np.asarray(c, dtype=float) for c in path_table(_table(follower)))
+    if follower.table is not None:
+        rows, *columns = follower.table.path()
         return np.array([np.interp(times, rows, c) for c in columns])
     funcs = [compile_expression(str(follower.value(k))) for k in REFERENCE]
     return np.array([[f(float(t)) for t in times] for f in funcs]).reshape(3, len(times))
 
 
-def _table(follower) -> str:
-    names = {v.name for v in follower.model.modelVariables}
-    return str(follower.value("table")) if "table" in names else ""
-
-
-def _table_rates(text: str, times: np.ndarray) -> np.ndarray:
+def _table_rates(table, times: np.ndarray) -> np.ndarray:
     """The slopes of the row interval each time lies in (a row's time: the interval after
     it), zero before the first row and from the last row on; 3 x n."""
-    rows, *columns = (np.asarray(c, dtype=float) for c in path_table(text))
+    rows, *columns = table.path()
     i = np.searchsorted(rows, times, side="right") - 1
     inside = (i >= 0) & (i < len(rows) - 1)
     j = np.clip(i, 0, max(len(rows) - 2, 0))
@@ -50,8 +44,8 @@ def _table_rates(text: str, times: np.ndarray) -> np.ndarray:
 def reference_truth(follower, times: np.ndarray):
     times = np.asarray(times, dtype=float)
     x, y, th = reference_pose(follower, times)
-    if _table(follower):
-        dx, dy, w = _table_rates(_table(follower), times)
+    if follower.table is not None:
+        dx, dy, w = _table_rates(follower.table, times)
     else:
         d = 1e-6 * np.maximum(1.0, np.abs(times))
         up = reference_pose(follower, times + d)

@@ -31,9 +31,9 @@ TWIST = ("vx", "vy", "w")
 
 def source_channels(source) -> tuple[list[Channel], np.ndarray]:
     """A VelocitySource's vx, vy, w as functions of t, and the times where its table jumps."""
-    if not source.value("table"):
+    if source.table is None:
         return [compile_expression(str(source.value(f"{k}_expr"))) for k in TWIST], np.array([])
-    twist_of, breaks = table_twist(str(source.value("table")), str(source.value("interpolation")))
+    twist_of, breaks = table_twist(source.table, str(source.value("interpolation")))
     return [lambda t, i=i: float(twist_of(t)[i]) for i in range(3)], np.asarray(breaks, float)
 
 

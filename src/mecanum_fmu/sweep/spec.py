@@ -64,15 +64,6 @@ class Run:
     problem: str | None = None      # a draw the scenario's rules refuse: a failed row
 
 
-def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
-    """Read and check the file's own structure (no FMU needed). Raises ScenarioError.
-    max_runs: the most runs accepted (grid points x samples), checked before any is planned."""
-    sweep, problems, _ = read_sweep(path, max_runs)
-    if problems:
-        raise ScenarioError(problems)
-    return sweep
-
-
 def prepare_sweep(path: str | Path, load_graph: Callable[[Path], Graph],
                   max_runs: int = MAX_RUNS) -> tuple[Sweep, Graph,
                                                                                   list[Run]]:

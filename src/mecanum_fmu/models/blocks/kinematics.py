@@ -57,11 +57,6 @@ def check_radius_deviations(R: float, dR: tuple[float, ...]) -> None:
         raise ValueError(problem[1])
 
 
-def lever_arm(alpha: float, L: float, W: float) -> float:
-    """k = L + W*cot(alpha): the yaw lever arm in the wheel rows of the matrix."""
-    return L + W / math.tan(alpha)
-
-
 def center_to_wheel(vx: float, vy: float, w: float,
                     alpha: float, L: float, W: float, R: float) -> tuple[float, float, float, float]:
     """Inverse kinematics: chassis twist (body frame) -> wheel angular speeds w1..w4 [rad/s]."""
