@@ -63,10 +63,17 @@ typedef void *(*instantiate_fn)(const char *, int, const char *, const char *,
     X(fmi2CancelStep) X(fmi2GetStatus) X(fmi2GetRealStatus) X(fmi2GetIntegerStatus) \
     X(fmi2GetBooleanStatus) X(fmi2GetStringStatus)
 
-/* A jump through real_<name>, set once pythonfmu's library is loaded. A host calls these only
- * with a component that fmi2Instantiate returned, so the pointers are set by then. */
+/* Until pythonfmu's library is loaded, every call fails with fmi2Error: a host that goes on
+ * after fmi2Instantiate returned NULL (Ecos' `ecos` does) gets an error, not a jump to NULL.
+ * Every forwarded function returns an fmi2Status but fmi2FreeInstance, which ignores it. */
+static int refused_call(void)
+{
+    return 3;                       /* fmi2Error */
+}
+
+/* A jump through real_<name>, set once pythonfmu's library is loaded. */
 #define TRAMPOLINE(name) \
-    __attribute__((visibility("hidden"))) void *real_##name; \
+    __attribute__((visibility("hidden"))) void *real_##name = (void *)refused_call; \
     __asm__(".text\n.globl " #name "\n.type " #name ",@function\n" #name ":\n" \
             "\tjmp *real_" #name "(%rip)\n.size " #name ",.-" #name "\n");
 FORWARDED(TRAMPOLINE)
@@ -238,8 +245,10 @@ static int load_real(const char *folder, const char *identifier)
     void *handle = dlopen(lib, RTLD_NOW | RTLD_LOCAL);
     if (!handle)
         return fail("cannot load pythonfmu's library: %s", dlerror());
-#define RESOLVE(name) \
-    if (!(real_##name = dlsym(handle, #name))) return fail("%s missing in %s", #name, lib);
+#define PRESENT(name) \
+    if (!dlsym(handle, #name)) return fail("%s missing in %s", #name, lib);
+#define RESOLVE(name) real_##name = dlsym(handle, #name);
+    FORWARDED(PRESENT)              /* all or none: a trampoline never jumps to NULL */
     FORWARDED(RESOLVE)
     real_instantiate = (instantiate_fn)dlsym(handle, "fmi2Instantiate");
     if (!real_instantiate)
