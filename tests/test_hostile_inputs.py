@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -34,12 +35,20 @@ def sandbox(tmp_path, monkeypatch):
     return tmp_path
 
 
+def leftovers(tmp: Path) -> list[str]:
+    """What is in TMPDIR but the FMU extractions this process's runtime keeps for reuse (and
+    removes when it ends)."""
+    from mecanum_fmu.runtime import RUNTIME
+    kept = {Path(p).name for p in RUNTIME._extracted.values()}
+    return sorted(p.name for p in Path(tmp).iterdir() if p.name not in kept)
+
+
 def refused(call, *args, **kwargs) -> MecanumError:
     """call(...) raises bad input (exit code 2) and leaves its TMPDIR empty."""
     with pytest.raises(ScenarioError) as info:
         call(*args, **kwargs)
     assert info.value.exit_code == 2
-    assert os.listdir(tempfile.gettempdir()) == [], "a failed call left something in TMPDIR"
+    assert leftovers(tempfile.gettempdir()) == [], "a failed call left something in TMPDIR"
     return info.value
 
 
@@ -137,7 +146,7 @@ def test_a_table_mapping_that_cannot_be_meant_is_refused(table, says, sandbox, c
     path = write_scenario(sandbox, "follow", FOLLOWER.format(table=table))
     code, out, err = run_main(capsys, "validate", path)
     one_line(code, err, *says)
-    assert os.listdir(sandbox / "tmp") == []
+    assert leftovers(sandbox / "tmp") == []
 
 
 def test_a_table_mapping_without_the_optional_heading_still_runs(sandbox, fmu_dir):
@@ -191,3 +200,87 @@ def test_prepare_refuses_more_waypoints_or_segments_than_a_table_holds(sandbox, 
     err = refused(prepare, doc, fmu_dir=fmu_dir, build=False)
     assert "components.source.segments: 1000000 segments and the final stop make a table " \
            "of 1000001 rows; an FMU takes at most 1000000: use fewer" in str(err), str(err)
+
+
+# -- every command that writes ------------------------------------------------------------------
+@pytest.fixture
+def read_only(sandbox):
+    """A read-only file system (a tmpfs mounted ro), unmounted after the test."""
+    from helpers import mount_tmpfs
+    folder = mount_tmpfs(sandbox / "ro", "ro,size=1m")
+    yield folder
+    subprocess.run(["umount", str(folder)], check=False)
+
+
+def test_export_ssp_onto_a_folder_or_a_file_as_folder_is_refused(sandbox, capsys, fmu_dir):
+    (sandbox / "taken").mkdir()
+    (sandbox / "afile").write_text("mine")
+    for target, says in (("taken", f"taken: export-ssp -o: is a folder; give the file to "
+                                   f"write, e.g. {sandbox}/taken/circle.ssp"),
+                         ("afile/c.ssp", "afile: output folder (export-ssp -o): is a file, "
+                                         "not a folder")):
+        code, out, err = run_main(capsys, "export-ssp", CIRCLE, "-o", sandbox / target,
+                                  "--fmu-dir", fmu_dir)
+        one_line(code, err, says)
+    assert (sandbox / "afile").read_text() == "mine" and os.listdir(sandbox / "taken") == []
+    assert leftovers(sandbox / "tmp") == []
+
+
+def test_every_writing_command_on_a_read_only_file_system(read_only, sandbox, capsys, fmu_dir):
+    """export-ssp, fmus --dest, run --out and sweep --out: exit 2, one line naming the path,
+    the option and the reason; nothing written, nothing in TMPDIR."""
+    sweep = sandbox / "sweep.yaml"
+    sweep.write_text(f"name: s\nscenario: {CIRCLE}\ngrid:\n  w2c.R: [0.05, 0.06]\n")
+    for args, place in (
+            (["export-ssp", CIRCLE, "-o", read_only / "c.ssp", "--fmu-dir", fmu_dir],
+             f"{read_only}: output folder (export-ssp -o): cannot write into it: Read-only "
+             "file system; choose another -o"),
+            (["export-ssp", CIRCLE, "-o", read_only / "new" / "c.ssp", "--fmu-dir", fmu_dir],
+             "output folder (export-ssp -o): cannot create it: Read-only file system"),
+            (["fmus", "--dest", read_only / "fmus"],
+             "output folder (fmus --dest): cannot create it: Read-only file system; choose "
+             "another --dest"),
+            (["run", CIRCLE, "--out", read_only / "out", "--no-plots", "--fmu-dir", fmu_dir],
+             "output folder (--out): cannot create it: Read-only file system"),
+            (["sweep", sweep, "--out", read_only / "out", "--no-plots", "--fmu-dir", fmu_dir],
+             "Read-only file system")):
+        code, out, err = run_main(capsys, *args)
+        one_line(code, err, place)
+    assert os.listdir(read_only) == [] and leftovers(sandbox / "tmp") == []
+
+
+def test_fmus_dest_onto_a_file_is_refused(sandbox, capsys):
+    (sandbox / "afile").write_text("mine")
+    code, out, err = run_main(capsys, "fmus", "--dest", sandbox / "afile")
+    one_line(code, err, "afile: output folder (fmus --dest): is a file, not a folder")
+    assert (sandbox / "afile").read_text() == "mine"
+
+
+# -- cross-check: TMPDIR and the hosts' messages ------------------------------------------------
+def test_cross_check_leaves_nothing_in_tmpdir(sandbox, capsys, fmu_dir):
+    """Ecos unpacks the SSP and each FMU into TMPDIR (ecos_ssp_*, ecos_<Model>_*) and leaves
+    them: each host runs with a TMPDIR of its own that is removed after it."""
+    code, out, err = run_main(capsys, "cross-check", CIRCLE, "--stop-time", "0.5",
+                              "--fmu-dir", fmu_dir)
+    assert code == 0, out + err
+    assert out.count("agrees") + out.count("not run") == 3, out
+    assert leftovers(sandbox / "tmp") == []
+
+
+def test_a_failing_host_says_one_line_without_the_childs_traceback(sandbox, fmu_dir):
+    from mecanum_fmu.interop.other_hosts import HOSTS, HostFailed, HostUnavailable, run_host
+    from mecanum_fmu.interop.ssp_write import export_ssp
+    ssp = export_ssp(prepare(CIRCLE, fmu_dir=fmu_dir, build=False), sandbox / "c.ssp")
+    ran = 0
+    for host in HOSTS:
+        try:
+            run_host(host, ssp, start=0.0, stop=0.5, step=0.05, variables=["pose.nothing"])
+        except HostUnavailable:
+            continue
+        except HostFailed as err:
+            text = str(err)
+            assert text.startswith(f"{host} exited with code 1: ") and "nothing" in text, text
+            assert "\n" not in text and "Traceback" not in text and 'File "' not in text, text
+            ran += 1
+    assert ran >= 1 or not os.environ.get("MECANUM_FMU_REQUIRE_TOOLS")
+    assert leftovers(sandbox / "tmp") == []
