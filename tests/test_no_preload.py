@@ -276,3 +276,109 @@ def test_a_plain_c_host_runs_and_exits_without_a_memory_error(built_fmus, tmp_pa
     assert "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
     assert proc.stdout.split()[0] == "RAN", proc.stdout
     assert float(proc.stdout.split()[1]) == pytest.approx(0.5, abs=1e-12)   # 0.5 m/s for 1 s
+
+
+# ------------------------------------------------------------------ damaged self-contained FMUs
+
+def _bundled(fmu: Path) -> list[str]:
+    """The files the FMU's MANIFEST lists (the loader's check), read here from the archive."""
+    with zipfile.ZipFile(fmu) as zf:
+        names = set(zf.namelist())
+        listed = [line.split(" ", 2)[2] for line in
+                  zf.read("resources/python/MANIFEST").decode().splitlines()]
+    assert {n for n in names if n.startswith(("binaries/linux64/", "resources/python/"))} \
+        - set(listed) == {"binaries/linux64/PoseIntegrator.so", "resources/python/MANIFEST"}
+    return listed
+
+
+def _damaged(data: bytes, name: str) -> bytes:
+    """A library cut in half (what made a host die of SIGBUS when it was mapped); any other
+    file with one byte flipped in the middle (same size, other contents)."""
+    if ".so" in name:
+        return data[:len(data) // 2]
+    middle = len(data) // 2
+    return data[:middle] + bytes([data[middle] ^ 0x20]) + data[middle + 1:]
+
+
+def _assert_one_message(log: str, name: str):
+    lines = [line for line in log.splitlines() if " is damaged: " in line]
+    assert len(lines) == 1 and f"the FMU PoseIntegrator is damaged: {name} has " in lines[0], log
+    assert "Traceback" not in log and "Python path configuration" not in log, log
+
+
+def test_a_plain_c_host_refuses_each_damaged_bundled_file_without_a_crash(built_fmus, tmp_path):
+    """Each bundled file in turn, damaged in the unpacked FMU: fmi2Instantiate returns NULL,
+    one message in the FMU's log names the file, the host exits normally (no SIGBUS)."""
+    if shutil.which("gcc") is None:
+        missing("gcc is needed (apt-get install gcc)")
+    host = tmp_path / "plain_host"
+    subprocess.run(["gcc", "-O1", "-o", str(host), str(ROOT / "tests" / "hosts" / "plain_host.c"),
+                    "-ldl"], check=True)
+    from fmpy import extract, read_model_description
+    fmu = built_fmus["PoseIntegrator"]
+    folder = Path(extract(str(fmu), str(tmp_path / "fmu")))
+    md = read_model_description(str(folder))
+    vrs = {v.name: v.valueReference for v in md.modelVariables}
+    command = [str(host), str(folder / "binaries" / "linux64" / "PoseIntegrator.so"), md.guid,
+               (folder / "resources").as_uri(), str(vrs["vx"]), "0.5", str(vrs["x"])]
+    for name in _bundled(fmu):
+        path = folder / name
+        intact = path.read_bytes()
+        path.write_bytes(_damaged(intact, name))
+        proc = subprocess.run(command, capture_output=True, text=True, timeout=120,
+                              env={"PATH": "/usr/bin:/bin"})
+        path.write_bytes(intact)
+        assert proc.returncode == 0, (name, proc.returncode, proc.stderr[-2000:])
+        assert proc.stdout.strip() == "REFUSED", (name, proc.stdout)
+        _assert_one_message(proc.stderr, name)
+    proc = subprocess.run(command, capture_output=True, text=True, timeout=120,
+                          env={"PATH": "/usr/bin:/bin"})
+    assert proc.stdout.split()[0] == "RAN", proc.stdout             # restored: it runs again
+
+
+def _with_member(archive: Path, member: str, data: bytes, dest: Path) -> Path:
+    """A copy of the zip archive with one member's bytes replaced."""
+    with zipfile.ZipFile(archive) as src, zipfile.ZipFile(dest, "w", zipfile.ZIP_DEFLATED) as out:
+        for info in src.infolist():
+            out.writestr(info, data if info.filename == member else src.read(info))
+    return dest
+
+
+def test_ecos_program_refuses_each_damaged_bundled_file_without_a_crash(ssps, tmp_path):
+    """The circle SSP with PoseIntegrator's bundled files damaged in turn: Ecos' `ecos` logs the
+    loader's one message naming the file and exits without a signal. (Ecos goes on after
+    fmi2Instantiate returned NULL: each later call of that FMU fails with fmi2Error, and Ecos,
+    which ignores the status, writes its CSV and exits 0.)"""
+    program, libs = _ecos_setup(tmp_path)
+    ssp, graph, names, _ = ssps["circle"]
+    exp = graph.scenario.experiment
+    member = "resources/PoseIntegrator.fmu"
+    with zipfile.ZipFile(ssp) as zf:
+        fmu = tmp_path / "PoseIntegrator.fmu"
+        fmu.write_bytes(zf.read(member))
+    for name in _bundled(fmu):
+        with zipfile.ZipFile(fmu) as zf:
+            bad = _with_member(fmu, name, _damaged(zf.read(name), name), tmp_path / "bad.fmu")
+        run = tmp_path / "run"
+        run.mkdir()
+        damaged = _with_member(ssp, member, bad.read_bytes(), run / "circle.ssp")
+        ecos = ecos_command(program, str(damaged), exp.start_time, exp.stop_time, exp.step_size)
+        command = ["env", "-i", "PATH=/usr/bin:/bin", "LD_LIBRARY_PATH=" + ":".join(libs),
+                   f"TMPDIR={run}", *ecos[:-1], "debug"]        # its FMU log is at debug level
+        proc = subprocess.run(command, cwd=run, capture_output=True, text=True, timeout=300)
+        assert 0 <= proc.returncode < 128, (name, proc.returncode, proc.stderr[-2000:])
+        _assert_one_message(proc.stdout + proc.stderr, name)
+        shutil.rmtree(run)
+
+
+def test_doctor_finds_each_damaged_bundled_file(built_fmus, tmp_path):
+    """`doctor` runs the loader's check on the archive: each damaged file is named, and the FMU
+    is no longer called self-contained."""
+    from mecanum_fmu.interop.doctor import fmu_needs
+    fmu = built_fmus["PoseIntegrator"]
+    assert "linux64: self-contained" in fmu_needs(fmu, "PoseIntegrator")
+    for name in _bundled(fmu):
+        with zipfile.ZipFile(fmu) as zf:
+            bad = _with_member(fmu, name, _damaged(zf.read(name), name), tmp_path / "bad.fmu")
+        line = fmu_needs(bad, "PoseIntegrator")
+        assert line.startswith(f"DAMAGED: {name} has ") and "self-contained" not in line, line

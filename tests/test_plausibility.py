@@ -71,6 +71,19 @@ def test_a_table_outside_the_run_span_is_named(tmp_path, fmu_dir):
             assert len(span) == 1 and words in span[0] and "the run 0 to 2 s" in span[0]
 
 
+def test_a_length_too_large_in_any_unit_is_named(tmp_path, fmu_dir):
+    """R = 1500 and L = 7000: no millimetre reading (1.5 m, 7 m) or centimetre one (15 m,
+    70 m) is plausible either, and they are still far above 1 m and 5 m."""
+    path = circle(tmp_path, [("R: 0.06 ", "R: 1500 "), ("L: 0.16 ", "L: 7000 ")])
+    warnings = prepare(path, fmu_dir=fmu_dir).warnings
+    for place, text in (("parameters.R", "R = 1500 m is implausibly large for a wheel radius; "
+                                         "give it in metres (at most 1 m is plausible)"),
+                        ("parameters.L", "L = 7000 m is implausibly large for a chassis length;"
+                                         " give it in metres (at most 5 m is plausible)")):
+        found = [w for w in warnings if f": {place}: " in w]
+        assert len(found) == 1 and text in found[0], (place, warnings)
+
+
 def test_strict_validation_makes_warnings_errors(tmp_path, capsys, fmu_dir):
     path = circle(tmp_path, [("R: 0.06 ", "R: 60 ")])
     assert main(["validate", str(path), "--fmu-dir", str(fmu_dir)]) == 0
@@ -90,10 +103,11 @@ def _diverges(path, fmu_dir, tmp_path) -> bool:
     return not (math.isfinite(position) and position < 0.01)   # from 0.36 m at the start
 
 
-@pytest.mark.parametrize("master, limit", [("trapezoidal", 1.0), ("quadratic", 2.0)])
+@pytest.mark.parametrize("master, limit", [("trapezoidal", 1.0), ("quadratic", 2.0),
+                                           ("gauss-seidel", 2.0), ("jacobi", 0.445)])
 def test_the_gain_warning_sits_at_the_stability_limit(tmp_path, fmu_dir, master, limit):
     assert plausibility.stability_limit(master, can_roll_back=True) == limit
-    for factor, unstable in ((0.8, False), (1.25, True)):
+    for factor, unstable in ((0.8, False), (1.25, True), (25.0, True)):    # h k = 50: GS
         step = factor * limit / 2.0                           # k = 2 1/s, the default
         path = circle(tmp_path, [("master: quadratic", f"master: {master}"),
                                  ('"1 - cos(t)"', '"0"'), ('"sin(t)"', '"0"'),   # x' = -k x

@@ -11,7 +11,7 @@ from typing import Any
 from .errors import ArgumentError, Problem, did_you_mean
 from .graph import Graph
 from .models.library import fmu_guid
-from .scenario import MASTERS, Experiment, check_experiment
+from .scenario import MASTERS, Experiment, check_experiment, tolerance_problem
 from .values import is_finite, is_number, show
 
 
@@ -115,7 +115,7 @@ def experiment_problems(call: str, experiment: Any) -> list[Problem]:
 
 
 def check_prepare(path: Any, step_size: Any, stop_time: Any, master_name: Any,
-                  fmu_dir: Any, parameters: Any) -> None:
+                  fmu_dir: Any, parameters: Any, tolerance: Any = None) -> None:
     """runner.prepare's arguments (the values themselves are checked with the scenario's
     rules afterwards, placed as command-line options)."""
     call = "runner.prepare"
@@ -125,6 +125,8 @@ def check_prepare(path: Any, step_size: Any, stop_time: Any, master_name: Any,
                                                f"mapping, got {show(path)}"))
     problems += _time_problems(call, {"step_size (--step-size)": step_size,
                                       "stop_time (--stop-time)": stop_time})
+    if tolerance is not None and (problem := tolerance_problem(tolerance, None)):
+        problems.append(_problem(call, "tolerance (--tolerance)", problem))
     if master_name is not None:
         problems += master_problems(call, "master_name (--master)", master_name)
     if fmu_dir is not None and not isinstance(fmu_dir, (str, os.PathLike)):

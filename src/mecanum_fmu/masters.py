@@ -20,18 +20,32 @@ class Master:
     order: int              # global order of the end point on smooth inputs (at best)
     doc: str                # one line for --help and the docs
     adaptive: bool = False  # the step is chosen to meet a tolerance (--tolerance)
+    # h k below which a follower's loop x' = -k x, closed through the integrator, is stable
+    # at step h (plausibility.py warns at and above it; None: no limit stated), stepped in one
+    # pass and, for a master that rolls back, rolled back (tests/test_plausibility.py)
+    loop_limit: float | None = None
+    rolled_back_loop_limit: float | None = None
 
 
+# The loop limits, measured on track_circle with a fixed reference and no heading error: the
+# extrapolated single pass decays at h k = 0.95 and grows at 1.05; the quadratic master's
+# predictor-corrector at 1.99 / 2.01 (a trapezoidal corrector on the extrapolated predictor
+# has its root at z = 1 for h k = 2); Gauss-Seidel's zero-order hold is forward Euler
+# (1 - h k: 2); Jacobi delays each of the loop's four components by a step, x' = -k x
+# becomes z^4 - z^3 + h k, whose roots leave the unit circle at h k = 0.445 (decays at 0.4,
+# grows at 0.5). A large heading error couples in and lowers them.
 REGISTRY: dict[str, Master] = {m.name: m for m in (
     Master("quadratic", "quadratic", False, True, 3,
            "Gauss-Seidel order; state-only inputs held at the limited parabola's mean; "
-           "loops predicted, rolled back and corrected"),
+           "loops predicted, rolled back and corrected", loop_limit=1.0,
+           rolled_back_loop_limit=2.0),
     Master("trapezoidal", "trapezoidal", False, False, 2,
-           "Gauss-Seidel order; state-only inputs held at the mean of the step's end values"),
+           "Gauss-Seidel order; state-only inputs held at the mean of the step's end values",
+           loop_limit=1.0),
     Master("gauss-seidel", "zoh", False, False, 1,
-           "dependency order, zero-order hold of the newest values"),
+           "dependency order, zero-order hold of the newest values", loop_limit=2.0),
     Master("jacobi", "zoh", True, False, 1,
-           "every component steps on the values of t_k, zero-order hold"),
+           "every component steps on the values of t_k, zero-order hold", loop_limit=0.445),
     Master("adaptive", "quadratic", False, True, 3,
            "a cubic hold (where smooth) on a step chosen to meet a tolerance (--tolerance)",
            adaptive=True),

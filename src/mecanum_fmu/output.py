@@ -3,6 +3,8 @@ that no file ever looks complete when it is not.
 
 - The folder is made (or found) and probed before the run: a file in its place, a folder that
   cannot be written, a name that is too long are bad input (ScenarioError, exit code 2).
+  The same rules for every command that writes (make_folder: `fmus --dest`; output_file: a
+  single file such as `export-ssp -o`).
 - One run at a time per folder: an exclusive lock (fcntl.flock) on LOCK_NAME inside it, removed
   when the run ends; a second run is refused.
 - results.csv and summary.json are written under a temporary name in the folder and renamed
@@ -15,7 +17,9 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import tempfile
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -54,8 +58,56 @@ class WriteError(MecanumError):
         super().__init__(f"writing the results into {folder} failed: {err.strerror or err}")
 
 
-def _bad(folder: Path, message: str) -> ScenarioError:
-    return ScenarioError([Problem(str(folder), "output folder (--out)", message)])
+def _bad(folder: Path, message: str, option: str = "--out") -> ScenarioError:
+    return ScenarioError([Problem(str(folder), f"output folder ({option})", message)])
+
+
+def _another(option: str) -> str:
+    """The fix: 'choose another --out' ('export-ssp -o' -> '-o')."""
+    return f"choose another {option.split()[-1]}"
+
+
+def make_folder(path: Path, option: str = "--out") -> Path:
+    """Create the folder a command writes into (when missing) and probe that it takes a file;
+    bad input (ScenarioError naming `option`) when it cannot."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise _bad(path, "is a file, not a folder; give a folder (it is created when "
+                         "missing)", option) from None
+    except OSError as err:
+        raise _bad(path, f"cannot create it: {err.strerror}; {_another(option)}",
+                   option) from None
+    try:
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as err:
+        raise _bad(path, f"cannot write into it: {err.strerror}; {_another(option)}",
+                   option) from None
+    return path
+
+
+def check_output_file(path: Path, option: str, example: str) -> None:
+    """A file a command writes where the user says (export-ssp -o), before the work: a folder
+    in its place or a folder that cannot hold it (read-only, missing rights) is bad input
+    naming `option` (ScenarioError, exit code 2); `example` names a file for the fix."""
+    if path.is_dir():
+        raise ScenarioError([Problem(str(path), option, f"is a folder; give the file to "
+                                     f"write, e.g. {path / example}")])
+    make_folder(path.parent, option)
+
+
+def output_file(path: Path | str, write: Callable[[Path], Path], option: str,
+                example: str) -> Path:
+    """write(path) (an atomic writer: nothing half-written is left), checked as
+    check_output_file does; a write that fails is bad input naming `option` too."""
+    path = Path(path)
+    check_output_file(path, option, example)
+    try:
+        return write(path)
+    except OSError as err:
+        raise ScenarioError([Problem(str(path), option, f"cannot write it: "
+                                     f"{err.strerror or err}; {_another(option)}")]) from None
 
 
 class OutputFolder:
@@ -73,7 +125,7 @@ class OutputFolder:
         self._listed: set[str] | None = None  # what the summary on disk names
 
     def __enter__(self) -> "OutputFolder":
-        self._make()
+        make_folder(self.path)
         self._lock()
         try:
             for name in previous_files(self.path) | set(self.tables):
@@ -107,16 +159,6 @@ class OutputFolder:
             self.write_json(data)
         except (OSError, ValueError, MecanumError):   # gone or unwritable: nothing to name
             pass
-
-    def _make(self) -> None:
-        try:
-            self.path.mkdir(parents=True, exist_ok=True)
-        except FileExistsError:
-            raise _bad(self.path, "is a file, not a folder; give a folder (it is created "
-                                  "when missing)") from None
-        except OSError as err:
-            raise _bad(self.path, f"cannot create it: {err.strerror}; choose another "
-                                  f"--out") from None
 
     def _lock(self) -> None:
         lock = self.path / LOCK_NAME

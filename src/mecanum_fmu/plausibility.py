@@ -7,7 +7,8 @@ Graph.warnings.
 - A table (VelocitySource profile, PathFollower path) that does not cover the run's time span:
   outside it the end rows are held (epoch timestamps hold the first row for the whole run).
 - A follower gain that makes the closed loop unstable at the chosen step: on x' = -k x closed
-  through the integrator the masters are stable for h k below STABILITY_LIMIT (docs/masters.md).
+  through the integrator each master is stable for h k below its registry entry's loop limit
+  (masters.py, docs/masters.md).
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
 .value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of
@@ -18,15 +19,8 @@ from __future__ import annotations
 import math
 
 from .errors import Problem
+from .masters import entry as master_entry
 
-# h k below which the closed loop x' = -k x through the integrator is stable, per way of
-# stepping a loop (docs/masters.md, "The rollback"): the one home of these numbers. Measured
-# on track_circle with a fixed reference and no heading error (tests/test_plausibility.py):
-# the single pass decays at h k = 0.95 and grows at 1.05; the quadratic master's
-# predictor-corrector decays at 1.99 and grows at 2.01 (docs/masters.md said 2.4; 2.0 is what
-# the master with its limiter reaches; a trapezoidal corrector on the extrapolated predictor
-# has its root at z = 1 for h k = 2). A large heading error couples in and lowers it.
-STABILITY_LIMIT = {"extrapolated single pass": 1.0, "predictor-corrector": 2.0}
 LENGTHS = {"R": (0.005, 1.0), "L": (0.01, 5.0), "W": (0.01, 5.0), "l": (0.05, 10.0)}
 LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2Center",
                  "Bicycle")
@@ -35,12 +29,12 @@ _SMALLER = (("millimetres", 1e-3), ("centimetres", 1e-2))
 
 
 def stability_limit(master: str, can_roll_back: bool) -> float | None:
-    """The largest stable h k of a loop stepped by `master` (None: none stated)."""
-    if master == "quadratic" and can_roll_back:
-        return STABILITY_LIMIT["predictor-corrector"]
-    if master in ("quadratic", "trapezoidal"):
-        return STABILITY_LIMIT["extrapolated single pass"]
-    return None
+    """The largest stable h k of a loop stepped by `master` (None: none stated): the
+    registry's (masters.py), rolled back when the master and every FMU can."""
+    how = master_entry(master)
+    if how.rolls_back and can_roll_back and how.rolled_back_loop_limit is not None:
+        return how.rolled_back_loop_limit
+    return how.loop_limit
 
 
 def problems(scenario, instances) -> list[Problem]:
@@ -83,11 +77,11 @@ def _units(scenario, inst) -> list[tuple[str, str]]:
                 continue
             fits = [f"{unit} (then give metres, {name}: {value * scale:g})"
                     for unit, scale in _SMALLER if low <= value * scale <= high]
-            if fits:
-                out.append((_place(scenario, inst, name),
-                            f"{name} = {value:g} m is implausibly large for a "
-                            f"{'wheel radius' if name == 'R' else 'chassis length'}; it looks "
-                            f"like {' or '.join(fits)}"))
+            reading = (f"it looks like {' or '.join(fits)}" if fits else
+                       f"give it in metres (at most {high:g} m is plausible)")
+            out.append((_place(scenario, inst, name),
+                        f"{name} = {value:g} m is implausibly large for a "
+                        f"{'wheel radius' if name == 'R' else 'chassis length'}; {reading}"))
     for name in ANGLES.get(inst.model_name, ()):
         value = _given(inst, name)
         if value is not None and 2 * math.pi < abs(value) <= 360:

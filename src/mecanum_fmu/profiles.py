@@ -24,6 +24,7 @@ import numpy as np
 
 from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, \
     table_sampler
+from .models.blocks.profile_table import _TABLE_MAX_ROWS as MAX_TABLE_ROWS  # the FMU's limit
 from .errors import Problem
 from .values import is_finite
 from .recorded import TableSource, check_options, mapped_table, read_table_file, \
@@ -81,6 +82,9 @@ def segments_table(raw: Any, start_time: float, place: str,
     """The hold-table CSV text for a `segments:` list; None (and problems) when it is bad."""
     if not isinstance(raw, list) or not raw:
         report(Problem(label, place, "expected a list of segments like {duration: 2, vy: 0.3}"))
+        return None
+    if too_many_rows(len(raw) + 1, place, f"{len(raw)} segments and the final stop", report,
+                     label):
         return None
     rows, t, ok = [], float(start_time), True
     for i, seg in enumerate(raw):
@@ -156,19 +160,48 @@ def waypoints_table(raw: Any, start_time: float, place: str, report: Report,
             return None
     if not ok:
         return None
+    if too_many_rows(len(points), f"{place}.points", f"{len(points)} points", report, label):
+        return None
     t, rows = float(start_time), []
     for i, point in enumerate(points):
         if i:
-            step = math.hypot(point[0] - points[i - 1][0], point[1] - points[i - 1][1])
-            if not step > 0:
-                report(Problem(label, f"{place}.points[{i}]", "repeats the point before; "
-                                                              "leave it out"))
+            t = _waypoint_time(t, points[i - 1], point, float(speed), f"{place}.points[{i}]",
+                               report, label)
+            if t is None:
                 return None
-            t += step / float(speed)
         rows.append((t, *point))
     header = "time,x,y" + (",theta" if width == 3 else "")
     return header + "\n" + "".join(",".join(repr(float(v)) for v in row) + "\n"
                                    for row in rows)
+
+
+def _waypoint_time(t: float, before: list, point: list, speed: float, place: str,
+                   report: Report, label: str) -> float | None:
+    """When the path reaches point, coming from before at t: a finite time after t, else
+    None and a problem (the table's times must be finite and increase)."""
+    step = math.hypot(point[0] - before[0], point[1] - before[1])
+    if not step > 0:
+        report(Problem(label, place, "repeats the point before; leave it out"))
+        return None
+    end = t + step / speed
+    if math.isfinite(end) and end > t:
+        return end
+    why = ("is not a finite number of seconds" if not math.isfinite(end) else
+           f"does not advance time from t = {t!r} s (below that time's precision)")
+    report(Problem(label, place, f"reached at {end!r} s ({step!r} m from the point before at "
+                                 f"{speed!r} m/s), which {why}; use a speed and coordinates "
+                                 "that give each leg a finite, resolvable time"))
+    return None
+
+
+def too_many_rows(count: int, place: str, what: str, report: Report, label: str) -> bool:
+    """A table of `count` rows (made of `what`) is longer than an FMU takes (profile_table's
+    limit): report it (True)."""
+    if count <= MAX_TABLE_ROWS:
+        return False
+    report(Problem(label, place, f"{what} make a table of {count} rows; an FMU takes at most "
+                                 f"{MAX_TABLE_ROWS}: use fewer"))
+    return True
 
 
 def _unknown(label: str, place: str, report: Report) -> bool:

@@ -9,7 +9,8 @@ units converted and the time shifted, into the CSV text an FMU's `table` paramet
   optional byte order mark. A file from outside the scenario's folder is read too (logs live
   elsewhere), but no message quotes its content.
 - `columns`: our column -> the file's column name; a leading `-` negates (ROS's y points left,
-  our x right). Left out: the column of the same name.
+  our x right; not the time). Left out: the column of the same name (an optional one, such
+  as a path's theta, may then be missing from the file; a mapped one must be there).
 - `units`: time s, ms, us, ns; velocities m/s, cm/s, mm/s; yaw rate rad/s, deg/s; positions
   m, cm, mm; heading rad, deg (a velocity's `mm` means mm/s, `deg` deg/s).
 - `start: first_row` puts the first row at the scenario's start_time; `offset` [s] is then
@@ -24,6 +25,7 @@ from typing import Any, Callable
 from .errors import Problem
 from .models.blocks.profile_table import TableError, parse_table
 from .storage import NotARegularFile, read_regular
+from .values import is_finite
 
 MAX_TABLE_BYTES = 50_000_000
 TABLE_KEYS = ("file", "columns", "units", "start", "offset")
@@ -121,11 +123,13 @@ def check_options(raw: dict, columns: tuple[str, ...], place: str, label: str,
             elif key == "units" and item not in UNITS[name]:
                 bad(f"{key}.{name}", f"{item[:20]!r} is not a unit of {name}; use "
                                      f"{', '.join(UNITS[name])}")
+            elif key == "columns" and name == columns[0] and item.strip().startswith("-"):
+                bad(f"{key}.{name}", f"{item[:40]!r}: the time column cannot be negated "
+                                     "(times must increase); drop the '-'")
     if "start" in raw and raw["start"] != "first_row":
         bad("start", "the only choice is first_row (the first row at the start_time)")
     offset = raw.get("offset", 0.0)
-    if not isinstance(offset, (int, float)) or isinstance(offset, bool) \
-            or not math.isfinite(offset):
+    if not is_finite(offset):
         bad("offset", "expected a finite number of seconds added to the table's times")
     return ok
 
@@ -139,7 +143,8 @@ def mapped_table(source: TableSource, raw: dict, columns: tuple[str, ...],
     names = [str(mapping.get(c, c)).strip() for c in columns]
     signs = [-1.0 if n.startswith("-") else 1.0 for n in names]
     names = [n.lstrip("-").strip().lower() for n in names]
-    wanted = tuple(optional_name for optional_name, c in zip(names, columns) if c in optional)
+    # an optional column may be missing from the file, unless `columns:` maps it
+    wanted = tuple(name for name, c in zip(names, columns) if c in optional and c not in mapping)
     data = parse_table(source.text, tuple(names), wanted, source.quote)
     units = raw.get("units", {})
     scales = [UNITS[c][units.get(c, next(iter(UNITS[c])))] for c in columns]

@@ -61,7 +61,7 @@ def prepare(path: str | Path | dict, *, step_size: float | None = None,
     the file's own together with the graph's. With build (the default), the bundled FMUs it
     uses are built first when missing or stale; without (validate), such an FMU is reported
     as a problem with the command that builds it."""
-    check_prepare(path, step_size, stop_time, master_name, fmu_dir, parameters)
+    check_prepare(path, step_size, stop_time, master_name, fmu_dir, parameters, tolerance)
     scenario, problems = _read(path, parameters)
     changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
                                  ("master", master_name), ("tolerance", tolerance))

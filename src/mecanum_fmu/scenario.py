@@ -301,14 +301,25 @@ def experiment_values(raw: Any, bad) -> tuple[dict[str, Any], bool]:
 
 def _tolerance(raw: dict, values: dict, bad) -> None:
     """experiment.tolerance: a number > 0; it chooses the adaptive master (masters.py)."""
-    value, name = raw["tolerance"], values.get("master")
-    if not is_number(value) or not is_finite(value) or not value > 0:
-        bad("experiment.tolerance", f"expected a number > 0 (e.g. 1e-4), got {show(value)}")
-    elif name is not None and not master_entry(name).adaptive:
-        bad("experiment.tolerance", f"the {name} master takes a fixed step: drop `master: "
-            f"{name}` (a tolerance chooses the adaptive master) or the tolerance")
+    value = raw["tolerance"]
+    problem = tolerance_problem(value, values.get("master"))
+    if problem:
+        bad("experiment.tolerance", problem)
     else:
         values["tolerance"], values["master"] = float(value), ADAPTIVE
+
+
+def tolerance_problem(value: Any, master: Any) -> str | None:
+    """Why `value` cannot be the tolerance of a run with `master` (None: none chosen), or None:
+    a finite number > 0, and only for an adaptive master (the one rule of a file, a sweep,
+    the command line and the Python API)."""
+    if not is_number(value) or not is_finite(value) or not value > 0:
+        return f"expected a number > 0 (e.g. 1e-4), got {show(value)}"
+    if master in MASTERS and not master_entry(master).adaptive:
+        return (f"the {master} master takes a fixed step and would ignore the tolerance: drop "
+                f"the master {master} (`master:` or --master; a tolerance chooses the adaptive "
+                "master) or the tolerance")
+    return None
 
 
 def override_experiment(scenario: "Scenario", changes: dict[str, Any], label: str,
@@ -345,6 +356,8 @@ def check_experiment(exp: Experiment) -> list[tuple[str, str]]:
     elif exp.step_size > 0 and (exp.stop_time - exp.start_time) / exp.step_size > 1e8:
         out.append(("experiment.step_size", f"{exp.step_size} gives more than 1e8 steps; "
                     "use a larger step"))
+    if exp.tolerance is not None and (problem := tolerance_problem(exp.tolerance, exp.master)):
+        out.append(("experiment.tolerance", problem))
     return out
 
 

@@ -13,7 +13,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from ..models.embed import HOME, REAL_SUFFIX, summary
+from ..models.embed import HOME, REAL_SUFFIX, damage, summary
 from ..models.link import BINARY_DIR, Needs, binary_needs, find_libpython
 
 _WIN_PYTHON = re.compile(rb"python3\d*\.dll", re.IGNORECASE)
@@ -50,12 +50,16 @@ def fmu_needs(path: Path, name: str) -> str:
                    and (n.startswith(BINARY_DIR) or n.startswith(HOME + "lib-dynload/"))}
             dll = f"binaries/win64/{name}.dll"
             win = zf.read(dll) if dll in names else None
+            contained = (f"{BINARY_DIR}{name}{REAL_SUFFIX}" in names and HOME + "stdlib.zip" in names
+                         and any(n.startswith(BINARY_DIR + "libpython") for n in names))
+            broken = damage(zf.read, names) if contained else None
     except (OSError, zipfile.BadZipFile) as err:
         return f"cannot read the FMU: {err}"
     if f"{BINARY_DIR}{name}.so" not in elf:
         return "no Linux binary"
-    contained = (f"{BINARY_DIR}{name}{REAL_SUFFIX}" in names and HOME + "stdlib.zip" in names
-                 and any(n.startswith(BINARY_DIR + "libpython") for n in names))
+    if broken:
+        return (f"DAMAGED: {broken}; its loader refuses it (fmi2Instantiate returns NULL) - "
+                "rebuild it with `python -m mecanum_fmu fmus`")
     linux = ("self-contained (carries its Python; the host needs none)" if contained
              else "NOT self-contained: the host must bring Python " + _built_for(elf))
     return f"linux64: {linux}, {_system_needs(elf.values())}; win64: {_win64(win)}"

@@ -23,6 +23,7 @@ import csv
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -69,19 +70,40 @@ def run_host(host: str, ssp: Path, *, start: float, stop: float, step: float,
            repr(start), repr(stop), repr(step), *variables]
     # the child imports this package from where the caller has it (installed or not)
     package_root = str(Path(__file__).resolve().parents[2])
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        p for p in (package_root, os.environ.get("PYTHONPATH")) if p))
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+    # its own TMPDIR, removed when it ends however it ends: Ecos unpacks every SSP and FMU
+    # there (ecos_ssp_*, ecos_<Model>_*, ~12 MB each) and leaves them
+    with tempfile.TemporaryDirectory(prefix="mecanum-host-") as tmp:
+        env = dict(os.environ, TMPDIR=tmp, PYTHONPATH=os.pathsep.join(
+            p for p in (package_root, os.environ.get("PYTHONPATH")) if p))
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
     if proc.returncode == UNAVAILABLE:
         raise HostUnavailable(f"{host}: {proc.stdout.strip() or proc.stderr.strip()} "
                               f"(install: {INSTALL[host]})")
     lines = proc.stdout.strip().splitlines()
     if proc.returncode != 0 or not lines:
-        tail = "\n".join((proc.stderr.strip() or proc.stdout.strip()).splitlines()[-8:])
-        raise HostFailed(f"{host} exited with code {proc.returncode}:\n{tail}")
+        raise HostFailed(f"{host} {_ended(proc.returncode)}: {_reason(proc)}")
     data = json.loads(lines[-1])
     return HostRun(host=host, version=data["version"], end_time=data["end_time"],
                    values=data["values"], setup_s=data["setup_s"], simulate_s=data["simulate_s"])
+
+
+def _ended(code: int) -> str:
+    if code < 0:
+        try:
+            return f"was killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"was killed by signal {-code}"
+    return f"exited with code {code}"
+
+
+def _reason(proc: subprocess.CompletedProcess) -> str:
+    """What a failed child said, without the frames of a traceback (the child's own code is
+    not the user's business): its last lines that are not part of one."""
+    text = proc.stderr.strip() or proc.stdout.strip()
+    lines = [line for line in text.splitlines() if line.strip()]
+    if any(line.startswith("Traceback (most recent call last)") for line in lines):
+        lines = lines[-1:]                  # the exception's own line
+    return " / ".join(lines[-3:])[-1000:] or "no message"
 
 
 # --- the child side ---------------------------------------------------------------------------
@@ -199,7 +221,7 @@ def _ecos_cli(ssp: str, start: float, stop: float, step: float, names: list[str]
                               capture_output=True, text=True)
         wall = time.perf_counter() - t0
         if proc.returncode != 0:
-            raise RuntimeError(f"ecos exited with code {proc.returncode}: {proc.stderr[-2000:]}")
+            raise RuntimeError(f"the ecos program {_ended(proc.returncode)}: {_reason(proc)}")
         end_time, values = ecos_csv_values(Path(tmp), names)
     return dict(version=version("ecospy"), end_time=end_time, values=values,
                 setup_s=None, simulate_s=wall)
@@ -226,7 +248,11 @@ def _child(argv: list[str]) -> int:
     except (ImportError, OSError) as err:
         print(f"cannot load {host}: {err}")
         return UNAVAILABLE
-    data = runner(ssp, float(start), float(stop), float(step), names)
+    try:
+        data = runner(ssp, float(start), float(stop), float(step), names)
+    except Exception as err:        # one line for the caller (run_host), no traceback
+        print(f"{type(err).__name__}: {' '.join(str(err).split())[-1000:]}", file=sys.stderr)
+        return 1
     print(json.dumps(data))
     return 0
 

@@ -10,8 +10,10 @@ from ..graph import port_type
 from ..scenario import Scalar
 from . import ssp_bake, ssp_vendor
 from .ssp import ANNOTATION_TYPE, FMU_MIME, PARAMETER_SET, SSD_NAME, VALUE_TAGS, as_type, q
+from ..output import check_output_file, output_file
 from ..storage import write_zip
 
+OPTION = "export-ssp -o"      # how messages name the archive's path
 
 
 def _format(value: Scalar, kind: str | None = None) -> tuple[str, str]:
@@ -98,8 +100,11 @@ def _bindings(node, start_values: dict, kinds: dict[str, str]) -> None:
 
 
 def export_ssp(graph, path: str | Path) -> Path:
-    """Write the compiled graph as an SSP 1.0 archive (deterministic bytes). Returns the path."""
+    """Write the compiled graph as an SSP 1.0 archive (deterministic bytes). Returns the path.
+    A path that cannot be written is bad input (ScenarioError), checked before the work."""
     path = Path(path)
+    example = f"{graph.scenario.name}.ssp"
+    check_output_file(path, OPTION, example)
     sources: dict[str, str] = {}
     files: dict[str, Path | bytes] = {}  # archive name -> FMU file, or a baked variant's bytes
     by_file: dict[Path, str] = {}
@@ -125,4 +130,6 @@ def export_ssp(graph, path: str | Path) -> Path:
     members = {SSD_NAME: ssd}
     members.update((name, data if isinstance(data, bytes) else data.read_bytes())
                    for name, data in files.items())
-    return write_zip(path, members, compresslevel=1)   # FMUs are zips already: little to gain
+    # FMUs are zips already: little to gain from a higher level
+    return output_file(path, lambda p: write_zip(p, members, compresslevel=1), OPTION,
+                       example)

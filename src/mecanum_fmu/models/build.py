@@ -20,6 +20,7 @@ from pythonfmu import FmuBuilder
 
 from .catalog import MODELS
 from .library import bundled_fmu_path, is_current, slave_source
+from ..output import make_folder
 from ..storage import write_zip
 from . import embed
 
@@ -58,6 +59,7 @@ def build_all(dest_dir: Path, only_stale: bool = False,
               report: Callable[[Path, str], None] | None = None) -> list[Path]:
     """Build every bundled FMU (only the missing and stale ones with only_stale) into
     dest_dir; report(path, "built" | "up to date") after each. The one build loop."""
+    make_folder(Path(dest_dir), "fmus --dest")      # a file there, read-only: bad input
     paths = []
     for name in MODELS:
         path = bundled_fmu_path(name, dest_dir)

@@ -7,6 +7,9 @@
   binaries/linux64/libpython3.X.so.1.0   the building interpreter's libpython, stripped
   resources/python/stdlib.zip            the standard-library modules the slave imports (.pyc)
   resources/python/lib-dynload/*.so      the extension modules among them (stripped)
+  resources/python/MANIFEST              "<size> <sha-256> <path>" of each file above but the
+                                         loader: the loader checks them before it opens any
+                                         (loader/bundle_check.h), `doctor` too (damage())
 
 The loader uses a Python already in the host process when it has the same major.minor
 version, refuses (a clear message in the FMU's log, fmi2Instantiate returns NULL) one of
@@ -40,8 +43,10 @@ from ..storage import cache_root, zip_bytes
 from .link import BINARY_DIR, binary_needs, find_libpython
 
 LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "loader.c"
+LOADER_SOURCES = (LOADER_SOURCE, LOADER_SOURCE.with_name("bundle_check.h"))
 REAL_SUFFIX = ".pythonfmu.so"           # the loader's REAL_SUFFIX
 HOME = "resources/python/"
+MANIFEST = HOME + "MANIFEST"            # the loader's MANIFEST
 # The libraries an extension module may need and still be bundled: glibc's own, and zlib's
 # libz.so.1 (binascii needs it; a "required" package on Debian/Ubuntu, in every base image).
 TARGET_LIBS = {"libc.so.6", "libm.so.6", "libpthread.so.0", "libdl.so.2", "librt.so.1",
@@ -63,7 +68,7 @@ class Runtime:
     @property
     def tag(self) -> str:
         """What goes into the FMU's GUID digest: any change makes the FMUs stale."""
-        loader = hashlib.sha256(LOADER_SOURCE.read_bytes()).hexdigest()[:16]
+        loader = hashlib.sha256(b"".join(p.read_bytes() for p in LOADER_SOURCES)).hexdigest()[:16]
         return f"self-contained Python {self.version} ({self.libpython}), loader {loader}"
 
 
@@ -127,7 +132,36 @@ def embed_entries(entries: dict[str, bytes], identifier: str,
     stdlib = stdlib_members({n: d for n, d in entries.items() if n.startswith("resources/")})
     out.update(python)
     out.update(stdlib)
+    out[MANIFEST] = manifest({n: d for n, d in out.items() if n != binary
+                              and (n.startswith(BINARY_DIR) or n.startswith(HOME))})
     return out, [_deflated(python), _deflated(stdlib)]     # the loader is small: deflated anew
+
+
+def manifest(members: dict[str, bytes]) -> bytes:
+    """The MANIFEST of members (FMU name -> bytes): one "<size> <sha-256> <name>" line each."""
+    return "".join(f"{len(data)} {hashlib.sha256(data).hexdigest()} {name}\n"
+                   for name, data in sorted(members.items())).encode()
+
+
+def damage(read, names: set[str]) -> str | None:
+    """What the loader's check finds in an FMU whose members read(name) returns (names: all
+    of them): None when each file of its MANIFEST has its size and hash, else the first that
+    differs and how, in the loader's words."""
+    lines = read(MANIFEST).decode(errors="replace").splitlines() if MANIFEST in names else []
+    if not lines:
+        return f"{MANIFEST} is missing or lists no file"
+    for number, line in enumerate(lines, 1):
+        size, digest, name = (line.split(" ", 2) + ["", ""])[:3]
+        if not size.isdigit() or len(digest) != 64 or not name or ".." in name:
+            return f'{MANIFEST} line {number} is not "<size> <sha-256> <path>"'
+        if name not in names:
+            return f"{name} is missing"
+        data = read(name)
+        if len(data) != int(size):
+            return f"{name} has {len(data)} bytes, the build recorded {size}"
+        if hashlib.sha256(data).hexdigest() != digest:
+            return f"{name} has other contents than the build recorded"
+    return None
 
 
 def _deflated(members: dict[str, bytes]) -> Path:

@@ -10,6 +10,10 @@
  *   - no Python: the bundled libpython (next to this file) is loaded RTLD_GLOBAL and started
  *     isolated: stdlib from the FMU's resources/python/ only, no site, no environment
  *     variables, no signal handlers.
+ * Before either, the bundled files it will open (in a host's own Python: pythonfmu's library
+ * alone) are checked against the size and SHA-256 the build recorded in
+ * resources/python/MANIFEST (bundle_check.h): a damaged FMU opens none of them, and
+ * fmi2Instantiate returns NULL with one message naming the file.
  * On the first fmi2Instantiate, pythonfmu's library (<Model>.pythonfmu.so, next to this file) is loaded and every fmi2
  * function jumps to it (signature-free trampolines, x86_64).
  */
@@ -22,6 +26,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
+
+#include "bundle_check.h"
 
 /* Bind the dl* calls to their oldest symbol versions: the glibc floor stays pythonfmu's. */
 __asm__(".symver dlopen,dlopen@GLIBC_2.2.5");
@@ -32,6 +39,7 @@ __asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
 #define REAL_SUFFIX ".pythonfmu.so"     /* <Model>.so -> <Model>.pythonfmu.so */
 #define MARKER "_mecanum_fmu_runtime"    /* sys attribute: an interpreter this loader started */
 #define EXPORT __attribute__((visibility("default")))
+#define MANIFEST "resources/python/MANIFEST"   /* models/embed.py writes it */
 
 typedef void (*fmi2Logger)(void *, const char *, int, const char *, const char *, ...);
 typedef struct {
@@ -55,10 +63,17 @@ typedef void *(*instantiate_fn)(const char *, int, const char *, const char *,
     X(fmi2CancelStep) X(fmi2GetStatus) X(fmi2GetRealStatus) X(fmi2GetIntegerStatus) \
     X(fmi2GetBooleanStatus) X(fmi2GetStringStatus)
 
-/* A jump through real_<name>, set once pythonfmu's library is loaded. A host calls these only
- * with a component that fmi2Instantiate returned, so the pointers are set by then. */
+/* Until pythonfmu's library is loaded, every call fails with fmi2Error: a host that goes on
+ * after fmi2Instantiate returned NULL (Ecos' `ecos` does) gets an error, not a jump to NULL.
+ * Every forwarded function returns an fmi2Status but fmi2FreeInstance, which ignores it. */
+static int refused_call(void)
+{
+    return 3;                       /* fmi2Error */
+}
+
+/* A jump through real_<name>, set once pythonfmu's library is loaded. */
 #define TRAMPOLINE(name) \
-    __attribute__((visibility("hidden"))) void *real_##name; \
+    __attribute__((visibility("hidden"))) void *real_##name = (void *)refused_call; \
     __asm__(".text\n.globl " #name "\n.type " #name ",@function\n" #name ":\n" \
             "\tjmp *real_" #name "(%rip)\n.size " #name ",.-" #name "\n");
 FORWARDED(TRAMPOLINE)
@@ -66,6 +81,7 @@ FORWARDED(TRAMPOLINE)
 static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
 static instantiate_fn real_instantiate;
 static char message[1024];          /* why loading failed (kept: every later call says it) */
+static char binaries[4096], model[1024];    /* this file's folder and model name */
 
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
@@ -116,7 +132,8 @@ static int start_python(void *handle, const char *folder)
     pre.utf8_mode = 1;
     PyStatus status = p_Py_PreInitialize(&pre);
     if (p_PyStatus_Exception(status))
-        return fail("the bundled Python did not start: %s", status.err_msg ? status.err_msg : "?");
+        return fail("the FMU %s: its bundled Python did not start: %s", model,
+                    status.err_msg ? status.err_msg : "?");
     PyConfig config;
     p_PyConfig_InitIsolatedConfig(&config);
     config.site_import = 0;
@@ -136,7 +153,8 @@ static int start_python(void *handle, const char *folder)
         status = p_Py_InitializeFromConfig(&config);
     p_PyConfig_Clear(&config);
     if (p_PyStatus_Exception(status))
-        return fail("the bundled Python did not start: %s", status.err_msg ? status.err_msg : "?");
+        return fail("the FMU %s: its bundled Python did not start: %s", model,
+                    status.err_msg ? status.err_msg : "?");
     SYM(handle, PySys_SetObject) SYM(handle, PyUnicode_DecodeFSDefault) SYM(handle, Py_DecRef)
     PyObject *marker = p_PyUnicode_DecodeFSDefault(home);
     p_PySys_SetObject(MARKER, marker);
@@ -227,8 +245,10 @@ static int load_real(const char *folder, const char *identifier)
     void *handle = dlopen(lib, RTLD_NOW | RTLD_LOCAL);
     if (!handle)
         return fail("cannot load pythonfmu's library: %s", dlerror());
-#define RESOLVE(name) \
-    if (!(real_##name = dlsym(handle, #name))) return fail("%s missing in %s", #name, lib);
+#define PRESENT(name) \
+    if (!dlsym(handle, #name)) return fail("%s missing in %s", #name, lib);
+#define RESOLVE(name) real_##name = dlsym(handle, #name);
+    FORWARDED(PRESENT)              /* all or none: a trampoline never jumps to NULL */
     FORWARDED(RESOLVE)
     real_instantiate = (instantiate_fn)dlsym(handle, "fmi2Instantiate");
     if (!real_instantiate)
@@ -239,13 +259,42 @@ static int load_real(const char *folder, const char *identifier)
     return 0;
 }
 
-static char binaries[4096], model[1024];
+/* Whether this process runs its own Python (not one a loader of ours started from an FMU's
+ * bundled libpython, which sits next to that FMU's MANIFEST): then only pythonfmu's library of
+ * this FMU gets opened. */
+static int host_python(void)
+{
+    void *version = dlsym(RTLD_DEFAULT, "Py_GetVersion");
+    Dl_info info;
+    if (!version || !dladdr(version, &info) || !info.dli_fname)
+        return 0;
+    char list[4200];
+    snprintf(list, sizeof list, "%s", info.dli_fname);
+    char *slash = strrchr(list, '/');
+    if (!slash)
+        return 1;
+    snprintf(slash, sizeof list - (size_t)(slash - list), "/../../%s", MANIFEST);
+    return access(list, F_OK) != 0;
+}
+
+/* The bundled files this process will open, as the build recorded them; else a message naming
+ * the first damaged one. */
+static int check_files(void)
+{
+    char root[4200], why[sizeof message - 200], real[1100];
+    snprintf(root, sizeof root, "%s/../..", binaries);
+    snprintf(real, sizeof real, "binaries/linux64/%s" REAL_SUFFIX, model);
+    if (bundle_check(root, MANIFEST, host_python() ? real : NULL, why, sizeof why) == 0)
+        return 0;
+    return fail("the FMU %s is damaged: %s; nothing of it was loaded. Unpack it again or "
+                "rebuild it (python -m mecanum_fmu fmus)", model, why);
+}
 
 /* Runs when the host loads this file, under the dynamic loader's lock: two FMUs loaded at once
  * by two threads cannot both find no Python and start one each. */
 __attribute__((constructor)) static void at_load(void)
 {
-    if (own_place(binaries, sizeof binaries, model, sizeof model) == 0)
+    if (own_place(binaries, sizeof binaries, model, sizeof model) == 0 && check_files() == 0)
         find_python(binaries);
 }
 
