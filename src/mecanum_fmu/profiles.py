@@ -26,6 +26,7 @@ from .models.blocks.profile_table import INTERPOLATIONS, PATH_COLUMNS, TABLE_COL
     TableError, parse_table, table_sampler
 from .errors import Problem
 from .values import is_finite
+from .bags import is_bag, read_bag_table
 from .recorded import TableSource, check_options, mapped_table, read_table_file, \
     report_table_error
 
@@ -65,9 +66,15 @@ def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: 
         return None
     if not check_options(raw, columns, place, label, report):
         return None
-    source = read_table_file(raw["file"], scenario_dir, label, f"{place}.file", report)
-    if source is None:
-        return None
+    if is_bag(raw, scenario_dir):
+        found = read_bag_table(raw, columns, scenario_dir, label, place, report)
+        if found is None:
+            return None
+        source, raw = found
+    else:
+        source = read_table_file(raw["file"], scenario_dir, label, f"{place}.file", report)
+        if source is None:
+            return None
     try:
         return mapped_table(source, raw, columns, optional, start_time)
     except TableError as err:

@@ -14,6 +14,7 @@ units converted and the time shifted, into the CSV text an FMU's `table` paramet
   m, cm, mm; heading rad, deg (a velocity's `mm` means mm/s, `deg` deg/s).
 - `start: first_row` puts the first row at the scenario's start_time; `offset` [s] is then
   added to every time (either or both).
+- `topic` (and `stamps`): `file` is a ROS bag; bags.py reads the topic into the same text.
 """
 from __future__ import annotations
 
@@ -26,7 +27,8 @@ from .models.blocks.profile_table import TableError, parse_table
 from .storage import NotARegularFile, read_regular
 
 MAX_TABLE_BYTES = 50_000_000
-TABLE_KEYS = ("file", "columns", "units", "start", "offset")
+# `topic` and `stamps` name a bag's topic and its time (bags.py)
+TABLE_KEYS = ("file", "columns", "units", "start", "offset", "topic", "stamps")
 _TIME = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _SPEED = {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3, "cm": 1e-2, "mm": 1e-3, "m": 1.0}
 _LENGTH = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
