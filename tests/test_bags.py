@@ -19,10 +19,9 @@ from mecanum_fmu import master
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.runner import prepare
 
-rosbags = pytest.importorskip("rosbags")   # a dependency of the project: always there
-from rosbags.rosbag1 import Writer as Writer1                         # noqa: E402
-from rosbags.rosbag2 import StoragePlugin, Writer as Writer2          # noqa: E402
-from rosbags.typesys import Stores, get_typestore                     # noqa: E402
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
 
 ROS1, ROS2 = get_typestore(Stores.ROS1_NOETIC), get_typestore(Stores.ROS2_HUMBLE)
 RATE = 100                      # [Hz] the recorded commands
@@ -165,3 +164,164 @@ def test_stamped_commands_use_the_header_stamp_and_log_time_on_request(tmp_path,
                           name="header", stop_time=2.0))
     first = source_table(graph).splitlines()[1].split(",")
     assert float(first[0]) == pytest.approx(0.0, abs=1e-9)
+
+
+# ------------------------------------------------------------------ bad bags
+
+
+def bad_bag_lines(capsys, path: Path) -> list[str]:
+    """The problem lines of `validate` (exit 2, no traceback)."""
+    code, _, err = run_main(capsys, "validate", path)
+    assert code == 2, err
+    assert "Traceback" not in err
+    print(err)                          # -s shows the lines as a user sees them
+    return [line.strip() for line in err.splitlines()[1:] if line.strip()]
+
+
+def _back_in_time(store):
+    T = store.types
+    for i, t in enumerate((0.0, 0.1, 0.2, 0.15, 0.3)):
+        yield ("/cmd_vel", "geometry_msgs/msg/TwistStamped", i * 10**8,
+               T["geometry_msgs/msg/TwistStamped"](_header(store, t), _twist(store, t)))
+
+
+@pytest.mark.parametrize("kind", FORMATS)
+def test_a_missing_topic_lists_the_topics_there(tmp_path, capsys, seed_bags, kind):
+    lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: {seed_bags[kind]}, "
+                                                   "topic: /cmd_vel_nav}"))
+    assert len(lines) == 1, lines
+    assert str(seed_bags[kind]) in lines[0] and "topic /cmd_vel_nav" in lines[0]
+    for topic, msgtype in (("/cmd_vel", "Twist"), ("/odom", "Odometry"),
+                           ("/pose", "PoseStamped")):
+        assert f"{topic} (geometry_msgs/msg/{msgtype})" in lines[0] or \
+            f"{topic} (nav_msgs/msg/{msgtype})" in lines[0]
+
+
+def test_a_topic_of_another_type_names_the_types_wanted(tmp_path, capsys, seed_bags):
+    lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: {seed_bags['sqlite3']}, "
+                                                   "topic: /odom}"))
+    assert len(lines) == 1, lines
+    assert "/odom holds nav_msgs/msg/Odometry" in lines[0]
+    assert "geometry_msgs/msg/Twist or geometry_msgs/msg/TwistStamped" in lines[0]
+
+
+@pytest.mark.parametrize("kind", FORMATS)
+def test_stamps_that_go_back_are_named_at_their_message(tmp_path, capsys, kind):
+    store = ROS1 if kind == "ros1" else ROS2
+    bag = write_bag(tmp_path / bag_name(kind), kind, _back_in_time(store))
+    lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: {bag}, topic: /cmd_vel}}"))
+    assert len(lines) == 1, lines
+    assert "go back or repeat at message 4 (0.15 s after 0.2 s; 1 such" in lines[0]
+    assert "stamps: log" in lines[0]
+
+
+@pytest.mark.parametrize("kind", FORMATS)
+def test_a_topic_without_messages_is_an_empty_bag(tmp_path, capsys, kind):
+    bag = write_bag(tmp_path / bag_name(kind), kind, [])
+    store = ROS1 if kind == "ros1" else ROS2
+    shutil.rmtree(bag) if bag.is_dir() else bag.unlink()
+    writer = Writer1(bag) if kind == "ros1" else Writer2(
+        bag, version=9, storage_plugin=StoragePlugin.MCAP if kind == "mcap"
+        else StoragePlugin.SQLITE3)
+    with writer:
+        writer.add_connection("/cmd_vel", "geometry_msgs/msg/Twist", typestore=store)
+    lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: {bag}, topic: /cmd_vel}}"))
+    assert len(lines) == 1, lines
+    assert "has no messages on /cmd_vel" in lines[0] and str(bag) in lines[0]
+
+
+def _storage_file(bag: Path) -> Path:
+    return bag if bag.is_file() else next(p for p in bag.iterdir() if p.suffix in (".mcap", ".db3"))
+
+
+@pytest.mark.parametrize("kind", FORMATS)
+def test_a_truncated_bag_says_so(tmp_path, capsys, kind):
+    store = ROS1 if kind == "ros1" else ROS2
+    bag = write_bag(tmp_path / bag_name(kind), kind, seed_messages(store, seconds=1.0))
+    data = _storage_file(bag)
+    data.write_bytes(data.read_bytes()[: data.stat().st_size // 2])
+    lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: {bag}, topic: /cmd_vel}}"))
+    assert len(lines) == 1, lines
+    assert "damaged or truncated" in lines[0] and str(bag) in lines[0]
+
+
+def test_a_folder_without_metadata_yaml_names_the_fix(tmp_path, capsys, seed_bags):
+    bag = shutil.copytree(seed_bags["mcap"], tmp_path / "copied")
+    (bag / "metadata.yaml").unlink()
+    for file in (bag, _storage_file(bag)):          # the folder, or the .mcap inside it
+        lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: {file}, "
+                                                       "topic: /cmd_vel}"))
+        assert len(lines) == 1, lines
+        assert "has no metadata.yaml" in lines[0] and "ros2 bag reindex" in lines[0]
+
+
+def test_every_bad_bag_of_a_scenario_at_once(tmp_path, capsys, seed_bags):
+    """Two sources, two bad bags: both lines, and the scenario's own problem beside them."""
+    extra = ("  other: {fmu: VelocitySource, table: {file: nowhere, topic: /cmd_vel}}\n"
+             "  third: {fmu: VelocitySource, table: {file: x.bag, topic: cmd_vel}}\n")
+    path = chain(tmp_path, f"table: {{file: {seed_bags['ros1']}, topic: /odom}}")
+    text = path.read_text().replace("connections:", extra.rstrip("\n") + "\nconnections:", 1)
+    path.write_text(text)
+    lines = bad_bag_lines(capsys, path)
+    assert any("/odom holds nav_msgs/msg/Odometry" in line for line in lines), lines
+    assert any("nowhere" in line and "not found" in line for line in lines), lines
+    assert any("components.third.table.topic" in line for line in lines), lines
+
+
+# ------------------------------------------------------------------ a recorded path
+
+
+FOLLOWER = """\
+name: {name}
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.05}}
+parameters: {{alpha: 0.7853981633974483, L: 0.16, W: 0.12, R: 0.06}}
+components:
+  follower: {{fmu: PathFollower, {spec}}}
+  c2w: {{fmu: Center2Wheel}}
+  w2c: {{fmu: Wheel2Center}}
+  pose: {{fmu: PoseIntegrator, parameters: {{x0: 0.2, y0: -0.15, theta0: 0.3}}}}
+connections:
+  - [pose.x, follower.x]
+  - [pose.y, follower.y]
+  - [pose.theta, follower.theta]
+  - [follower.vx, c2w.vx]
+  - [follower.vy, c2w.vy]
+  - [follower.w,  c2w.w]
+  - [c2w.w1, w2c.w1]
+  - [c2w.w2, w2c.w2]
+  - [c2w.w3, w2c.w3]
+  - [c2w.w4, w2c.w4]
+  - [w2c.vx, pose.vx]
+  - [w2c.vy, pose.vy]
+  - [w2c.w,  pose.w]
+"""
+
+
+@pytest.mark.parametrize("kind", FORMATS)
+@pytest.mark.parametrize("topic", ["/odom", "/pose"])
+def test_a_recorded_path_from_a_bag_is_the_closed_form_in_our_frame(tmp_path, seed_bags,
+                                                                       kind, topic):
+    spec = f"table: {{file: {seed_bags[kind]}, topic: {topic}}}"
+    graph = prepare(write_scenario(tmp_path, "follow", FOLLOWER.format(name="follow", spec=spec)))
+    header, *rows = source_table(graph, "follower").splitlines()
+    assert header == "time,x,y,theta"
+    t, x, y, theta = np.array([[float(v) for v in row.split(",")] for row in rows]).T
+    assert len(t) == 10 * RATE + 1
+    assert np.abs(x - (1 - np.cos(t))).max() < 1e-12 and np.abs(y - np.sin(t)).max() < 1e-12
+    assert np.abs(theta).max() < 1e-12
+
+
+def test_a_follower_on_a_bag_path_ends_where_it_does_on_the_csv_path(tmp_path, seed_bags):
+    """The PathFollower on /odom and on the closed form x = 1 - cos t, y = sin t written here
+    as a CSV path at the same 100 Hz: the same run (to the bag's float64 round trip)."""
+    t = np.arange(10 * RATE + 1) / RATE
+    rows = "".join(f"{a!r},{b!r},{c!r},0.0\n" for a, b, c in zip(t.tolist(), (1 - np.cos(t)).tolist(), np.sin(t).tolist()))
+    (tmp_path / "path.csv").write_text("time,x,y,theta\n" + rows)
+    ends = []
+    for name, spec in (("bag", f"table: {{file: {seed_bags['mcap']}, topic: /odom}}"),
+                       ("csv", "table: {file: path.csv}")):
+        graph = prepare(write_scenario(tmp_path, name, FOLLOWER.format(name=name, spec=spec)))
+        results = master.simulate(graph, graph.scenario.experiment)
+        ends.append((results.final("pose.x"), results.final("pose.y")))
+    print(f"follower on /odom: {ends[0]}, on the CSV path: {ends[1]}")
+    assert math.dist(*ends) < 1e-9

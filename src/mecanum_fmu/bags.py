@@ -28,6 +28,8 @@ from .models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS
 from .recorded import TableSource
 
 BAG_KEYS = ("topic", "stamps")
+_DAMAGED = ("it is damaged or truncated: copy it again, or reindex it (`rosbag reindex` a "
+            "ROS 1 .bag, `ros2 bag reindex` a ROS 2 folder)")
 MAX_MESSAGES = 1_000_000        # a table's row limit (blocks/profile_table.py)
 _TWIST = ("linear.x", "linear.y", "angular.z")
 _POSE = ("position.x", "position.y", "yaw")
@@ -129,14 +131,12 @@ def read_topic(path: Path, topic: str, types: tuple[str, ...],
             connections = _connections(reader, topic, types)
             rows = list(_rows(reader, connections, log_time))
     except (AnyReaderError, FileNotFoundError) as err:
-        raise BagError(f"cannot be opened: {_reason(err)}; it is damaged or truncated "
-                       "(copy it again, or `ros2 bag reindex` a ROS 2 bag folder)") from None
+        raise BagError(f"cannot be opened ({_reason(err)}); {_DAMAGED}") from None
     except BagError:
         raise
     except Exception as err:   # rosbags' readers and deserializers raise many kinds
-        raise BagError(f"cannot be read ({type(err).__name__}: {_reason(err)}); it is "
-                       "damaged or truncated: copy it again, or `ros2 bag reindex` a ROS 2 "
-                       "bag folder") from None
+        raise BagError(f"cannot be read ({type(err).__name__}: {_reason(err)}); "
+                       f"{_DAMAGED}") from None
     if not rows:
         raise BagError(f"has no messages on {topic}; record the topic, or name one that "
                        "has messages")
@@ -179,7 +179,7 @@ def _rows(reader, connections: list, log_time: bool) -> Iterator[tuple[float, ..
         header = getattr(msg, "header", None)
         ns = logged if header is None or log_time else \
             header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
-        yield (ns * 1e-9, *_values(msg))
+        yield (ns / 1e9, *_values(msg))
 
 
 def _values(msg) -> tuple[float, ...]:
