@@ -325,3 +325,94 @@ def test_a_follower_on_a_bag_path_ends_where_it_does_on_the_csv_path(tmp_path, s
         ends.append((results.final("pose.x"), results.final("pose.y")))
     print(f"follower on /odom: {ends[0]}, on the CSV path: {ends[1]}")
     assert math.dist(*ends) < 1e-9
+
+
+# ------------------------------------------------------------------ bags out
+
+
+@pytest.fixture(scope="module")
+def written_bag(tmp_path_factory, seed_bags):
+    """`run --bag` of the seed's chain driven by the ROS 1 bag's /cmd_vel."""
+    folder = tmp_path_factory.mktemp("out")
+    path = chain(folder, f"table: {{file: {seed_bags['ros1']}, topic: /cmd_vel}}")
+    from mecanum_fmu import cli
+    assert cli.main(["run", str(path), "--out", str(folder / "run"), "--no-plots", "--bag",
+                     "--quiet"]) == 0
+    header = (folder / "run" / "results.csv").open().readline().strip().split(",")
+    data = np.loadtxt(folder / "run" / "results.csv", delimiter=",", skiprows=1)
+    return folder / "run", {name: data[:, i] for i, name in enumerate(header)}
+
+
+def test_the_written_bag_is_a_ros2_mcap_bag_rosbags_reads(written_bag):
+    from rosbags.highlevel import AnyReader
+    out, rows = written_bag
+    assert sorted(p.name for p in (out / "bag").iterdir()) == ["bag.mcap", "metadata.yaml"]
+    steps = len(rows["time"])
+    with AnyReader([out / "bag"], default_typestore=ROS2) as reader:
+        assert {t: (i.msgtype, i.msgcount) for t, i in reader.topics.items()} == {
+            "/pose/odom": ("nav_msgs/msg/Odometry", steps), "/tf": ("tf2_msgs/msg/TFMessage", steps),
+            "/pose/cmd_vel": ("geometry_msgs/msg/TwistStamped", steps)}
+        last = {}
+        for connection, ns, data in reader.messages():
+            last[connection.topic] = (ns, reader.deserialize(data, connection.msgtype))
+    ns, odom = last["/pose/odom"]
+    assert ns == round(10.0 * 1e9) and odom.header.stamp.sec == 10
+    # ours (x, y) is ROS's (y, -x): the end point (1.839, -0.544) is ROS (-0.544, -1.839)
+    assert odom.pose.pose.position.x == pytest.approx(rows["pose.y"][-1], abs=1e-12)
+    assert odom.pose.pose.position.y == pytest.approx(-rows["pose.x"][-1], abs=1e-12)
+    assert (round(-odom.pose.pose.position.y, 3), round(odom.pose.pose.position.x, 3)) == SEED_END
+    frame = last["/tf"][1].transforms[0]
+    assert (frame.header.frame_id, frame.child_frame_id) == ("world", "pose/base_link")
+    assert frame.transform.translation.x == odom.pose.pose.position.x
+    cmd = last["/pose/cmd_vel"][1].twist     # the seed at 10 s: linear.x = cos 10, y = -sin 10
+    assert cmd.linear.x == pytest.approx(math.cos(10.0), abs=1e-6)
+    assert cmd.linear.y == pytest.approx(-math.sin(10.0), abs=1e-6)
+
+
+def test_the_written_bag_opens_in_the_mcap_reader(written_bag):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    out, rows = written_bag
+    with open(out / "bag" / "bag.mcap", "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        schemas = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+        xs = [(m.log_time, msg.pose.pose.position.y) for _, _, m, msg in
+              reader.iter_decoded_messages(topics=["/pose/odom"])]
+    assert schemas == {"/pose/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
+                       "/pose/cmd_vel": "geometry_msgs/msg/TwistStamped"}
+    assert summary.statistics.message_count == 3 * len(rows["time"])
+    assert [t for t, _ in xs] == [round(t * 1e9) for t in rows["time"]]
+    assert np.array([y for _, y in xs]) == pytest.approx(-rows["pose.x"], abs=1e-12)
+
+
+def test_the_written_bag_reads_back_as_a_recorded_path(tmp_path, written_bag):
+    """The run's own /pose/odom as a PathFollower's table: our frame again, row for row."""
+    out, rows = written_bag
+    spec = f"table: {{file: {out / 'bag'}, topic: /pose/odom}}"
+    graph = prepare(write_scenario(tmp_path, "back", FOLLOWER.format(name="back", spec=spec)))
+    t, x, y, _ = np.array([[float(v) for v in row.split(",")]
+                           for row in source_table(graph, "follower").splitlines()[1:]]).T
+    assert np.abs(x - rows["pose.x"]).max() < 1e-12 and np.abs(y - rows["pose.y"]).max() < 1e-12
+
+
+def test_a_failed_run_leaves_no_bag_and_removes_the_old_one(tmp_path, capsys, written_bag):
+    """A run that stops at t = 1 s (sqrt of a negative number) keeps its rows, not a bag: the
+    earlier run's bag/ in the same folder is gone too."""
+    out = tmp_path / "run"
+    shutil.copytree(written_bag[0], out)
+    path = chain(tmp_path, "parameters: {vx_expr: 'sqrt(1 - t)', vy_expr: 'cos(t)', "
+                           "w_expr: '0'}")
+    code, _, err = run_main(capsys, "run", path, "--out", out, "--no-plots", "--bag")
+    assert code == 1 and "Traceback" not in err
+    assert sorted(p.name for p in out.iterdir()) == ["results.csv", "summary.json"]
+
+
+def test_a_folder_in_the_way_of_the_bag_is_bad_input(tmp_path, capsys, seed_bags):
+    out = tmp_path / "run"
+    (out / "bag").mkdir(parents=True)
+    (out / "bag" / "mine.txt").write_text("a user's own file")
+    path = chain(tmp_path, f"table: {{file: {seed_bags['mcap']}, topic: /cmd_vel}}")
+    code, _, err = run_main(capsys, "run", path, "--out", out, "--no-plots", "--bag")
+    assert code == 2 and "is in the way" in err and "Traceback" not in err
+    assert (out / "bag" / "mine.txt").read_text() == "a user's own file"

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Callable
 
 from .arguments import check_prepare, check_run
+from .bag_output import check_room, remove_previous, write_run_bag
 from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
                      SimulationError)
 from .graph import Graph, compile_graph
@@ -127,7 +128,8 @@ KEEP_ROWS = 10_000
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
         log: Callable[[str], None] | None = None, quiet: bool = True, animate: bool = False,
-        keep_rows: int | None = KEEP_ROWS, plotter: PlotWorker | None = None) -> RunOutcome:
+        keep_rows: int | None = KEEP_ROWS, plotter: PlotWorker | None = None,
+        bag: bool = False) -> RunOutcome:
     """Simulate, write results.csv, summary.json and the plots into out_dir.
 
     results.csv is written during the run; the outcome's Results hold `keep_rows` rows (None:
@@ -135,7 +137,9 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     stepping loop (ground truth, plots) costs only itself: the tables are written first.
     The report lines go to `log`; without one they are printed unless `quiet` (the default).
     `plotter`: a plot worker started earlier (the CLI starts it before loading, to hide
-    matplotlib's import); without one, one is started here when plots are wanted."""
+    matplotlib's import); without one, one is started here when plots are wanted.
+    `bag`: also write the run as a ROS 2 MCAP bag in out_dir/bag/ (bag_output.py; a complete
+    run only)."""
     check_run(graph, out_dir, progress, log, keep_rows)
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(graph.scenario)
     log = log if log is not None else (_silent if quiet else print)
@@ -143,11 +147,14 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
     try:
         with sigterm_raises(), OutputFolder(out_dir) as out:
+            remove_previous(out.path)       # an earlier run's bag/ is not this run's
+            if bag:
+                check_room(out.path)
             if plotter is not None:
                 plotter.expect(graph, topo.roles)
             try:
                 outcome = _run_in(graph, topo, out, plotter=plotter, progress=progress,
-                                  log=log, animate=animate, keep_rows=keep_rows)
+                                  log=log, animate=animate, keep_rows=keep_rows, bag=bag)
             except MecanumError as err:
                 out.record(err.files)      # named in summary.json: a re-run removes them
                 raise
@@ -163,8 +170,10 @@ def _silent(line: str) -> None:
 
 
 def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWorker | None,
-            progress, log, animate: bool, keep_rows: int | None) -> RunOutcome:
+            progress, log, animate: bool, keep_rows: int | None, bag: bool) -> RunOutcome:
     results, summary, files = _simulate_into(graph, topo, out, progress, keep_rows)
+    if bag:
+        summary["bag"] = _bag(out, topo, files)
     if plotter is not None:     # it draws what needs no truth while the truth is integrated
         plotter.draft(results, topo.roles, graph.scenario.name)
     evaluation = evaluate(graph, results, topo=topo)    # after the tables: it costs only itself
@@ -178,6 +187,16 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
         raise MecanumError(f"the ground truth could not be computed ({evaluation.failure}); "
                            f"the run itself is complete", files=files)
     return RunOutcome(graph.scenario, graph, results, evaluation, summary, out.path, files)
+
+
+def _bag(out: OutputFolder, topo: Topology, files: list[Path]) -> dict:
+    """The run as a ROS 2 bag (bag_output.py), after the tables: a failure costs only it."""
+    try:
+        with signals_deferred():
+            return write_run_bag(out.path / "results.csv", topo.drives, out.path)
+    except OSError as err:
+        raise MecanumError(f"writing the bag into {out.path} failed: {err}",
+                           files=files) from err
 
 
 def _estimate(graph: Graph, results: Results) -> dict:
