@@ -7,6 +7,7 @@ original study), its closed form x = 1 - cos t, y = sin t, and the same scenario
 expressions; the frame mapping of docs/conventions.md written out by hand here (ROS linear.x =
 our vy, linear.y = -our vx; a point (x, y) of ours is ROS's (y, -x)).
 """
+import json
 import math
 import shutil
 from pathlib import Path
@@ -15,8 +16,8 @@ import numpy as np
 import pytest
 
 from helpers import CHAIN_CONNECTIONS, run_main, write_scenario
-from mecanum_fmu import master
-from mecanum_fmu.errors import ScenarioError
+from mecanum_fmu import cli, master
+from mecanum_fmu.report.against_recorded import compare
 from mecanum_fmu.runner import prepare
 
 from rosbags.rosbag1 import Writer as Writer1
@@ -335,7 +336,6 @@ def written_bag(tmp_path_factory, seed_bags):
     """`run --bag` of the seed's chain driven by the ROS 1 bag's /cmd_vel."""
     folder = tmp_path_factory.mktemp("out")
     path = chain(folder, f"table: {{file: {seed_bags['ros1']}, topic: /cmd_vel}}")
-    from mecanum_fmu import cli
     assert cli.main(["run", str(path), "--out", str(folder / "run"), "--no-plots", "--bag",
                      "--quiet"]) == 0
     header = (folder / "run" / "results.csv").open().readline().strip().split(",")
@@ -416,3 +416,81 @@ def test_a_folder_in_the_way_of_the_bag_is_bad_input(tmp_path, capsys, seed_bags
     code, _, err = run_main(capsys, "run", path, "--out", out, "--no-plots", "--bag")
     assert code == 2 and "is in the way" in err and "Traceback" not in err
     assert (out / "bag" / "mine.txt").read_text() == "a user's own file"
+
+
+# ------------------------------------------------------------------ held against a recording
+
+
+def _shifted_odometry(store, ahead=0.1, yaw=0.2):
+    """The seed's /odom moved `ahead` along ROS x (our +Y) and turned by `yaw`."""
+    for topic, msgtype, ns, msg in seed_messages(store):
+        if topic == "/odom":
+            msg = _odometry(store, ns / 1e9, yaw)
+            msg.pose.pose.position.x += ahead
+            yield topic, msgtype, ns, msg
+
+
+def test_a_run_held_against_its_own_recorded_odometry(tmp_path, seed_bags):
+    """Driven by /cmd_vel and held against /odom of the same bag (the closed form): the error
+    is the run's own (3.7e-6 m at the end, docs/masters.md) plus reading the 100 Hz recording
+    linearly, dt^2/8 = 1.25e-5 m: under 1e-4 m everywhere."""
+    bag = seed_bags["sqlite3"]
+    path = chain(tmp_path, f"table: {{file: {bag}, topic: /cmd_vel}}",
+                 extra=f"recorded:\n  pose: {{file: {bag}, topic: /odom}}\n")
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    against = summary["against_recorded"]["pose"]
+    print(f"against /odom: {against}")
+    assert against["samples"] == 201 and (against["from"], against["to"]) == (0.0, 10.0)
+    assert against["position_error_m"]["max"] < 1e-4
+    assert against["heading_error_rad"]["max"] < 1e-12
+    assert "recorded.png" in summary["files"] and (tmp_path / "run" / "recorded.png").stat().st_size
+
+
+def test_a_recording_off_by_a_known_offset_shows_that_offset(tmp_path):
+    """/odom 0.1 m ahead (ROS x: our +Y) and turned 0.2 rad: the error is 0.1 m and
+    -0.2 rad (simulated minus recorded) to the run's own error."""
+    bag = write_bag(tmp_path / "off", "mcap", _shifted_odometry(ROS2))
+    path = chain(tmp_path, "parameters: {vx_expr: 'sin(t)', vy_expr: 'cos(t)', w_expr: '0'}",
+                 extra=f"recorded:\n  pose: {{file: {bag}, topic: /odom}}\n")
+    graph = prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment)
+    against = compare(results, graph.scenario.recorded)["pose"]
+    for figure in ("max", "rms", "end"):
+        assert against["position_error_m"][figure] == pytest.approx(0.1, abs=1e-4)
+        assert abs(against["heading_error_rad"][figure]) == pytest.approx(0.2, abs=1e-9)
+    assert against["heading_error_rad"]["end"] == pytest.approx(-0.2, abs=1e-9)
+
+
+def test_a_recording_for_no_pose_is_bad_input(tmp_path, capsys, seed_bags):
+    path = chain(tmp_path, "parameters: {vx_expr: 'sin(t)', vy_expr: 'cos(t)', w_expr: '0'}",
+                 extra=f"recorded:\n  car: {{file: {seed_bags['mcap']}, topic: /odom}}\n"
+                       f"  pose: {{file: {seed_bags['mcap']}, topic: /cmd_vel}}\n")
+    lines = bad_bag_lines(capsys, path)
+    assert len(lines) == 2, lines
+    assert any("recorded.car: names no PoseIntegrator (the scenario's: pose)" in line
+               for line in lines)
+    assert any("/cmd_vel holds geometry_msgs/msg/Twist; this table reads nav_msgs/msg/Odometry"
+               in line for line in lines)
+
+
+def test_bag_start_keeps_the_topics_of_a_bag_aligned(tmp_path):
+    """Wall-clock stamps (1.7e9 s): `start: bag_start` puts the bag's first message at the
+    start_time for every topic; /late starts 2 s after it, so its table starts at 2 s."""
+    T = ROS2.types
+    epoch = 1_700_000_000 * 10**9
+
+    def messages():
+        for i in range(5):
+            yield "/cmd_vel", "geometry_msgs/msg/Twist", epoch + i * 10**9, _twist(ROS2, i)
+        for i in range(3):
+            yield ("/late", "geometry_msgs/msg/TwistStamped", epoch + (2 + i) * 10**9,
+                   T["geometry_msgs/msg/TwistStamped"](_header(ROS2, 1.7e9 + 2 + i),
+                                                       _twist(ROS2, i)))
+    bag = write_bag(tmp_path / "wall", "mcap", messages())
+    times = {}
+    for topic in ("/cmd_vel", "/late"):
+        graph = prepare(chain(tmp_path, f"table: {{file: {bag}, topic: {topic}, "
+                                        "start: bag_start, offset: 0.5}", stop_time=2.0))
+        times[topic] = [float(r.split(",")[0]) for r in source_table(graph).splitlines()[1:]]
+    assert times == {"/cmd_vel": [0.5, 1.5, 2.5, 3.5, 4.5], "/late": [2.5, 3.5, 4.5]}

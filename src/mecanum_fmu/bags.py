@@ -12,7 +12,8 @@ file gives (recorded.py), so the rules after the reading are the CSV's: columns,
   orientation, unwrapped). The default `columns` map them into ours (docs/conventions.md):
   vx = -linear.y, vy = linear.x, w = angular.z; x = -position.y, y = position.x, theta = yaw.
 - `time` [s]: the header stamp where the message has one, else the log time; `stamps: log`
-  takes the log time always. Times must increase.
+  takes the log time always. Times must increase. `start: bag_start` puts the bag's first
+  message (of any topic: its topics stay aligned) at the start_time; `first_row` the topic's.
 - A bag's problem is one line naming the bag, the topic and the fix.
 """
 from __future__ import annotations
@@ -53,8 +54,8 @@ def is_bag(raw: dict, scenario_dir: Path) -> bool:
     return "topic" in raw or path.suffix.lower() in (".bag", ".mcap", ".db3") or path.is_dir()
 
 
-def read_bag_table(raw: dict, columns: tuple[str, ...], scenario_dir: Path, label: str,
-                   place: str, report: Report) -> tuple[TableSource, dict] | None:
+def read_bag_table(raw: dict, columns: tuple[str, ...], scenario_dir: Path, start_time: float,
+                   label: str, place: str, report: Report) -> tuple[TableSource, dict] | None:
     """The table text of the bag topic `raw` names, and `raw` with the bag's default columns
     (ROS's frame into ours) under the ones it gives; None and one reported problem when the
     bag or the topic cannot be used."""
@@ -63,7 +64,8 @@ def read_bag_table(raw: dict, columns: tuple[str, ...], scenario_dir: Path, labe
     path = scenario_dir / raw["file"]
     where = f"{path} {raw['topic']}"
     try:
-        rows = read_topic(path, raw["topic"], KINDS[columns][0], raw.get("stamps") == "log")
+        rows = read_topic(path, raw["topic"], KINDS[columns][0], raw.get("stamps") == "log",
+                          raw.get("start") == "bag_start")
     except BagError as err:
         report(Problem(str(path)[:300], f"topic {str(raw['topic'])[:100]}",
                        f"{err} (the table of {label}: {place})"))
@@ -72,6 +74,9 @@ def read_bag_table(raw: dict, columns: tuple[str, ...], scenario_dir: Path, labe
     text = "time," + ",".join(fields) + "\n" + "".join(
         ",".join(map(repr, row)) + "\n" for row in rows)
     mapped = dict(raw, columns=KINDS[columns][2] | dict(raw.get("columns") or {}))
+    if raw.get("start") == "bag_start":     # the times start at the bag's first message
+        del mapped["start"]
+        mapped["offset"] = start_time + float(raw.get("offset", 0))
     return TableSource(text, where, True), mapped
 
 
@@ -118,10 +123,10 @@ def bag_path(path: Path) -> Path:
     return path
 
 
-def read_topic(path: Path, topic: str, types: tuple[str, ...],
-               log_time: bool = False) -> list[tuple[float, ...]]:
+def read_topic(path: Path, topic: str, types: tuple[str, ...], log_time: bool = False,
+               from_bag_start: bool = False) -> list[tuple[float, ...]]:
     """(time [s], field values...) of each message on `topic` in the bag at `path`, in the
-    bag's order. Raises BagError: no such topic (the topics there are listed), another
+    bag's order; the time from the bag's first message (any topic) with from_bag_start. Raises BagError: no such topic (the topics there are listed), another
     message type, no messages, a truncated or damaged bag, stamps that do not increase."""
     from rosbags.highlevel import AnyReader, AnyReaderError   # startup: only for bags
     from rosbags.typesys import Stores, get_typestore
@@ -129,7 +134,8 @@ def read_topic(path: Path, topic: str, types: tuple[str, ...],
     try:
         with AnyReader([opened], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             connections = _connections(reader, topic, types)
-            rows = list(_rows(reader, connections, log_time))
+            zero = reader.start_time if from_bag_start else 0
+            rows = list(_rows(reader, connections, log_time, zero))
     except (AnyReaderError, FileNotFoundError) as err:
         raise BagError(f"cannot be opened ({_reason(err)}); {_DAMAGED}") from None
     except BagError:
@@ -173,13 +179,14 @@ def _connections(reader, topic: str, types: tuple[str, ...]) -> list:
     return found
 
 
-def _rows(reader, connections: list, log_time: bool) -> Iterator[tuple[float, ...]]:
+def _rows(reader, connections: list, log_time: bool,
+          zero: int) -> Iterator[tuple[float, ...]]:
     for connection, logged, data in reader.messages(connections=connections):
         msg = reader.deserialize(data, connection.msgtype)
         header = getattr(msg, "header", None)
         ns = logged if header is None or log_time else \
             header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
-        yield (ns / 1e9, *_values(msg))
+        yield ((ns - zero) / 1e9, *_values(msg))
 
 
 def _values(msg) -> tuple[float, ...]:

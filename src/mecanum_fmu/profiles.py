@@ -67,10 +67,14 @@ def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: 
     if not check_options(raw, columns, place, label, report):
         return None
     if is_bag(raw, scenario_dir):
-        found = read_bag_table(raw, columns, scenario_dir, label, place, report)
+        found = read_bag_table(raw, columns, scenario_dir, start_time, label, place, report)
         if found is None:
             return None
         source, raw = found
+    elif raw.get("start") == "bag_start":
+        report(Problem(label, f"{place}.start", "bag_start is for a bag (give its topic); a "
+                                                "CSV file takes first_row"))
+        return None
     else:
         source = read_table_file(raw["file"], scenario_dir, label, f"{place}.file", report)
         if source is None:
@@ -214,6 +218,27 @@ def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
     if text is not None:
         params["table"] = text
     return params
+
+
+def recorded_paths(raw: Any, poses: list[str], scenario_dir: Path, start_time: float,
+                   label: str, report: Report) -> dict[str, str]:
+    """The scenario's `recorded:` mapping, pose instance -> a path table (read as a
+    PathFollower's: a bag's Odometry or PoseStamped topic, or a CSV of time,x,y[,theta])."""
+    if not isinstance(raw, dict):
+        report(Problem(label, "recorded", "expected a mapping like {pose: {file: day1, "
+                                          "topic: /odom}}"))
+        return {}
+    out = {}
+    for name, spec in raw.items():
+        if name not in poses:
+            report(Problem(label, f"recorded.{str(name)[:40]}", "names no PoseIntegrator "
+                           f"(the scenario's: {', '.join(poses) or 'none'})"))
+            continue
+        text = _mapped(spec, "PathFollower", scenario_dir, start_time, f"recorded.{name}",
+                       label, report)
+        if text is not None:
+            out[name] = text
+    return out
 
 
 def table_columns(text: str) -> list[np.ndarray]:

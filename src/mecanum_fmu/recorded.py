@@ -14,7 +14,8 @@ units converted and the time shifted, into the CSV text an FMU's `table` paramet
   m, cm, mm; heading rad, deg (a velocity's `mm` means mm/s, `deg` deg/s).
 - `start: first_row` puts the first row at the scenario's start_time; `offset` [s] is then
   added to every time (either or both).
-- `topic` (and `stamps`): `file` is a ROS bag; bags.py reads the topic into the same text.
+- `topic` (and `stamps`, `start: bag_start`): `file` is a ROS bag; bags.py reads the topic
+  into the same text.
 """
 from __future__ import annotations
 
@@ -123,8 +124,9 @@ def check_options(raw: dict, columns: tuple[str, ...], place: str, label: str,
             elif key == "units" and item not in UNITS[name]:
                 bad(f"{key}.{name}", f"{item[:20]!r} is not a unit of {name}; use "
                                      f"{', '.join(UNITS[name])}")
-    if "start" in raw and raw["start"] != "first_row":
-        bad("start", "the only choice is first_row (the first row at the start_time)")
+    if "start" in raw and raw["start"] not in ("first_row", "bag_start"):
+        bad("start", "the only choice is first_row (the first row at the start_time; a bag "
+                     "also takes bag_start: its first message of any topic there)")
     offset = raw.get("offset", 0.0)
     if not isinstance(offset, (int, float)) or isinstance(offset, bool) \
             or not math.isfinite(offset):

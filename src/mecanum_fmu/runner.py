@@ -17,6 +17,7 @@ from .graph import Graph, compile_graph
 from .models.catalog import MODELS
 from .models.library import bundled_fmu_path, default_fmu_dir, is_current
 from .models.topology import Topology, topology
+from .report import against_recorded
 from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines
 from .report.truth import Truth
 from .output import OutputFolder
@@ -177,11 +178,17 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
     if plotter is not None:     # it draws what needs no truth while the truth is integrated
         plotter.draft(results, topo.roles, graph.scenario.name)
     evaluation = evaluate(graph, results, topo=topo)    # after the tables: it costs only itself
+    if graph.scenario.recorded:
+        summary["against_recorded"] = against_recorded.compare(results, graph.scenario.recorded)
     if added := evaluation.summary() | _estimate(graph, results):
         summary.update(added)
         _rewrite_summary(out, summary, files)
     for line in report_lines(summary):
         log(line)
+    if graph.scenario.recorded and plotter is not None:
+        with out.atomic("recorded.png") as temp:
+            against_recorded.write_figure(results, graph.scenario.recorded, temp)
+        files.append(out.path / "recorded.png")
     _draw(results, evaluation, out, summary, files, plotter, animate, graph.scenario.name)
     if evaluation.failure:
         raise MecanumError(f"the ground truth could not be computed ({evaluation.failure}); "
@@ -288,4 +295,5 @@ def summarize(graph: Graph, results: Results) -> dict:
 def report_lines(summary: dict) -> list[str]:
     return [f"{summary['scenario']}: {summary['master']}, step {summary['step_size']:g} s, "
             f"{summary['steps']} steps, stepping loop {summary['wall_time_s']:.3f} s",
-            *evaluation_lines(summary), *error_estimate_lines(summary)]
+            *evaluation_lines(summary), *error_estimate_lines(summary),
+            *against_recorded.report_lines(summary.get("against_recorded", {}))]
