@@ -246,7 +246,8 @@ def cmd_run(args) -> int:
         if progress is not None:
             print("\r" + " " * 12 + "\r", end="", file=sys.stderr)
     if not args.quiet:
-        print(f"wrote {len(outcome.files)} files to {outcome.out_dir}/")
+        print(f"wrote {len(outcome.files)} files to {outcome.out_dir}/"
+              + (f" and the ROS 2 bag {outcome.out_dir}/bag/" if "bag" in outcome.summary else ""))
     return 0
 
 
