@@ -55,6 +55,8 @@ def _add_run(sub) -> None:
                      "rad): the adaptive master; rows stay every --step-size s")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument("--animate", action="store_true", help="also write animation.gif")
+    run.add_argument("--bag", action="store_true",
+                     help="also write the run as a ROS 2 MCAP bag in OUT/bag/ (docs/bags.md)")
     run.add_argument("--quiet", "-q", action="store_true", help="print only errors")
     run.add_argument("--fmu-dir", type=Path, help=argparse.SUPPRESS)
     run.set_defaults(func=cmd_run)
@@ -239,12 +241,13 @@ def cmd_run(args) -> int:
     log = (lambda line: None) if args.quiet else print
     try:
         outcome = run(graph, args.out, plots=not args.no_plots, progress=progress, log=log,
-                      animate=args.animate, plotter=plotter)
+                      animate=args.animate, plotter=plotter, bag=args.bag)
     finally:
         if progress is not None:
             print("\r" + " " * 12 + "\r", end="", file=sys.stderr)
     if not args.quiet:
-        print(f"wrote {len(outcome.files)} files to {outcome.out_dir}/")
+        print(f"wrote {len(outcome.files)} files to {outcome.out_dir}/"
+              + (f" and the ROS 2 bag {outcome.out_dir}/bag/" if "bag" in outcome.summary else ""))
     return 0
 
 

@@ -27,6 +27,7 @@ from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableErr
 from .models.blocks.profile_table import _TABLE_MAX_ROWS as MAX_TABLE_ROWS  # the FMU's limit
 from .errors import Problem
 from .values import is_finite
+from .bags import is_bag, read_bag_table
 from .recorded import TableSource, check_options, mapped_table, read_table_file, \
     report_table_error
 from .tables import COLUMNS, Table, read_table
@@ -66,9 +67,19 @@ def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: 
         return None
     if not check_options(raw, columns, place, label, report):
         return None
-    source = read_table_file(raw["file"], scenario_dir, label, f"{place}.file", report)
-    if source is None:
+    if is_bag(raw, scenario_dir):
+        found = read_bag_table(raw, columns, scenario_dir, start_time, label, place, report)
+        if found is None:
+            return None
+        source, raw = found
+    elif raw.get("start") == "bag_start":
+        report(Problem(label, f"{place}.start", "bag_start is for a bag (give its topic); a "
+                                                "CSV file takes first_row"))
         return None
+    else:
+        source = read_table_file(raw["file"], scenario_dir, label, f"{place}.file", report)
+        if source is None:
+            return None
     try:
         return read_table(mapped_table(source, raw, columns, optional, start_time), model,
                           False)
@@ -245,6 +256,27 @@ def resolve_profile(model: str, spec: dict, params: dict, scenario_dir: Path,
     if table is not None:
         params["table"] = table.text
     return params, table
+
+
+def recorded_paths(raw: Any, poses: list[str], scenario_dir: Path, start_time: float,
+                   label: str, report: Report) -> dict[str, str]:
+    """The scenario's `recorded:` mapping, pose instance -> a path table (read as a
+    PathFollower's: a bag's Odometry or PoseStamped topic, or a CSV of time,x,y[,theta])."""
+    if not isinstance(raw, dict):
+        report(Problem(label, "recorded", "expected a mapping like {pose: {file: day1, "
+                                          "topic: /odom}}"))
+        return {}
+    out = {}
+    for name, spec in raw.items():
+        if name not in poses:
+            report(Problem(label, f"recorded.{str(name)[:40]}", "names no PoseIntegrator "
+                           f"(the scenario's: {', '.join(poses) or 'none'})"))
+            continue
+        table = _mapped(spec, "PathFollower", scenario_dir, start_time, f"recorded.{name}",
+                        label, report)
+        if table is not None:
+            out[name] = table.text
+    return out
 
 
 def table_twist(table: Table, interpolation: str = "linear"):

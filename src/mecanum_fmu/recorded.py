@@ -15,6 +15,8 @@ units converted and the time shifted, into the CSV text an FMU's `table` paramet
   m, cm, mm; heading rad, deg (a velocity's `mm` means mm/s, `deg` deg/s).
 - `start: first_row` puts the first row at the scenario's start_time; `offset` [s] is then
   added to every time (either or both).
+- `topic` (and `stamps`, `start: bag_start`): `file` is a ROS bag; bags.py reads the topic
+  into the same text.
 """
 from __future__ import annotations
 
@@ -28,7 +30,8 @@ from .storage import NotARegularFile, read_regular
 from .values import is_finite
 
 MAX_TABLE_BYTES = 50_000_000
-TABLE_KEYS = ("file", "columns", "units", "start", "offset")
+# `topic` and `stamps` name a bag's topic and its time (bags.py)
+TABLE_KEYS = ("file", "columns", "units", "start", "offset", "topic", "stamps")
 _TIME = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _SPEED = {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3, "cm": 1e-2, "mm": 1e-3, "m": 1.0}
 _LENGTH = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
@@ -126,8 +129,9 @@ def check_options(raw: dict, columns: tuple[str, ...], place: str, label: str,
             elif key == "columns" and name == columns[0] and item.strip().startswith("-"):
                 bad(f"{key}.{name}", f"{item[:40]!r}: the time column cannot be negated "
                                      "(times must increase); drop the '-'")
-    if "start" in raw and raw["start"] != "first_row":
-        bad("start", "the only choice is first_row (the first row at the start_time)")
+    if "start" in raw and raw["start"] not in ("first_row", "bag_start"):
+        bad("start", "the only choice is first_row (the first row at the start_time; a bag "
+                     "also takes bag_start: its first message of any topic there)")
     offset = raw.get("offset", 0.0)
     if not is_finite(offset):
         bad("offset", "expected a finite number of seconds added to the table's times")

@@ -10,11 +10,13 @@ from pathlib import Path
 from typing import Callable
 
 from .arguments import check_prepare, check_run
+from .bag_output import check_room, remove_previous, write_run_bag
 from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
                      SimulationError)
 from .graph import Graph, compile_graph
 from .models.library import build_bundled
 from .models.topology import Topology, topology
+from .report import against_recorded
 from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines
 from .report.truth import Truth
 from .output import OutputFolder
@@ -112,7 +114,8 @@ KEEP_ROWS = 10_000
 def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
         progress: Callable[[float], None] | None = None,
         log: Callable[[str], None] | None = None, quiet: bool = True, animate: bool = False,
-        keep_rows: int | None = KEEP_ROWS, plotter: PlotWorker | None = None) -> RunOutcome:
+        keep_rows: int | None = KEEP_ROWS, plotter: PlotWorker | None = None,
+        bag: bool = False) -> RunOutcome:
     """Simulate, write results.csv, summary.json and the plots into out_dir.
 
     results.csv is written during the run; the outcome's Results hold `keep_rows` rows (None:
@@ -120,7 +123,9 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     stepping loop (ground truth, plots) costs only itself: the tables are written first.
     The report lines go to `log`; without one they are printed unless `quiet` (the default).
     `plotter`: a plot worker started earlier (the CLI starts it before loading, to hide
-    matplotlib's import); without one, one is started here when plots are wanted."""
+    matplotlib's import); without one, one is started here when plots are wanted.
+    `bag`: also write the run as a ROS 2 MCAP bag in out_dir/bag/ (bag_output.py; a complete
+    run only)."""
     check_run(graph, out_dir, progress, log, keep_rows)
     out_dir = Path(out_dir) if out_dir is not None else default_out_dir(graph.scenario)
     log = log if log is not None else (_silent if quiet else print)
@@ -128,11 +133,14 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
     plotter = (plotter or PlotWorker.start()) if plots else None    # imports matplotlib now
     try:
         with sigterm_raises(), OutputFolder(out_dir) as out:
+            remove_previous(out.path)       # an earlier run's bag/ is not this run's
+            if bag:
+                check_room(out.path)
             if plotter is not None:
                 plotter.expect(graph, topo.roles)
             try:
                 outcome = _run_in(graph, topo, out, plotter=plotter, progress=progress,
-                                  log=log, animate=animate, keep_rows=keep_rows)
+                                  log=log, animate=animate, keep_rows=keep_rows, bag=bag)
             except MecanumError as err:
                 out.record(err.files)      # named in summary.json: a re-run removes them
                 raise
@@ -148,21 +156,39 @@ def _silent(line: str) -> None:
 
 
 def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWorker | None,
-            progress, log, animate: bool, keep_rows: int | None) -> RunOutcome:
+            progress, log, animate: bool, keep_rows: int | None, bag: bool) -> RunOutcome:
     results, summary, files = _simulate_into(graph, topo, out, progress, keep_rows)
+    if bag:
+        summary["bag"] = _bag(out, topo, files)
     if plotter is not None:     # it draws what needs no truth while the truth is integrated
         plotter.draft(results, topo.roles, graph.scenario.name)
     evaluation = evaluate(graph, results, topo=topo)    # after the tables: it costs only itself
+    if graph.scenario.recorded:
+        summary["against_recorded"] = against_recorded.compare(results, graph.scenario.recorded)
     if added := evaluation.summary() | _estimate(graph, results):
         summary.update(added)
         _rewrite_summary(out, summary, files)
     for line in report_lines(summary):
         log(line)
+    if graph.scenario.recorded and plotter is not None:
+        with out.atomic("recorded.png") as temp:
+            against_recorded.write_figure(results, graph.scenario.recorded, temp)
+        files.append(out.path / "recorded.png")
     _draw(results, evaluation, out, summary, files, plotter, animate, graph.scenario.name)
     if evaluation.failure:
         raise MecanumError(f"the ground truth could not be computed ({evaluation.failure}); "
                            f"the run itself is complete", files=files)
     return RunOutcome(graph.scenario, graph, results, evaluation, summary, out.path, files)
+
+
+def _bag(out: OutputFolder, topo: Topology, files: list[Path]) -> dict:
+    """The run as a ROS 2 bag (bag_output.py), after the tables: a failure costs only it."""
+    try:
+        with signals_deferred():
+            return write_run_bag(out.path / "results.csv", topo.drives, out.path)
+    except OSError as err:
+        raise MecanumError(f"writing the bag into {out.path} failed: {err}",
+                           files=files) from err
 
 
 def _estimate(graph: Graph, results: Results) -> dict:
@@ -254,4 +280,5 @@ def summarize(graph: Graph, results: Results) -> dict:
 def report_lines(summary: dict) -> list[str]:
     return [f"{summary['scenario']}: {summary['master']}, step {summary['step_size']:g} s, "
             f"{summary['steps']} steps, stepping loop {summary['wall_time_s']:.3f} s",
-            *evaluation_lines(summary), *error_estimate_lines(summary)]
+            *evaluation_lines(summary), *error_estimate_lines(summary),
+            *against_recorded.report_lines(summary.get("against_recorded", {}))]

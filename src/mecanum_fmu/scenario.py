@@ -27,7 +27,7 @@ DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
 Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _TOP_KEYS = ("name", "description", "experiment", "components", "connections", "outputs",
-             "parameters")
+             "parameters", "recorded")
 _COMPONENT_KEYS = ("fmu", "parameters", "description", "segments", "table", "waypoints")
 
 
@@ -76,6 +76,8 @@ class Scenario:
     connections: tuple[Connection, ...]
     outputs: tuple[tuple[VarRef, str], ...] | None   # (reference, place); None: every output
     parameters: dict[str, Scalar] = field(default_factory=dict)   # shared by all components
+    # pose instance -> the recorded path (time,x,y[,theta] text) it is held against
+    recorded: dict[str, str] = field(default_factory=dict)
 
     @property
     def label(self) -> str:
@@ -151,11 +153,12 @@ def scenario_from_doc(doc: Any, path: Path, parameters: dict | None = None
                            problems)
     connections = _connections(doc.get("connections", []), bad)
     outputs = _outputs(doc.get("outputs"), bad)
+    recorded = _recorded(doc.get("recorded"), components, path, experiment.start_time, problems)
     declared = doc.get("components")
     if problems and not (isinstance(declared, dict) and len(declared) == len(components)):
         return None, problems      # a component is missing: the graph's checks would mislead
     return Scenario(path, name, description, experiment, components, connections, outputs,
-                    shared), problems
+                    shared, recorded), problems
 
 
 def with_parameters(doc: dict, parameters: dict, bad) -> dict:
@@ -427,6 +430,16 @@ def _profiles(components: tuple[Component, ...], raw: Any, path: Path, start_tim
                                                       if key in keys) + " has one"))
         out.append(comp)
     return tuple(out)
+
+
+def _recorded(raw: Any, components: tuple[Component, ...], path: Path, start_time: float,
+              problems: list[Problem]) -> dict[str, str]:
+    """`recorded: {pose: {file: day1, topic: /odom}}`: the paths each pose is held against."""
+    if raw is None:
+        return {}
+    from .profiles import recorded_paths
+    poses = [c.name for c in components if c.fmu == "PoseIntegrator"]
+    return recorded_paths(raw, poses, path.parent, start_time, str(path), problems.append)
 
 
 def parse_ref(text: Any) -> VarRef | None:
