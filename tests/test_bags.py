@@ -508,3 +508,11 @@ def test_bag_start_keeps_the_topics_of_a_bag_aligned(tmp_path):
                                         "start: bag_start, offset: 0.5}", stop_time=2.0))
         times[topic] = [float(r.split(",")[0]) for r in source_table(graph).splitlines()[1:]]
     assert times == {"/cmd_vel": [0.5, 1.5, 2.5, 3.5, 4.5], "/late": [2.5, 3.5, 4.5]}
+
+
+def test_the_bag_keys_on_a_csv_file_are_named(tmp_path, capsys):
+    (tmp_path / "log.csv").write_text("time,vx,vy,w\n0,0,0,0\n1,0,0,0\n")
+    for key, value in (("start", "bag_start"), ("stamps", "log")):
+        lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: log.csv, {key}: {value}}}"))
+        assert len(lines) == 1 and f"components.source.table.{key}: {value} is for a bag" \
+            in lines[0], lines
