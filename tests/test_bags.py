@@ -516,3 +516,20 @@ def test_the_bag_keys_on_a_csv_file_are_named(tmp_path, capsys):
         lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: log.csv, {key}: {value}}}"))
         assert len(lines) == 1 and f"components.source.table.{key}: {value} is for a bag" \
             in lines[0], lines
+
+
+def test_a_recorded_heading_that_crosses_pi_stays_continuous(tmp_path):
+    """yaw = 0.5 t for 10 s: the quaternions wrap at pi (t = 2 pi), the table does not."""
+    T = ROS2.types
+
+    def messages():
+        for i in range(101):
+            t = i / 10
+            yield ("/pose", "geometry_msgs/msg/PoseStamped", round(t * 1e9),
+                   T["geometry_msgs/msg/PoseStamped"](_header(ROS2, t), _pose(ROS2, t, 0.5 * t)))
+    bag = write_bag(tmp_path / "turning", "mcap", messages())
+    spec = f"table: {{file: {bag}, topic: /pose}}"
+    graph = prepare(write_scenario(tmp_path, "turn", FOLLOWER.format(name="turn", spec=spec)))
+    t, _, _, theta = np.array([[float(v) for v in row.split(",")]
+                               for row in source_table(graph, "follower").splitlines()[1:]]).T
+    assert np.abs(theta - 0.5 * t).max() < 1e-12
