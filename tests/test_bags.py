@@ -508,3 +508,28 @@ def test_bag_start_keeps_the_topics_of_a_bag_aligned(tmp_path):
                                         "start: bag_start, offset: 0.5}", stop_time=2.0))
         times[topic] = [float(r.split(",")[0]) for r in source_table(graph).splitlines()[1:]]
     assert times == {"/cmd_vel": [0.5, 1.5, 2.5, 3.5, 4.5], "/late": [2.5, 3.5, 4.5]}
+
+
+def test_the_bag_keys_on_a_csv_file_are_named(tmp_path, capsys):
+    (tmp_path / "log.csv").write_text("time,vx,vy,w\n0,0,0,0\n1,0,0,0\n")
+    for key, value in (("start", "bag_start"), ("stamps", "log")):
+        lines = bad_bag_lines(capsys, chain(tmp_path, f"table: {{file: log.csv, {key}: {value}}}"))
+        assert len(lines) == 1 and f"components.source.table.{key}: {value} is for a bag" \
+            in lines[0], lines
+
+
+def test_a_recorded_heading_that_crosses_pi_stays_continuous(tmp_path):
+    """yaw = 0.5 t for 10 s: the quaternions wrap at pi (t = 2 pi), the table does not."""
+    T = ROS2.types
+
+    def messages():
+        for i in range(101):
+            t = i / 10
+            yield ("/pose", "geometry_msgs/msg/PoseStamped", round(t * 1e9),
+                   T["geometry_msgs/msg/PoseStamped"](_header(ROS2, t), _pose(ROS2, t, 0.5 * t)))
+    bag = write_bag(tmp_path / "turning", "mcap", messages())
+    spec = f"table: {{file: {bag}, topic: /pose}}"
+    graph = prepare(write_scenario(tmp_path, "turn", FOLLOWER.format(name="turn", spec=spec)))
+    t, _, _, theta = np.array([[float(v) for v in row.split(",")]
+                               for row in source_table(graph, "follower").splitlines()[1:]]).T
+    assert np.abs(theta - 0.5 * t).max() < 1e-12

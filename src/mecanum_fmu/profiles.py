@@ -72,9 +72,10 @@ def _mapped(raw: Any, model: str, scenario_dir: Path, start_time: float, place: 
         if found is None:
             return None
         source, raw = found
-    elif raw.get("start") == "bag_start":
-        report(Problem(label, f"{place}.start", "bag_start is for a bag (give its topic); a "
-                                                "CSV file takes first_row"))
+    elif raw.get("start") == "bag_start" or "stamps" in raw:
+        key = "stamps" if "stamps" in raw else "start"
+        report(Problem(label, f"{place}.{key}", f"{raw[key]} is for a bag (give its topic); "
+                                                "a CSV file names its time column"))
         return None
     else:
         source = read_table_file(raw["file"], scenario_dir, label, f"{place}.file", report)
