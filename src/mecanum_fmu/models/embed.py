@@ -1,6 +1,7 @@
 """The Python runtime each FMU carries, so it runs on a Linux x86_64 machine without Python.
 
-`make fmus` turns pythonfmu's FMU into a self-contained one:
+`make fmus` turns pythonfmu's FMU into a self-contained one (and pythonfmu3's FMI 3.0 FMU, with
+binaries/x86_64-linux/ for binaries/linux64/ and the loader compiled with -DLOADER_FMI3):
 
   binaries/linux64/<Model>.so            the loader (models/loader/loader.c, compiled here)
   binaries/linux64/<Model>.pythonfmu.so  pythonfmu's export library, as pythonfmu built it
@@ -40,6 +41,7 @@ from ..storage import cache_root, zip_bytes
 from .link import BINARY_DIR, binary_needs, find_libpython
 
 LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "loader.c"
+BINARY_DIR3 = "binaries/x86_64-linux/"     # FMI 3.0's platform folder
 REAL_SUFFIX = ".pythonfmu.so"           # the loader's REAL_SUFFIX
 HOME = "resources/python/"
 # The libraries an extension module may need and still be bundled: glibc's own, and zlib's
@@ -63,7 +65,8 @@ class Runtime:
     @property
     def tag(self) -> str:
         """What goes into the FMU's GUID digest: any change makes the FMUs stale."""
-        loader = hashlib.sha256(LOADER_SOURCE.read_bytes()).hexdigest()[:16]
+        sources = sorted(LOADER_SOURCE.parent.glob("*.[ch]"))     # loader.c and its FMI 3 parts
+        loader = _key(*(hashlib.sha256(p.read_bytes()).hexdigest() for p in sources))[:16]
         return f"self-contained Python {self.version} ({self.libpython}), loader {loader}"
 
 
@@ -113,15 +116,19 @@ def runtime() -> Runtime:
     return Runtime(lib.resolve(), soname, include, sys.version.split()[0])
 
 
-def embed_entries(entries: dict[str, bytes], identifier: str,
-                  rt: Runtime) -> tuple[dict[str, bytes], list[Path]]:
-    """pythonfmu's FMU members (name -> bytes) made self-contained (see the module doc), and
-    archives holding the runtime members already deflated (write_zip's reuse=)."""
+def embed_entries(entries: dict[str, bytes], identifier: str, rt: Runtime,
+                  fmi3: bool = False) -> tuple[dict[str, bytes], list[Path]]:
+    """pythonfmu's FMU members (name -> bytes), or pythonfmu3's with fmi3, made self-contained
+    (see the module doc), and archives holding the runtime members already deflated
+    (write_zip's reuse=)."""
     out = dict(entries)
-    binary = f"{BINARY_DIR}{identifier}.so"
-    out[f"{BINARY_DIR}{identifier}{REAL_SUFFIX}"] = out.pop(binary)
-    out[binary] = _cached(f"loader-{_key(rt.tag)}.so", lambda dest: _compile_loader(rt, dest))
-    python = {BINARY_DIR + rt.soname: _cached(
+    folder = BINARY_DIR3 if fmi3 else BINARY_DIR
+    binary = f"{folder}{identifier}.so"
+    out[f"{folder}{identifier}{REAL_SUFFIX}"] = out.pop(binary)
+    loader_key = _key(rt.tag, "fmi3") if fmi3 else _key(rt.tag)
+    out[binary] = _cached(f"loader-{loader_key}.so",
+                          lambda dest: _compile_loader(rt, dest, fmi3))
+    python = {folder + rt.soname: _cached(
         f"libpython-{_key(str(rt.libpython), _stat(rt.libpython))}.so",
         lambda dest: _strip(rt.libpython, dest))}
     stdlib = stdlib_members({n: d for n, d in entries.items() if n.startswith("resources/")})
@@ -141,8 +148,9 @@ def _deflated(members: dict[str, bytes]) -> Path:
 def stdlib_members(resources: dict[str, bytes]) -> dict[str, bytes]:
     """resources/python/... members for the slave among resources (FMU name -> bytes)."""
     module = resources["resources/slavemodule.txt"].decode().strip()
-    names = sorted(_import_names(resources[f"resources/{module}.py"]) | {"pythonfmu"})
-    runtime_files = {n: d for n, d in resources.items() if n.startswith("resources/pythonfmu/")}
+    package = "pythonfmu3" if "resources/pythonfmu3/__init__.py" in resources else "pythonfmu"
+    names = sorted(_import_names(resources[f"resources/{module}.py"]) | {package})
+    runtime_files = {n: d for n, d in resources.items() if n.startswith(f"resources/{package}/")}
     # what gets imported depends only on the names the script imports (its maths is inlined)
     # and pythonfmu's runtime: slaves that import the same names share one probe
     key = _key(sys.version, *names, *(n + hashlib.sha256(d).hexdigest()
@@ -255,9 +263,10 @@ def _write_stdlib_zip(files: dict, dest: Path) -> None:
     dest.write_bytes(zip_bytes(members, stored=True))
 
 
-def _compile_loader(rt: Runtime, dest: Path) -> None:
+def _compile_loader(rt: Runtime, dest: Path, fmi3: bool = False) -> None:
     cmd = ["gcc", "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
            "-Wno-format-truncation", f"-I{rt.include}", f'-DBUNDLED_LIBPYTHON="{rt.soname}"',
+           *(["-DLOADER_FMI3"] if fmi3 else []),
            str(LOADER_SOURCE), "-o", str(dest), "-lpthread", "-s"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:

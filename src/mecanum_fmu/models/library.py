@@ -26,6 +26,13 @@ MAX_DESCRIPTION_BYTES = 50_000_000      # modelDescription.xml, inflated
 # `from mecanum_fmu.models.slaves.X import ...  # inline` (what slaves share)
 _INLINE = re.compile(r"^from mecanum_fmu\.models\.(blocks|slaves)\.(\w+) import [\w, ]+# inline$",
                      re.MULTILINE)
+_PYTHONFMU_IMPORT = re.compile(r"^from pythonfmu(?:\.\w+)? import [\w, ]+\n", re.MULTILINE)
+# The end of an FMI 3.0 script: the model class that pythonfmu3 finds (slaves/fmi3.py)
+_FMI3_MODEL = '''
+
+class {name}(Fmi3Model, {name}, Fmi3Slave):
+    """{name} as an FMI 3.0 co-simulation FMU: the slave above on pythonfmu3."""
+'''
 
 
 def default_fmu_dir() -> Path:
@@ -43,11 +50,12 @@ class SlaveSource:
     model_name: str
     module_name: str      # top-level module name inside the FMU
     script: str           # self-contained script text
+    tool: str = "pythonfmu"     # or pythonfmu3: an FMI 3.0 FMU
 
     @property
     def digest(self) -> str:
         """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
-        text = self.script + "\npythonfmu " + version("pythonfmu")
+        text = self.script + f"\n{self.tool} " + version(self.tool)
         bundled = runtime_or_none()    # the Python runtime the FMU carries (embed.py)
         if bundled is not None:
             text += "\n" + bundled.tag
@@ -71,6 +79,23 @@ def slave_source(model_name: str) -> SlaveSource:
 
     script = _INLINE.sub(inline, text)
     return SlaveSource(model_name, f"mecanum_fmu_{module}", script)
+
+
+def fmi3_slave_source(model_name: str) -> SlaveSource:
+    """The FMI 3.0 script of a bundled model: its FMI 2.0 script with slaves/fmi3.py in place
+    of the pythonfmu imports, and the model class pythonfmu3 finds at the end."""
+    script = slave_source(model_name).script
+    first = _PYTHONFMU_IMPORT.search(script)
+    adapter = (PACKAGE_DIR / "slaves" / "fmi3.py").read_text()
+    script = (script[:first.start()]
+              + f"# --- inlined from mecanum_fmu/models/slaves/fmi3.py ---\n{adapter}# --- end ---\n"
+              + _PYTHONFMU_IMPORT.sub("", script[first.start():]) + _FMI3_MODEL.format(name=model_name))
+    return SlaveSource(model_name, f"mecanum_fmu3_{MODELS[model_name].module}", script, "pythonfmu3")
+
+
+def fmi3_dir(fmu_dir: Path) -> Path:
+    """Where `make fmus` puts the FMI 3.0 FMUs: fmus/fmi3/ beside the FMI 2.0 ones."""
+    return Path(fmu_dir) / "fmi3"
 
 
 def bundled_fmu_path(model_name: str, fmu_dir: Path) -> Path:

@@ -12,6 +12,8 @@
  *     variables, no signal handlers.
  * On the first fmi2Instantiate, pythonfmu's library (<Model>.pythonfmu.so, next to this file) is loaded and every fmi2
  * function jumps to it (signature-free trampolines, x86_64).
+ * Compiled with -DLOADER_FMI3 it is the same loader for pythonfmu3's FMI 3.0 library: its entry
+ * points are in fmi3_api.h and fmi3_instantiate.h, everything else is shared.
  */
 #define _GNU_SOURCE
 #define PY_SSIZE_T_CLEAN
@@ -33,6 +35,9 @@ __asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
 #define MARKER "_mecanum_fmu_runtime"    /* sys attribute: an interpreter this loader started */
 #define EXPORT __attribute__((visibility("default")))
 
+#ifdef LOADER_FMI3
+#include "fmi3_api.h"
+#else
 typedef void (*fmi2Logger)(void *, const char *, int, const char *, const char *, ...);
 typedef struct {
     fmi2Logger logger;
@@ -54,6 +59,8 @@ typedef void *(*instantiate_fn)(const char *, int, const char *, const char *,
     X(fmi2SetRealInputDerivatives) X(fmi2GetRealOutputDerivatives) X(fmi2DoStep) \
     X(fmi2CancelStep) X(fmi2GetStatus) X(fmi2GetRealStatus) X(fmi2GetIntegerStatus) \
     X(fmi2GetBooleanStatus) X(fmi2GetStringStatus)
+#define INSTANTIATE "fmi2Instantiate"
+#endif
 
 /* A jump through real_<name>, set once pythonfmu's library is loaded. A host calls these only
  * with a component that fmi2Instantiate returned, so the pointers are set by then. */
@@ -67,8 +74,10 @@ static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
 static instantiate_fn real_instantiate;
 static char message[1024];          /* why loading failed (kept: every later call says it) */
 
+#ifndef LOADER_FMI3
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
+#endif
 
 static int fail(const char *format, ...)
 {
@@ -83,7 +92,7 @@ static int fail(const char *format, ...)
 static int own_place(char *folder, size_t size, char *name, size_t name_size)
 {
     Dl_info info;
-    if (!dladdr((void *)&fmi2GetVersion, &info) || !info.dli_fname)
+    if (!dladdr((void *)&own_place, &info) || !info.dli_fname)
         return fail("cannot find the FMU's own binary (dladdr)");
     snprintf(folder, size, "%s", info.dli_fname);
     char *slash = strrchr(folder, '/');
@@ -230,9 +239,9 @@ static int load_real(const char *folder, const char *identifier)
 #define RESOLVE(name) \
     if (!(real_##name = dlsym(handle, #name))) return fail("%s missing in %s", #name, lib);
     FORWARDED(RESOLVE)
-    real_instantiate = (instantiate_fn)dlsym(handle, "fmi2Instantiate");
+    real_instantiate = (instantiate_fn)dlsym(handle, INSTANTIATE);
     if (!real_instantiate)
-        return fail("fmi2Instantiate missing in %s", lib);
+        return fail(INSTANTIATE " missing in %s", lib);
     release_state = (void (*)(void))dlsym(handle, "finalizePythonInterpreter");
     if (release_state)
         atexit(release_at_exit);
@@ -256,6 +265,9 @@ static int load(void)
     return load_real(binaries, model);
 }
 
+#ifdef LOADER_FMI3
+#include "fmi3_instantiate.h"
+#else
 EXPORT void *fmi2Instantiate(const char *name, int type, const char *guid, const char *resources,
                              const fmi2CallbackFunctions *functions, int visible, int logging)
 {
@@ -282,3 +294,4 @@ EXPORT void *fmi2Instantiate(const char *name, int type, const char *guid, const
     }
     return NULL;
 }
+#endif
