@@ -48,6 +48,9 @@ HOME = "resources/python/"
 # libz.so.1 (binascii needs it; a "required" package on Debian/Ubuntu, in every base image).
 TARGET_LIBS = {"libc.so.6", "libm.so.6", "libpthread.so.0", "libdl.so.2", "librt.so.1",
                "libutil.so.1", "libz.so.1"}
+# pythonfmu3 imports ctypes: its _ctypes needs libffi, which an FMI 3.0 FMU carries next to its
+# binary (the FMI 3.0 loader loads it before pythonfmu3's library, loader/fmi3_instantiate.h)
+SHIPPED_LIBS = {"pythonfmu3": ("libffi.so.8",), "pythonfmu": ()}
 
 
 class EmbedUnavailable(RuntimeError):
@@ -132,6 +135,10 @@ def embed_entries(entries: dict[str, bytes], identifier: str, rt: Runtime,
         f"libpython-{_key(str(rt.libpython), _stat(rt.libpython))}.so",
         lambda dest: _strip(rt.libpython, dest))}
     stdlib = stdlib_members({n: d for n, d in entries.items() if n.startswith("resources/")})
+    for name in SHIPPED_LIBS["pythonfmu3" if fmi3 else "pythonfmu"]:
+        path = _loaded_library(name)
+        python[folder + name] = _cached(f"lib-{_key(str(path), _stat(path))}.so",
+                                        lambda dest, p=path: _strip(p, dest))
     out.update(python)
     out.update(stdlib)
     return out, [_deflated(python), _deflated(stdlib)]     # the loader is small: deflated anew
@@ -153,13 +160,13 @@ def stdlib_members(resources: dict[str, bytes]) -> dict[str, bytes]:
     runtime_files = {n: d for n, d in resources.items() if n.startswith(f"resources/{package}/")}
     # what gets imported depends only on the names the script imports (its maths is inlined)
     # and pythonfmu's runtime: slaves that import the same names share one probe
-    key = _key(sys.version, *names, *(n + hashlib.sha256(d).hexdigest()
+    key = _key(sys.version, *names, *SHIPPED_LIBS[package], *(n + hashlib.sha256(d).hexdigest()
                                       for n, d in sorted(runtime_files.items())))
     cached = cache_root() / "runtime" / f"modules-{key}.json"
     if cached.is_file():
         files = json.loads(cached.read_text())
     else:
-        files = _imported_stdlib(runtime_files, names)
+        files = _imported_stdlib(runtime_files, names, SHIPPED_LIBS[package])
         _atomic_write(cached, json.dumps(files).encode())
     zip_key = _key(sys.version, json.dumps(files, sort_keys=True))     # one zip per module set
     members = {HOME + "stdlib.zip": _cached(f"stdlib-{zip_key}.zip",
@@ -196,7 +203,8 @@ print(json.dumps({n: getattr(m, "__file__", None) for n, m in sys.modules.items(
 """
 
 
-def _imported_stdlib(runtime_files: dict[str, bytes], names: list[str]) -> dict:
+def _imported_stdlib(runtime_files: dict[str, bytes], names: list[str],
+                     shipped: tuple[str, ...]) -> dict:
     """{"sources": [stdlib-relative .py paths], "extensions": [lib-dynload file names]}."""
     with tempfile.TemporaryDirectory(prefix="mecanum_fmu_probe_") as tmp:
         for name, data in runtime_files.items():
@@ -207,17 +215,17 @@ def _imported_stdlib(runtime_files: dict[str, bytes], names: list[str]) -> dict:
                                *names], capture_output=True, text=True, cwd=tmp, timeout=120)
     if proc.returncode != 0:
         raise EmbedUnavailable(f"cannot list the modules a slave imports: {proc.stderr[-1000:]}")
-    return _classify(json.loads(proc.stdout))
+    return _classify(json.loads(proc.stdout), shipped)
 
 
-def _classify(loaded: dict[str, str | None]) -> dict:
+def _classify(loaded: dict[str, str | None], shipped: tuple[str, ...] = ()) -> dict:
     stdlib = Path(sysconfig.get_path("stdlib")).resolve()
     dynload = Path(sysconfig.get_config_var("DESTSHARED") or stdlib / "lib-dynload").resolve()
     sources, extensions = set(), set()
     for file in filter(None, loaded.values()):
         path = Path(file).resolve()
         if path.parent == dynload:
-            if _bundleable(path):
+            if _bundleable(path, shipped):
                 extensions.add(path.name)
         elif path.is_relative_to(stdlib) and path.suffix == ".py" \
                 and "site-packages" not in path.parts:
@@ -226,10 +234,20 @@ def _classify(loaded: dict[str, str | None]) -> dict:
 
 
 @functools.cache
-def _bundleable(extension: Path) -> bool:
-    """An extension module that needs no library a target machine may lack."""
+def _bundleable(extension: Path, shipped: tuple[str, ...] = ()) -> bool:
+    """An extension module that needs no library a target machine may lack (or the FMU ships)."""
     needs = binary_needs(extension.read_bytes())
-    return needs is not None and set(needs.needed) <= TARGET_LIBS
+    return needs is not None and set(needs.needed) <= TARGET_LIBS | set(shipped)
+
+
+def _loaded_library(soname: str) -> Path:
+    """The file of a shared library this process has loaded (libffi: ctypes is imported)."""
+    import ctypes  # noqa: F401  (loads libffi)
+    for line in Path("/proc/self/maps").read_text().splitlines():
+        path = line.split()[-1]
+        if Path(path).name == soname or Path(path).name.startswith(soname + "."):
+            return Path(path).resolve()
+    raise EmbedUnavailable(f"{soname} not found in this process (install libffi)")
 
 
 # Run by `python -I -S` with PYTHONHASHSEED=0: compile each source to an unchecked hash-based

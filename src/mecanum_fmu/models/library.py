@@ -109,13 +109,14 @@ def is_current(model_name: str, fmu_path: Path) -> bool:
 
 
 def fmu_guid(fmu_path: Path) -> str | None:
-    """The GUID an FMU's model description declares; None when it cannot be read."""
+    """The GUID (FMI 3.0: instantiation token) an FMU's model description declares; None
+    when it cannot be read."""
     try:
         with zipfile.ZipFile(fmu_path) as zf:
             root = ElementTree.fromstring(read_member(zf, "modelDescription.xml", MAX_DESCRIPTION_BYTES))
     except (ArchiveError, *ZIP_ERRORS, KeyError, ElementTree.ParseError):
         return None
-    return root.get("guid")
+    return root.get("guid") or root.get("instantiationToken")      # FMI 2.0, FMI 3.0
 
 
 def stale_warning(spec: str, fmu_dir: Path) -> str | None:
@@ -126,14 +127,19 @@ def stale_warning(spec: str, fmu_dir: Path) -> str | None:
     return None
 
 
+FMI3_PREFIX = "fmi3/"       # `fmu: fmi3/Center2Wheel`: the bundled model's FMI 3.0 FMU
+
+
 def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
-    """A bundled model name -> its FMU in fmu_dir; otherwise a path relative to the scenario
+    """A bundled model name -> its FMU in fmu_dir (fmi3/<name>: in fmi3_dir); otherwise a path relative to the scenario
     file. Never builds (an out-of-date bundled FMU is still returned: see stale_warning).
     Raises ValueError with a user-facing reason."""
-    if spec in MODELS:
-        path = bundled_fmu_path(spec, fmu_dir)
+    bundled = spec[len(FMI3_PREFIX):] if spec.startswith(FMI3_PREFIX) else spec
+    if bundled in MODELS:       # Center2Wheel, or fmi3/Center2Wheel: its FMI 3.0 twin
+        folder = fmi3_dir(fmu_dir) if bundled != spec else fmu_dir
+        path = bundled_fmu_path(bundled, folder)
         if not path.is_file():
-            raise ValueError(f"the bundled FMU {spec} is not built in {fmu_dir}; build it "
+            raise ValueError(f"the bundled FMU {spec} is not built in {folder}; build it "
                              "with `python -m mecanum_fmu fmus` (make fmus)")
         return path
     if "\0" in spec:
@@ -156,7 +162,8 @@ def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
 
 
 def read_description(path: Path) -> ModelDescription:
-    """Read and check that the FMU is FMI 2.0 co-simulation. Raises ValueError with the reason."""
+    """Read and check that the FMU is FMI 2.0 or 3.0 co-simulation. Raises ValueError with the
+    reason."""
     if not zipfile.is_zipfile(path):
         raise ValueError(f"{path.name} is not an FMU (an FMU is a zip archive)")
     try:
@@ -174,18 +181,18 @@ def read_description(path: Path) -> ModelDescription:
                          f"{infos['modelDescription.xml'].file_size} bytes (limit "
                          f"{MAX_DESCRIPTION_BYTES}); is this a real FMU?")
     version = _fmi_version(path)        # before fmpy: its FMI 1.0 reader fails on a bare file
-    if version is not None and version != "2.0":
-        raise ValueError(f"{path.name} is an FMI {version} FMU; this master runs FMI 2.0 "
-                         "co-simulation FMUs")
+    if version is not None and version != "2.0" and not version.startswith("3."):
+        raise ValueError(f"{path.name} is an FMI {version[:20]} FMU; this master runs FMI 2.0 "
+                         "and 3.0 co-simulation FMUs")
     try:
         md = read_model_description(str(path), validate=False)
     except ValueError:
         raise
     except Exception as err:
         raise ValueError(f"{path.name}: cannot read modelDescription.xml: {err}") from None
-    if md.fmiVersion != "2.0":
+    if md.fmiVersion != "2.0" and not md.fmiVersion.startswith("3."):
         raise ValueError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 "
-                         "co-simulation FMUs")
+                         "and 3.0 co-simulation FMUs")
     if md.coSimulation is None:
         raise ValueError(f"{path.name} supports model exchange only; this master needs "
                          "a co-simulation FMU (export it for co-simulation)")
@@ -216,7 +223,8 @@ def loading_problem(path: Path, md: ModelDescription) -> str | None:
     FMU) its slave script missing - pythonfmu's fmi2Instantiate then crashes the process.
     Cheap: reads the member list and resources/slavemodule.txt only."""
     ident = md.coSimulation.modelIdentifier
-    member = f"binaries/{fmpy.platform}/{ident}{fmpy.sharedLibraryExtension}"
+    platform = fmpy.platform_tuple if md.fmiVersion.startswith("3.") else fmpy.platform
+    member = f"binaries/{platform}/{ident}{fmpy.sharedLibraryExtension}"
     try:
         with zipfile.ZipFile(path) as zf:
             names = set(zf.namelist())
