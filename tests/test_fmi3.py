@@ -1,0 +1,176 @@
+"""The FMI 3.0 FMUs (fmus/fmi3/, models/build3.py) and FMI 3.0 components in the master.
+
+- fmpy's validator finds nothing; units and dependencies are declared;
+- FMPy's own simulate_fmu runs each FMI 3.0 FMU and its FMI 2.0 twin to the same values;
+- a plain C FMI 3.0 host runs one with nothing set, under valgrind, and where no Python exists
+  at all (a mount namespace, root);
+- a scenario mixing FMI 2.0 and 3.0 components gives the all-FMI-2.0 run's values, under every
+  master (fixed steps, rollback, adaptive with a tolerance).
+Under MECANUM_FMU_REQUIRE_TOOLS=1 a missing tool (gcc, valgrind, unshare) fails.
+"""
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.validation import validate_fmu
+
+from helpers import CHAIN_CONNECTIONS, ROOT, tool_missing as missing, write_scenario
+from mecanum_fmu import master
+from mecanum_fmu.errors import ScenarioError
+from mecanum_fmu.runner import prepare
+from test_no_preload import _hidden, _python_places
+
+AGREE = 1e-12
+CHAIN = """\
+name: {name}
+experiment: {{start_time: 0.0, stop_time: 3.0, step_size: 0.02}}
+components:
+  source: {{fmu: {source}, parameters: {{vx_expr: "0.4*sin(t)", vy_expr: "0.3 + 0.1*t", w_expr: "0.5*cos(2*t)"}}}}
+  c2w: {{fmu: {c2w}}}
+  w2c: {{fmu: {w2c}, parameters: {{dR2: 0.002}}}}
+  pose: {{fmu: {pose}, parameters: {{x0: 1, theta0: 0.3}}}}
+""" + CHAIN_CONNECTIONS
+
+
+def test_fmpy_validation_finds_no_problems(fmi3_fmus):
+    for name, fmu in fmi3_fmus.items():
+        assert validate_fmu(str(fmu)) == [], name
+
+
+def test_units_dependencies_and_the_wheel_speed_array(fmi3_fmus, built_fmus):
+    """Same variables and value references as the FMI 2.0 twin, every Float64 has a unit,
+    outputs declare their dependencies, and Center2Wheel's wheel_speeds is a [4] array."""
+    for name, fmu in fmi3_fmus.items():
+        md3, md2 = read_model_description(str(fmu)), read_model_description(str(built_fmus[name]))
+        assert md3.fmiVersion == "3.0" and md3.coSimulation.canGetAndSetFMUstate, name
+        scalars2 = {v.name: v.valueReference for v in md2.modelVariables}
+        scalars3 = {v.name: v.valueReference for v in md3.modelVariables
+                    if v.name in scalars2}
+        assert scalars3 == scalars2, name
+        assert all(v.unit for v in md3.modelVariables if v.type == "Float64"), name
+        assert all(o.dependencies is not None for o in md3.outputs), name
+    md = read_model_description(str(fmi3_fmus["Center2Wheel"]))
+    array = next(v for v in md.modelVariables if v.name == "wheel_speeds")
+    assert [d.start for d in array.dimensions] == [4] and array.unit == "rad/s"
+    deps = {o.variable.name: sorted(d.name for d in o.dependencies) for o in md.outputs}
+    assert deps["wheel_speeds"] == deps["w1"] == ["vx", "vy", "w"]
+
+
+def _inputs(md) -> dict:
+    """A fixed, non-trivial start value for every Real input (FMI 2.0 and 3.0 names agree)."""
+    values = iter((0.3, 0.5, 0.2, -0.4, 0.7, 0.1))
+    return {v.name: next(values) for v in md.modelVariables
+            if v.causality == "input" and v.type in ("Real", "Float64")}
+
+
+@pytest.mark.parametrize("model", ["VelocitySource", "Center2Wheel", "Wheel2Center",
+                                   "PoseIntegrator", "PathFollower", "OmniCenter2Wheel",
+                                   "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource"])
+def test_simulate_fmu_agrees_with_the_fmi2_twin(fmi3_fmus, built_fmus, model):
+    """FMPy's own simulate_fmu, the same start values: every output of the FMI 3.0 FMU equals
+    its FMI 2.0 twin's within 1e-12 over 3 s; the wheel_speeds array equals w1..w4."""
+    md2 = read_model_description(str(built_fmus[model]))
+    start = _inputs(md2)
+    outputs = [v.name for v in md2.modelVariables if v.causality == "output"]
+    run = {version: simulate_fmu(str(fmu), start_values=start, stop_time=3.0, step_size=0.01,
+                                 output_interval=0.01, fmi_type="CoSimulation",
+                                 output=outputs + (["wheel_speeds"] * (version == 3 and
+                                                   "w1" in outputs and model.endswith("2Wheel"))))
+           for version, fmu in ((2, built_fmus[model]), (3, fmi3_fmus[model]))}
+    assert len(run[2]) == len(run[3]) > 250
+    worst = max(np.abs(run[3][n].astype(float) - run[2][n].astype(float)).max() for n in outputs)
+    assert worst <= AGREE, (model, worst)
+    assert any(np.abs(run[2][n].astype(float)).max() > 0.01 for n in outputs), model  # not all 0
+    if "wheel_speeds" in run[3].dtype.names:
+        wheels = np.column_stack([run[3][f"w{i}"] for i in range(1, 5)])
+        assert np.array_equal(run[3]["wheel_speeds"], wheels)
+
+
+def _plain_host(tmp_path) -> Path:
+    if shutil.which("gcc") is None:
+        missing("gcc is needed (apt-get install gcc)")
+    host = tmp_path / "plain_host3"
+    subprocess.run(["gcc", "-O1", "-o", str(host), str(ROOT / "tests" / "hosts" / "plain_host3.c"),
+                    "-ldl"], check=True)
+    return host
+
+
+def _host_command(host, fmi3_fmus, tmp_path) -> list[str]:
+    folder = Path(extract(str(fmi3_fmus["PoseIntegrator"]), str(tmp_path / "fmu")))
+    md = read_model_description(str(folder))
+    vrs = {v.name: v.valueReference for v in md.modelVariables}
+    return [str(host), str(folder / "binaries" / "x86_64-linux" / "PoseIntegrator.so"), md.guid,
+            str(folder / "resources") + "/", str(vrs["vx"]), "0.5", str(vrs["x"])]
+
+
+def test_a_plain_c_fmi3_host_runs_it_under_valgrind(fmi3_fmus, tmp_path):
+    """Nothing set (PATH only), the FMU's own Python; no invalid read or write from loading
+    the FMU to the host's exit (main returns without dlclose)."""
+    if shutil.which("valgrind") is None:
+        missing("valgrind is needed (apt-get install valgrind)")
+    command = _host_command(_plain_host(tmp_path), fmi3_fmus, tmp_path)
+    proc = subprocess.run(["valgrind", "--error-exitcode=9", *command], capture_output=True,
+                          text=True, timeout=300, env={"PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "ERROR SUMMARY: 0 errors" in proc.stderr, proc.stderr[-3000:]
+    assert proc.stdout.split()[0] == "RAN", proc.stdout
+    assert float(proc.stdout.split()[1]) == pytest.approx(0.5, abs=1e-12)   # 0.5 m/s for 1 s
+
+
+def test_a_plain_c_fmi3_host_runs_it_where_no_python_exists(fmi3_fmus, tmp_path):
+    """Every Python installation and libpython hidden (a private mount namespace): the FMU
+    starts the Python it carries."""
+    if os.geteuid() != 0 or shutil.which("unshare") is None:
+        missing("hiding Python needs root and unshare (a mount namespace)")
+    command = _host_command(_plain_host(tmp_path), fmi3_fmus, tmp_path)
+    proc = subprocess.run(_hidden(["env", "-i", "PATH=/usr/bin:/bin", *command],
+                                  _python_places()), capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, (proc.stdout, proc.stderr[-3000:])
+    assert proc.stdout.split()[0] == "RAN", proc.stdout
+    assert float(proc.stdout.split()[1]) == pytest.approx(0.5, abs=1e-12)
+
+
+def _chain(folder, fmu_dir, name, master_name, tolerance=None, **fmus):
+    models = {"source": "VelocitySource", "c2w": "Center2Wheel", "w2c": "Wheel2Center",
+              "pose": "PoseIntegrator"}
+    models.update(fmus)
+    path = write_scenario(folder, name, CHAIN.format(name=name, **models))
+    graph = prepare(path, master_name=master_name, tolerance=tolerance, fmu_dir=fmu_dir)
+    return graph, master.simulate(graph, graph.scenario.experiment)
+
+
+@pytest.mark.parametrize("master_name, tolerance", [("gauss-seidel", None), ("jacobi", None),
+                                                    ("quadratic", None), ("adaptive", 1e-5)])
+def test_a_mixed_fmi2_fmi3_scenario_matches_the_all_fmi2_run(fmu_dir, fmi3_fmus, tmp_path,
+                                                             master_name, tolerance):
+    """c2w and pose from fmus/fmi3/, nothing declared: the same rows as all FMI 2.0 (quadratic
+    and adaptive roll the FMI 3.0 instances back with fmi3Get/SetFMUState)."""
+    graph, mixed = _chain(tmp_path, fmu_dir, "mixed", master_name, tolerance,
+                          c2w="fmi3/Center2Wheel", pose="fmi3/PoseIntegrator")
+    assert {i.name: i.model.fmiVersion for i in graph.instances} == {
+        "source": "2.0", "c2w": "3.0", "w2c": "2.0", "pose": "3.0"}
+    _, plain = _chain(tmp_path, fmu_dir, "plain", master_name, tolerance)
+    assert np.array_equal(mixed.time, plain.time) and len(plain.time) > 100
+    for name in ("pose.x", "pose.y", "pose.theta", "c2w.w1", "c2w.w4", "w2c.vx"):
+        assert np.abs(np.asarray(mixed[name]) - np.asarray(plain[name])).max() <= AGREE, name
+    assert abs(plain.final("pose.x") - 1.0) > 0.05       # the car moved
+
+
+def test_an_array_connection_is_refused_with_the_scalars_named(fmu_dir, fmi3_fmus, tmp_path):
+    text = CHAIN.format(name="array", source="VelocitySource", c2w="fmi3/Center2Wheel",
+                        w2c="Wheel2Center", pose="PoseIntegrator").replace(
+        "[c2w.w1, w2c.w1]", "[c2w.wheel_speeds, w2c.w1]")
+    with pytest.raises(ScenarioError) as err:
+        prepare(write_scenario(tmp_path, "array", text), fmu_dir=fmu_dir)
+    assert "a Float64 array [4]" in str(err.value) and "w1..w4" in str(err.value)
+
+
+def test_the_fmi3_build_is_reproducible(fmi3_fmus, tmp_path):
+    from mecanum_fmu.models.build3 import build_fmu3
+    again = build_fmu3("Wheel2Center", tmp_path)
+    assert again.read_bytes() == fmi3_fmus["Wheel2Center"].read_bytes()
