@@ -278,8 +278,8 @@ class _Checker:
         for ref, place in self.scenario.outputs:
             var = self.lookup(ref, place)
             if var is not None and port_type(var) not in VALUE_TYPES:
-                self.bad(place, f"'{ref}' is {type_text(var)}: only Real (Float64), Integer "
-                                "(Int32) and Boolean variables are recorded"
+                self.bad(place, f"'{ref}' is {type_text(var)}: only Real, Integer and "
+                                "Boolean variables are recorded (FMI 3.0: Float64, Int32)"
                                 + _ARRAY_HINT * bool(getattr(var, "dimensions", None)))
             elif var is not None and ref not in seen:
                 seen.add(ref)
@@ -312,8 +312,8 @@ def _connection_problems(conn, src: ScalarVariable, dst: ScalarVariable,
         problems.append(f"type mismatch: '{conn.source}' is {type_text(src)}, "
                         f"'{conn.target}' is {type_text(dst)}" + _ARRAY_HINT * arrays)
     elif port_type(src) not in VALUE_TYPES:
-        problems.append(f"'{conn.source}' is {type_text(src)}: connections carry Real "
-                        "(Float64), Integer (Int32) and Boolean values"
+        problems.append(f"'{conn.source}' is {type_text(src)}: connections carry Real, "
+                        "Integer and Boolean values (FMI 3.0: Float64, Int32)"
                         + (_ARRAY_HINT if arrays else
                            " (set a String once as a parameter instead)"))
     if conn.target in drivers:

@@ -236,7 +236,7 @@ def loading_problem(path: Path, md: ModelDescription) -> str | None:
                         if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[2]})
     return (f"{path.name} has no binary for this platform ({member}); it has "
             f"{', '.join(platforms) if platforms else 'no binaries at all'}; export the FMU "
-            f"for {fmpy.platform}")
+            f"for {platform}")
 
 
 def _fmi_version(path: Path) -> str | None:
