@@ -5,12 +5,15 @@
 - a plain C FMI 3.0 host runs one with nothing set, under valgrind, and where no Python exists
   at all (a mount namespace, root);
 - a scenario mixing FMI 2.0 and 3.0 components gives the all-FMI-2.0 run's values, under every
-  master (fixed steps, rollback, adaptive with a tolerance).
-Under MECANUM_FMU_REQUIRE_TOOLS=1 a missing tool (gcc, valgrind, unshare) fails.
+  master (fixed steps, rollback, adaptive with a tolerance), and so does its SSP read back;
+- Ecos (ecospy and its `ecos` program) runs an all-FMI-3.0 SSP to our Jacobi master's end.
+Under MECANUM_FMU_REQUIRE_TOOLS=1 a missing tool (gcc, valgrind, unshare, ecospy) fails.
 """
 import os
 import shutil
 import subprocess
+import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +21,12 @@ import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from helpers import CHAIN_CONNECTIONS, ROOT, tool_missing as missing, write_scenario
+from helpers import CHAIN_CONNECTIONS, ROOT, run_host_or_skip, tool_missing as missing, \
+    write_scenario
 from mecanum_fmu import master
 from mecanum_fmu.errors import ScenarioError
+from mecanum_fmu.interop.cross_check import CSV_TOLERANCE, compared_outputs, ours_jacobi
+from mecanum_fmu.interop.ssp_write import export_ssp
 from mecanum_fmu.runner import prepare
 from test_no_preload import _hidden, _python_places
 
@@ -174,3 +180,59 @@ def test_the_fmi3_build_is_reproducible(fmi3_fmus, tmp_path):
     from mecanum_fmu.models.build3 import build_fmu3
     again = build_fmu3("Wheel2Center", tmp_path)
     assert again.read_bytes() == fmi3_fmus["Wheel2Center"].read_bytes()
+
+
+def test_ssp_export_and_import_keep_the_fmi3_components(fmu_dir, fmi3_fmus, tmp_path):
+    """export-ssp carries the FMI 3.0 FMUs; the SSP read back runs them to the same rows as
+    the scenario it came from; the array output has no SSP 1.0 connector."""
+    graph, direct = _chain(tmp_path, fmu_dir, "mixed", "gauss-seidel", None,
+                           c2w="fmi3/Center2Wheel", pose="fmi3/PoseIntegrator")
+    ssp = export_ssp(graph, tmp_path / "mixed.ssp")
+    with zipfile.ZipFile(ssp) as zf:
+        ssd = zf.read("SystemStructure.ssd").decode()
+    assert 'startElement="c2w" startConnector="w1"' in ssd and "wheel_speeds" not in ssd
+    back = prepare(ssp, master_name="gauss-seidel", fmu_dir=fmu_dir)
+    assert {i.name: i.model.fmiVersion for i in back.instances} == {
+        "source": "2.0", "c2w": "3.0", "w2c": "2.0", "pose": "3.0"}
+    again = master.simulate(back, back.scenario.experiment)
+    for name in ("pose.x", "pose.y", "pose.theta"):
+        assert np.array_equal(np.asarray(again[name]), np.asarray(direct[name])), name
+
+
+def test_a_string_parameter_is_baked_into_the_fmi3_fmu(fmi3_fmus, tmp_path):
+    """What export-ssp does for hosts that do not set Strings: the value as the FMU's default,
+    run by FMPy in a fresh process (the in-process module of the unbaked FMU is not reused)."""
+    from mecanum_fmu.interop.ssp_bake import bake
+    baked = tmp_path / "VelocitySource.fmu"
+    source = fmi3_fmus["VelocitySource"]
+    baked.write_bytes(bake(source.read_bytes(), {"vx_expr": "0.25"}, reuse=source))
+    assert validate_fmu(str(baked)) == []
+    md = read_model_description(str(baked))
+    assert next(v.start for v in md.modelVariables if v.name == "vx_expr") == "0.25"
+    code = ("import sys; from fmpy import simulate_fmu; r = simulate_fmu(sys.argv[1], "
+            "stop_time=1.0, output_interval=0.1, output=['vx']); print(r['vx'].min(), r['vx'].max())")
+    proc = subprocess.run([sys.executable, "-c", code, str(baked)], capture_output=True,
+                          text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert [float(v) for v in proc.stdout.split()] == [0.25, 0.25]
+
+
+@pytest.mark.parametrize("host", ["ecos", "ecos-cli"])
+def test_ecos_runs_an_all_fmi3_ssp_like_our_jacobi_master(fmu_dir, fmi3_fmus, tmp_path, host):
+    """Ecos (ecospy, and its `ecos` program: no Python host) imports FMI 3.0 FMUs: the SSP of
+    an all-FMI-3.0 chain ends where our Jacobi master ends (ecos-cli: up to its CSV's 6
+    decimals)."""
+    path = write_scenario(tmp_path, "all3", CHAIN.format(
+        name="all3", source="fmi3/VelocitySource", c2w="fmi3/Center2Wheel",
+        w2c="fmi3/Wheel2Center", pose="fmi3/PoseIntegrator"))
+    graph = prepare(path, master_name="jacobi", fmu_dir=fmu_dir)
+    names = compared_outputs(graph)
+    assert "pose.x" in names
+    ours = ours_jacobi(graph, names).values
+    exp = graph.scenario.experiment
+    theirs = run_host_or_skip(host, export_ssp(graph, tmp_path / "all3.ssp"),
+                              start=exp.start_time, stop=exp.stop_time, step=exp.step_size,
+                              variables=names)
+    tolerance = CSV_TOLERANCE / 2 + 1e-12 if host == "ecos-cli" else 1e-12
+    for name in names:
+        assert abs(theirs.values[name] - ours[name]) <= tolerance, (name, theirs.values, ours)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from .. import __version__, master
 from ..errors import Problem, ScenarioError
-from ..graph import Graph
+from ..graph import Graph, port_type
 from ..masters import ZOH_HOST
 from .other_hosts import HOSTS, HostFailed, HostRun, HostUnavailable, run_host
 from .ssp_write import export_ssp
@@ -41,7 +41,8 @@ def compared_outputs(graph: Graph) -> list[str]:
     for inst in graph.instances:
         declared = {u.variable.name: u.dependencies for u in inst.model.outputs}
         for var in inst.model.modelVariables:
-            if var.causality == "output" and var.type == "Real" and declared.get(var.name) == []:
+            if var.causality == "output" and port_type(var) == "Real" \
+                    and declared.get(var.name) == []:
                 names.append(f"{inst.name}.{var.name}")
     return names
 
