@@ -9,6 +9,7 @@
 - Ecos (ecospy and its `ecos` program) runs an all-FMI-3.0 SSP to our Jacobi master's end.
 Under MECANUM_FMU_REQUIRE_TOOLS=1 a missing tool (gcc, valgrind, unshare, ecospy) fails.
 """
+import json
 import os
 import shutil
 import subprocess
@@ -27,7 +28,7 @@ from mecanum_fmu import master
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.interop.cross_check import CSV_TOLERANCE, compared_outputs, ours_jacobi
 from mecanum_fmu.interop.ssp_write import export_ssp
-from mecanum_fmu.runner import prepare
+from mecanum_fmu.runner import prepare, run
 from test_no_preload import _hidden, _python_places
 
 AGREE = 1e-12
@@ -236,3 +237,24 @@ def test_ecos_runs_an_all_fmi3_ssp_like_our_jacobi_master(fmu_dir, fmi3_fmus, tm
     tolerance = CSV_TOLERANCE / 2 + 1e-12 if host == "ecos-cli" else 1e-12
     for name in names:
         assert abs(theirs.values[name] - ours[name]) <= tolerance, (name, theirs.values, ours)
+
+
+@pytest.mark.parametrize("master_name, tolerance", [("quadratic", None), ("adaptive", 1e-6)])
+def test_the_estimate_and_tolerance_are_the_same_with_fmi3_components(
+        fmu_dir, fmi3_fmus, tmp_path, master_name, tolerance):
+    """runner.run's summary: the error estimate (its coarse re-runs roll FMI 3.0 instances
+    too) and, with --tolerance, the steps the adaptive master took, as for all FMI 2.0."""
+    summaries = []
+    for name, fmus in (("mixed", {"c2w": "fmi3/Center2Wheel", "pose": "fmi3/PoseIntegrator",
+                                  "w2c": "fmi3/Wheel2Center"}), ("plain", {})):
+        models = {"source": "VelocitySource", "c2w": "Center2Wheel", "w2c": "Wheel2Center",
+                  "pose": "PoseIntegrator", **fmus}
+        path = write_scenario(tmp_path, name, CHAIN.format(name=name, **models))
+        graph = prepare(path, master_name=master_name, tolerance=tolerance, fmu_dir=fmu_dir)
+        run(graph, tmp_path / name, plots=False)
+        summaries.append(json.loads((tmp_path / name / "summary.json").read_text()))
+    mixed, plain = summaries
+    assert mixed["error_estimate"] == plain["error_estimate"]
+    assert isinstance(plain["error_estimate"]["pose.x"]["end"], float)
+    assert mixed.get("steps_taken") == plain.get("steps_taken")
+    assert mixed["end_pose"] == plain["end_pose"]
