@@ -14,7 +14,8 @@ from .errors import (ArgumentError, Interrupted, MecanumError, Problem, Scenario
                      SimulationError)
 from .graph import Graph, compile_graph
 from .models.catalog import MODELS
-from .models.library import bundled_fmu_path, default_fmu_dir, is_current
+from .models.library import (bundled_fmu_path, bundled_spec, default_fmu_dir, fmi3_dir,
+                             is_current, is_current3)
 from .models.topology import Topology, topology
 from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines
 from .report.truth import Truth
@@ -104,11 +105,15 @@ def _read(path: str | Path | dict, parameters: dict | None) -> tuple[Scenario | 
 def build_bundled(scenario: Scenario, fmu_dir: Path | None = None) -> None:
     """Build the bundled FMUs the scenario names that are missing or stale."""
     from .models.build import build_fmu     # startup: pythonfmu, only when building
+    from .models.build3 import build_fmu3
     fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
     for comp in scenario.components:
-        if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):
+        name, fmi3 = bundled_spec(comp.fmu)         # fmi3/<Model>: its FMI 3.0 FMU
+        folder = fmi3_dir(fmu_dir) if fmi3 else fmu_dir
+        current = is_current3 if fmi3 else is_current
+        if name in MODELS and not current(name, bundled_fmu_path(name, folder)):
             try:
-                build_fmu(comp.fmu, fmu_dir)
+                (build_fmu3 if fmi3 else build_fmu)(name, folder)
             except Exception as err:  # the build is ours; report it with the place
                 raise ScenarioError([Problem(scenario.label, f"{comp.place}.fmu",
                                              f"building the bundled FMU {comp.fmu} into "

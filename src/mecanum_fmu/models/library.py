@@ -124,19 +124,35 @@ def stale_warning(spec: str, fmu_dir: Path) -> str | None:
     if spec in MODELS and not is_current(spec, bundled_fmu_path(spec, fmu_dir)):
         return (f"the bundled FMU {spec} in {fmu_dir} is out of date (built from other "
                 "sources); `run` and `python -m mecanum_fmu fmus` rebuild it")
+    name, fmi3 = bundled_spec(spec)
+    if fmi3 and name in MODELS and not is_current3(name, bundled_fmu_path(name, fmi3_dir(fmu_dir))):
+        return (f"the bundled FMU {spec} in {fmi3_dir(fmu_dir)} is out of date (built from "
+                "other sources); `python -m mecanum_fmu fmus` rebuilds it")
     return None
 
 
 FMI3_PREFIX = "fmi3/"       # `fmu: fmi3/Center2Wheel`: the bundled model's FMI 3.0 FMU
 
 
+def bundled_spec(spec: str) -> tuple[str, bool]:
+    """(the model name a component's `fmu:` may name, whether it asks for FMI 3.0)."""
+    if spec.startswith(FMI3_PREFIX):
+        return spec[len(FMI3_PREFIX):], True
+    return spec, False
+
+
+def is_current3(model_name: str, fmu_path: Path) -> bool:
+    """is_current for the model's FMI 3.0 FMU."""
+    return fmu_guid(fmu_path) == fmi3_slave_source(model_name).guid
+
+
 def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
     """A bundled model name -> its FMU in fmu_dir (fmi3/<name>: in fmi3_dir); otherwise a path relative to the scenario
     file. Never builds (an out-of-date bundled FMU is still returned: see stale_warning).
     Raises ValueError with a user-facing reason."""
-    bundled = spec[len(FMI3_PREFIX):] if spec.startswith(FMI3_PREFIX) else spec
+    bundled, fmi3 = bundled_spec(spec)
     if bundled in MODELS:       # Center2Wheel, or fmi3/Center2Wheel: its FMI 3.0 twin
-        folder = fmi3_dir(fmu_dir) if bundled != spec else fmu_dir
+        folder = fmi3_dir(fmu_dir) if fmi3 else fmu_dir
         path = bundled_fmu_path(bundled, folder)
         if not path.is_file():
             raise ValueError(f"the bundled FMU {spec} is not built in {folder}; build it "
