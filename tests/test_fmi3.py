@@ -26,7 +26,8 @@ from helpers import CHAIN_CONNECTIONS, ROOT, run_host_or_skip, tool_missing as m
     write_scenario
 from mecanum_fmu import master
 from mecanum_fmu.errors import ScenarioError
-from mecanum_fmu.interop.cross_check import CSV_TOLERANCE, compared_outputs, ours_jacobi
+from mecanum_fmu.interop.cross_check import CSV_TOLERANCE, compared_outputs, cross_check, \
+    ours_jacobi
 from mecanum_fmu.interop.ssp_write import export_ssp
 from mecanum_fmu.runner import prepare, run
 from test_no_preload import _hidden, _python_places
@@ -258,3 +259,13 @@ def test_the_estimate_and_tolerance_are_the_same_with_fmi3_components(
     assert isinstance(plain["error_estimate"]["pose.x"]["end"], float)
     assert mixed.get("steps_taken") == plain.get("steps_taken")
     assert mixed["end_pose"] == plain["end_pose"]
+
+
+def test_cross_check_says_libcosim_cannot_load_fmi3(fmu_dir, fmi3_fmus):
+    """libcosimpy 0.0.6 fails on an SSP with an FMI 3.0 FMU with a bare assertion; the row
+    says why instead, and names the FMI 3.0 components."""
+    graph = prepare(ROOT / "scenarios" / "fmi3" / "circle_mixed.yaml", master_name="jacobi",
+                    fmu_dir=fmu_dir)
+    row = cross_check(graph, hosts=("libcosim",)).rows[0]
+    assert row.run is None and not row.missing
+    assert "cannot load FMI 3.0 FMUs and 'c2w', 'pose' are FMI 3.0" in row.problem
