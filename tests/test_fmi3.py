@@ -30,7 +30,7 @@ from mecanum_fmu.interop.cross_check import CSV_TOLERANCE, compared_outputs, cro
     ours_jacobi
 from mecanum_fmu.interop.ssp_write import export_ssp
 from mecanum_fmu.runner import prepare, run
-from test_no_preload import _hidden, _python_places
+from test_no_preload import PYTHONS, _hidden, _python_places
 
 AGREE = 1e-12
 CHAIN = """\
@@ -269,3 +269,49 @@ def test_cross_check_says_libcosim_cannot_load_fmi3(fmu_dir, fmi3_fmus):
     row = cross_check(graph, hosts=("libcosim",)).rows[0]
     assert row.run is None and not row.missing
     assert "cannot load FMI 3.0 FMUs and 'c2w', 'pose' are FMI 3.0" in row.problem
+
+
+HOST3 = r'''
+import ctypes, os, sys, zipfile, tempfile
+fmu, token = sys.argv[1:3]
+folder = tempfile.mkdtemp(dir=os.environ.get("TMPDIR"))
+zipfile.ZipFile(fmu).extractall(folder)
+lib = ctypes.CDLL(os.path.join(folder, "binaries", "x86_64-linux", "PoseIntegrator.so"))
+LOG = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
+messages = []
+log = LOG(lambda env, status, category, message: messages.append(message.decode()))
+f = lib.fmi3InstantiateCoSimulation
+f.restype = ctypes.c_void_p
+f.argtypes = [ctypes.c_char_p] * 3 + [ctypes.c_bool] * 4 + [ctypes.c_void_p, ctypes.c_size_t,
+                                                           ctypes.c_void_p, LOG, ctypes.c_void_p]
+c = f(b"pose", token.encode(), (folder + "/resources/").encode(), 0, 1, 0, 0, None, 0, None,
+      log, None)
+if c:
+    lib.fmi3FreeInstance(ctypes.c_void_p(c))
+print("RAN" if c else "REFUSED", " | ".join(messages))
+'''
+
+
+@pytest.mark.parametrize("host", sorted(PYTHONS))
+def test_a_python_host_runs_the_fmi3_fmu_or_refuses_it_clearly(fmi3_fmus, tmp_path, host):
+    """As for FMI 2.0: a Python 3.11 host runs it in its own interpreter (its ctypes' libffi
+    serves); another version gets the loader's message through fmi3's log callback and NULL."""
+    python = PYTHONS[host]
+    if not python.is_file():
+        missing(f"{python} not installed")
+    md = read_model_description(str(fmi3_fmus["PoseIntegrator"]))
+    script = tmp_path / "host3.py"
+    script.write_text(HOST3)
+    proc = subprocess.run([str(python), "-I", str(script), str(fmi3_fmus["PoseIntegrator"]),
+                           md.guid], capture_output=True, text=True, timeout=120,
+                          env={"PATH": "/usr/bin:/bin", "TMPDIR": str(tmp_path)})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    version = subprocess.run([str(python), "-c", "import sys; print(sys.version_info[:2])"],
+                             capture_output=True, text=True).stdout.strip()
+    if version == "(3, 11)":
+        assert proc.stdout.startswith("RAN"), proc.stdout
+    else:
+        running = version[1:-1].replace(", ", ".")
+        assert proc.stdout.startswith("REFUSED"), proc.stdout
+        assert f"bundles Python 3.11, but the process already runs Python {running}." \
+            in proc.stdout, proc.stdout
