@@ -315,3 +315,18 @@ def test_a_python_host_runs_the_fmi3_fmu_or_refuses_it_clearly(fmi3_fmus, tmp_pa
         assert proc.stdout.startswith("REFUSED"), proc.stdout
         assert f"bundles Python 3.11, but the process already runs Python {running}." \
             in proc.stdout, proc.stdout
+
+
+def test_a_failure_names_the_fmi3_function(fmu_dir, fmi3_fmus):
+    """The stepping code names FMI 2.0 functions; a failure of an FMI 3.0 instance says its
+    own (fmi3GetFMUState, not fmi2GetFMUstate)."""
+    from mecanum_fmu.master.instance import RunningInstance
+    graph = prepare(ROOT / "scenarios" / "fmi3" / "circle_mixed.yaml", fmu_dir=fmu_dir)
+    names = {}
+    for name in ("c2w", "w2c"):
+        r = RunningInstance(graph.instance(name))
+        names[name] = [r.function_name(f) for f in ("fmi2GetFMUstate", "fmi2SetFMUstate",
+                                                     "fmi2FreeFMUstate", "get")]
+        r.free()
+    assert names["c2w"] == ["fmi3GetFMUState", "fmi3SetFMUState", "fmi3FreeFMUState", "get"]
+    assert names["w2c"] == ["fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "get"]

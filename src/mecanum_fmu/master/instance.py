@@ -95,6 +95,13 @@ class RunningInstance:
         self.reads: list = []     # (c_get, vrs, n, pointer), filled by the plan
         self.writes: list = []    # (fill, c_set, vrs, n, pointer)
 
+    def function_name(self, name: str) -> str:
+        """This instance's name for an FMI 2.0 function the stepping code names in a failure
+        (fmi2SetFMUstate is fmi3SetFMUState for an FMI 3.0 FMU)."""
+        if self.fmi3:
+            return dict(zip(_NAMES2.values(), _NAMES3.values())).get(name, name)
+        return name
+
     @property
     def can_roll_back(self) -> bool:
         """It says it can get and set its state, and has the functions to."""
