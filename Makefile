@@ -36,4 +36,4 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 clean:
-	rm -rf fmus/*.fmu results build src/*.egg-info
+	rm -rf fmus/*.fmu fmus/fmi3 results build src/*.egg-info

@@ -95,6 +95,17 @@ def fmu_dir():
 
 
 @pytest.fixture(scope="session")
+def fmi3_fmus(fmu_dir):
+    """modelName -> Path of its FMI 3.0 FMU, built once into fmu_dir/fmi3/ (a scenario's
+    `fmu: fmi3/<Model>`)."""
+    from mecanum_fmu.models.build3 import build_all3
+
+    paths = [Path(p) for p in build_all3(fmu_dir)]
+    assert sorted(p.stem for p in paths) == sorted(MODEL_NAMES)
+    return {p.stem: p for p in paths}
+
+
+@pytest.fixture(scope="session")
 def built_fmus(fmu_dir):
     """modelName -> Path of the freshly built FMU."""
     return {name: fmu_dir / f"{name}.fmu" for name in MODEL_NAMES}

@@ -270,10 +270,13 @@ def cmd_validate(args) -> int:
 
 def cmd_fmus(args) -> int:
     from .models.build import build_all
+    from .models.build3 import build_all3
     from .models.library import default_fmu_dir
-    build_all(args.dest or default_fmu_dir(), only_stale=not args.force,
-              report=lambda path, state: print(f"{path}  ({path.stat().st_size // 1024} KiB, "
-                                               f"{state})"))
+
+    def report(path, state):
+        print(f"{path}  ({path.stat().st_size // 1024} KiB, {state})")
+    build_all(args.dest or default_fmu_dir(), only_stale=not args.force, report=report)
+    build_all3(args.dest or default_fmu_dir(), only_stale=not args.force, report=report)  # fmi3/
     from .models.embed import summary
     print(summary() + " (details: python -m mecanum_fmu doctor, docs/other-tools.md)")
     return 0

@@ -87,8 +87,27 @@ class Graph:
         return found[0] if len(found) == 1 else None
 
 
+# FMI 3.0 types the master's kinds hold exactly (Float64 is FMI 2.0's Real, Int32 its Integer)
+_FMI3_KINDS = {"Float64": "Real", "Int32": "Integer"}
+
+
 def port_type(var: ScalarVariable) -> str:
-    return "Integer" if var.type == "Enumeration" else var.type
+    """The master's kind of a variable: Real, Integer, Boolean or String (FMI 2.0 and 3.0);
+    anything else (an FMI 3.0 array, Float32, Int64, ...) is its FMI type, and refused."""
+    if getattr(var, "dimensions", None):
+        return type_text(var)
+    if var.type == "Enumeration":
+        return "Integer"
+    return _FMI3_KINDS.get(var.type, var.type)
+
+
+def type_text(var: ScalarVariable) -> str:
+    """The variable's type for a message: Float64, or e.g. 'a Float64 array [4]'."""
+    dims = getattr(var, "dimensions", None)
+    if not dims:
+        return var.type
+    sizes = ", ".join(str(d.start) if d.start is not None else "?" for d in dims)
+    return f"a {var.type} array [{sizes}]"
 
 
 def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
@@ -278,12 +297,17 @@ class _Checker:
         for ref, place in self.scenario.outputs:
             var = self.lookup(ref, place)
             if var is not None and port_type(var) not in VALUE_TYPES:
-                self.bad(place, f"'{ref}' is {var.type}: only Real, Integer and Boolean "
-                                "variables are recorded")
+                self.bad(place, f"'{ref}' is {type_text(var)}: only Real, Integer and "
+                                "Boolean variables are recorded (FMI 3.0: Float64, Int32)"
+                                + _ARRAY_HINT * bool(getattr(var, "dimensions", None)))
             elif var is not None and ref not in seen:
                 seen.add(ref)
                 recorded.append(_port(ref, var))
         return recorded
+
+
+_ARRAY_HINT = ("; this master moves scalars: use the array's scalar variables (e.g. "
+               "w1..w4 for wheel_speeds)")
 
 
 def _clip(text: str, limit: int = 80) -> str:
@@ -302,12 +326,15 @@ def _connection_problems(conn, src: ScalarVariable, dst: ScalarVariable,
             article = "an" if var.causality[0] in "aeiou" else "a"
             problems.append(f"'{ref}' is {article} {var.causality}, not an {wanted}: a "
                             "connection goes [from output, to input]")
+    arrays = any(getattr(v, "dimensions", None) for v in (src, dst))
     if port_type(src) != port_type(dst):
-        problems.append(f"type mismatch: '{conn.source}' is {src.type}, "
-                        f"'{conn.target}' is {dst.type}")
+        problems.append(f"type mismatch: '{conn.source}' is {type_text(src)}, "
+                        f"'{conn.target}' is {type_text(dst)}" + _ARRAY_HINT * arrays)
     elif port_type(src) not in VALUE_TYPES:
-        problems.append(f"'{conn.source}' is {src.type}: connections carry Real, Integer "
-                        "and Boolean values (set a String once as a parameter instead)")
+        problems.append(f"'{conn.source}' is {type_text(src)}: connections carry Real, "
+                        "Integer and Boolean values (FMI 3.0: Float64, Int32)"
+                        + (_ARRAY_HINT if arrays else
+                           " (set a String once as a parameter instead)"))
     if conn.target in drivers:
         problems.append(f"input '{conn.target}' already has a driver "
                         f"({drivers[conn.target]}); an input takes one connection")

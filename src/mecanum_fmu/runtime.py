@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
+from fmpy.fmi3 import fmi3LogMessageCallback
 
 from .archive import extract_all
 
@@ -58,6 +59,10 @@ class Runtime:
         self._logs: dict[int, InstanceLog] = {}
         self._next_key = 1
         self._logger = fmi2CallbackLoggerTYPE(self._on_log)
+        # FMI 3.0 (master/fmi3.py): the same log, reached through the instance environment
+        self.logger3 = fmi3LogMessageCallback(
+            lambda env, status, category, message: self._on_log(env, None, status, category,
+                                                                message))
 
     # -- extraction ---------------------------------------------------------------------------
     def extracted(self, path: Path | str) -> str:
@@ -144,7 +149,8 @@ class Runtime:
         for pool in self._pool.values():
             while pool:
                 kept = pool.pop()
-                kept.fmu._functions["fmi2FreeInstance"](kept.component)
+                functions = kept.fmu._functions
+                functions.get("fmi2FreeInstance", functions.get("fmi3FreeInstance"))(kept.component)
                 self.forget_log(kept.log)
                 freed += 1
         return freed

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from .. import __version__, master
 from ..errors import Problem, ScenarioError
-from ..graph import Graph
+from ..graph import Graph, port_type
 from ..masters import ZOH_HOST
 from .other_hosts import HOSTS, HostFailed, HostRun, HostUnavailable, run_host
 from .ssp_write import export_ssp
@@ -33,6 +33,8 @@ from .ssp_write import export_ssp
 TOLERANCE = 1e-9
 CSV_TOLERANCE = 1e-6        # ecos-cli: its CSV rounds to 6 decimals (one unit of the last)
 HOST_TOLERANCE = {"ecos-cli": CSV_TOLERANCE}
+# libcosimpy 0.0.6 cannot create an execution from an SSP with an FMI 3.0 FMU (measured)
+FMI2_ONLY = ("libcosim",)
 
 
 def compared_outputs(graph: Graph) -> list[str]:
@@ -41,7 +43,8 @@ def compared_outputs(graph: Graph) -> list[str]:
     for inst in graph.instances:
         declared = {u.variable.name: u.dependencies for u in inst.model.outputs}
         for var in inst.model.modelVariables:
-            if var.causality == "output" and var.type == "Real" and declared.get(var.name) == []:
+            if var.causality == "output" and port_type(var) == "Real" \
+                    and declared.get(var.name) == []:
                 names.append(f"{inst.name}.{var.name}")
     return names
 
@@ -126,8 +129,15 @@ def cross_check(graph: Graph, hosts: tuple[str, ...] | list[str] = HOSTS,
         ssp = export_ssp(graph, Path(workdir or tmp) / f"{graph.scenario.name}.ssp")
         ours = ours_jacobi(graph, names)
         rows = []
+        fmi3 = [i.name for i in graph.instances if i.model.fmiVersion.startswith("3.")]
         for host in hosts:
             tolerance = HOST_TOLERANCE.get(host, TOLERANCE)
+            if host in FMI2_ONLY and fmi3:
+                verb = "is" if len(fmi3) == 1 else "are"
+                rows.append(Row(host, None, None, tolerance, f"{host} cannot load FMI 3.0 "
+                                f"FMUs and {', '.join(map(repr, fmi3))} {verb} FMI 3.0 (use "
+                                "the FMI 2.0 twins, `fmu: <Model>`, for this host)"))
+                continue
             try:
                 run = run_host(host, ssp, start=exp.start_time, stop=exp.stop_time,
                                step=exp.step_size, variables=names)

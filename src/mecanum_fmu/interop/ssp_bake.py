@@ -11,6 +11,7 @@ scenario's values:
     __init__, set those values through the variables' setters - what fmi2SetString would do -
     so the slave starts with them even when nobody calls fmi2SetString.
 
+FMI 3.0 FMUs (pythonfmu3) are baked the same way, in their own model description's terms.
 Everything else (binaries, the bundled Python, pythonfmu's runtime) is copied byte for byte. One FMU per distinct set
 of values, named `<Model>_<first 12 hex digits of its sha256>.fmu`: deterministic, so two
 exports of one scenario are identical and two components with the same values share a file.
@@ -34,7 +35,7 @@ _PATCH = '''
 
 {mark}
 def _mecanum_fmu_bake(values):
-    from pythonfmu import Fmi2Slave
+    {base}
     for cls in [c for c in list(globals().values()) if isinstance(c, type)
                 and issubclass(c, Fmi2Slave) and c.__module__ == __name__]:
         def __init__(self, _init=cls.__init__, **kwargs):
@@ -102,13 +103,26 @@ def bake(fmu: bytes, values: dict[str, str], reuse: Path | None = None) -> bytes
     entries["modelDescription.xml"] = _description(entries["modelDescription.xml"], values, tag)
     module = entries["resources/slavemodule.txt"].decode().strip()
     script = f"resources/{module}.py"
-    entries[script] = entries[script] + _PATCH.format(mark=_MARK, values=repr(values)).encode()
+    fmi3 = "resources/pythonfmu3/__init__.py" in entries      # an FMI 3.0 FMU (pythonfmu3)
+    base = ("from pythonfmu3 import Fmi3Slave as Fmi2Slave" if fmi3 else
+            "from pythonfmu import Fmi2Slave")
+    entries[script] = entries[script] + _PATCH.format(mark=_MARK, values=repr(values),
+                                                      base=base).encode()
     return zip_bytes(entries, compresslevel=9, reuse=reuse)
 
 
 def _description(xml: bytes, values: dict[str, str], tag: str) -> bytes:
     root = ET.fromstring(xml)
-    root.set("guid", "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "mecanum_fmu-baked:" + tag)) + "}")
+    guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "mecanum_fmu-baked:" + tag)) + "}"
+    if root.get("fmiVersion", "").startswith("3."):     # <String name=..><Start value=../>
+        root.set("instantiationToken", guid)
+        for sv in root.find("ModelVariables").iter("String"):
+            if sv.get("name") in values:
+                start = sv.find("Start")
+                start = ET.SubElement(sv, "Start") if start is None else start
+                start.set("value", values[sv.get("name")])
+    else:
+        root.set("guid", guid)
     for sv in root.iter("ScalarVariable"):
         string = sv.find("String")
         if string is not None and sv.get("name") in values:

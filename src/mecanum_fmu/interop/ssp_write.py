@@ -75,7 +75,8 @@ def build_ssd(graph, sources: dict[str, str], strings_in_fmu: set[str] = frozens
 def _connectors(node, inst, skip: set[str]) -> None:
     connectors = ET.SubElement(node, q("ssd", "Connectors"))
     for var in inst.model.modelVariables:
-        if var.causality not in ("input", "output", "parameter") or var.name in skip:
+        if var.causality not in ("input", "output", "parameter") or var.name in skip \
+                or getattr(var, "dimensions", None):     # an FMI 3.0 array: SSP 1.0 has none
             continue
         conn = ET.SubElement(connectors, q("ssd", "Connector"),
                              {"name": var.name, "kind": var.causality})

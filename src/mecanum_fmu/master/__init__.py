@@ -118,7 +118,7 @@ def _run_loop(recorder: Recorder, ctrl_c, buffers: Buffers, stepper: Callable[[]
         if not np.isfinite(buffers.real).all():   # the cause: a value that went non-finite
             err.running.mark_failed(err.status)
             raise _not_finite(buffers, err.end, recorder, then=(
-                f"; then {err.running.name}'s {err.function} returned "
+                f"; then {err.running.name}'s {err.running.function_name(err.function)} returned "
                 f"{STATUS.get(err.status, err.status)}")) from None
         raise _failure(err.running, err.function, err.status, err.time, recorder) from None
     except NonFinite as err:
@@ -152,7 +152,7 @@ def _failure(r: RunningInstance, function: str, status: int, when: float,
     r.mark_failed(status)
     said = r.log.last()
     return SimulationError(
-        f"{function} returned {STATUS.get(status, status)}"
+        f"{r.function_name(function)} returned {STATUS.get(status, status)}"
         + (f" (FMU says: {said})" if said else ""),
         component=r.name, time=when, status=STATUS.get(status, str(status)),
         results=recorder.results(False))

@@ -1,4 +1,7 @@
-"""One running FMU instance: the fmpy object, its raw C functions and its status rules."""
+"""One running FMU instance: the fmpy object, its raw C functions and its status rules.
+
+FMI 2.0 and 3.0 alike (the version is the model description's): an FMI 3.0 FMU is reached
+through master/fmi3.py, so that the stepping code calls the same attributes for both."""
 from __future__ import annotations
 
 import ctypes
@@ -9,6 +12,7 @@ from fmpy.fmi2 import FMU2Slave
 from ..errors import Problem, ScenarioError
 from ..graph import Instance, Port
 from ..runtime import RUNTIME, STATUS, Kept
+from . import fmi3
 
 _fmi2Terminated = 3    # fmi2StatusKind
 
@@ -34,6 +38,14 @@ def load_error(inst: Instance, what: str, err: BaseException, folder: str = "") 
                                   f"the FMU of component '{inst.name}' {what}: {reason}; {fix}")])
 
 
+_NAMES2 = {"reset": "fmi2Reset", "free": "fmi2FreeInstance", "terminate": "fmi2Terminate",
+           "get_state": "fmi2GetFMUstate", "set_state": "fmi2SetFMUstate",
+           "free_state": "fmi2FreeFMUstate"}
+_NAMES3 = {"reset": "fmi3Reset", "free": "fmi3FreeInstance", "terminate": "fmi3Terminate",
+           "get_state": "fmi3GetFMUState", "set_state": "fmi3SetFMUState",
+           "free_state": "fmi3FreeFMUState"}
+
+
 class RunningInstance:
     """An instance taken from the runtime's pool (reset) or instantiated afresh, and handed
     back (or freed) by free(). Transfers are filled in by the plan."""
@@ -51,7 +63,8 @@ class RunningInstance:
         if kept is None:
             cwd = os.getcwd()      # fmpy changes into the binary's folder to load it and
             try:                   # does not change back when the load fails
-                self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                slave = fmi3.Fmu3 if md.fmiVersion.startswith("3.") else FMU2Slave
+                self.fmu = slave(guid=md.guid, unzipDirectory=unzipped,
                                      modelIdentifier=md.coSimulation.modelIdentifier,
                                      instanceName=inst.name)
             except Exception as err:     # no or a broken binary, missing FMI functions
@@ -61,20 +74,33 @@ class RunningInstance:
         else:
             self.fmu, self.component, self.log = kept.fmu, kept.component, kept.log
         f = self.fmu._functions
-        self.c_get = {"Real": f["fmi2GetReal"], "Integer": f["fmi2GetInteger"],
-                      "Boolean": f["fmi2GetBoolean"]}
-        self.c_set = {"Real": f["fmi2SetReal"], "Integer": f["fmi2SetInteger"],
-                      "Boolean": f["fmi2SetBoolean"]}
-        self.c_do_step = f["fmi2DoStep"]
+        self.fmi3 = isinstance(self.fmu, fmi3.Fmu3)
+        self.names = _NAMES3 if self.fmi3 else _NAMES2    # the FMI functions, by what they do
+        if self.fmi3:
+            self.c_get, self.c_set, self.c_do_step = fmi3.raw_calls(f)
+        else:
+            self.c_get = {"Real": f["fmi2GetReal"], "Integer": f["fmi2GetInteger"],
+                          "Boolean": f["fmi2GetBoolean"]}
+            self.c_set = {"Real": f["fmi2SetReal"], "Integer": f["fmi2SetInteger"],
+                          "Boolean": f["fmi2SetBoolean"]}
+            self.c_do_step = f["fmi2DoStep"]
         # fmi2GetFMUstate/SetFMUstate/FreeFMUstate: the quadratic master's rollback
         self.c_get_state, self.c_set_state, self.c_free_state = (
-            f.get("fmi2GetFMUstate"), f.get("fmi2SetFMUstate"), f.get("fmi2FreeFMUstate"))
+            f.get(self.names["get_state"]), f.get(self.names["set_state"]),
+            f.get(self.names["free_state"]))
         self.state = ctypes.c_void_p()
         self.state_ref = ctypes.byref(self.state)
         self.broken = 0       # worst status returned: Error (3) or Fatal (4) limit what may follow
         self.failed = False   # returned Discard or worse: freed, never kept
         self.reads: list = []     # (c_get, vrs, n, pointer), filled by the plan
         self.writes: list = []    # (fill, c_set, vrs, n, pointer)
+
+    def function_name(self, name: str) -> str:
+        """This instance's name for an FMI 2.0 function the stepping code names in a failure
+        (fmi2SetFMUstate is fmi3SetFMUState for an FMI 3.0 FMU)."""
+        if self.fmi3:
+            return dict(zip(_NAMES2.values(), _NAMES3.values())).get(name, name)
+        return name
 
     @property
     def can_roll_back(self) -> bool:
@@ -92,11 +118,11 @@ class RunningInstance:
 
     def instantiate(self) -> None:
         if self.component is not None:           # kept: back to just instantiated
-            status = self.fmu._functions["fmi2Reset"](self.component)
+            status = self.fmu._functions[self.names["reset"]](self.component)
             if status <= 1:
                 return
             if status < 4:
-                self.fmu._functions["fmi2FreeInstance"](self.component)
+                self.fmu._functions[self.names["free"]](self.component)
             self.component = None
         # loggingOn: pythonfmu drops every message otherwise, errors included; the log keeps
         # the last few so that a failure can quote the FMU's own reason.
@@ -111,7 +137,7 @@ class RunningInstance:
     def terminate(self) -> None:
         # FMI 2.0: after Error an instance may only be freed; after Fatal, not even that.
         if self.component is not None and not self.broken:
-            self.fmu._functions["fmi2Terminate"](self.component)
+            self.fmu._functions[self.names["terminate"]](self.component)
 
     def free(self) -> None:
         """Back to the pool if it ended cleanly, else fmi2FreeInstance only: the library is
@@ -122,12 +148,15 @@ class RunningInstance:
         if not self.failed and RUNTIME.keep(self.key, Kept(self.fmu, self.component, self.log)):
             pass
         elif self.broken < 4:
-            self.fmu._functions["fmi2FreeInstance"](self.component)
+            self.fmu._functions[self.names["free"]](self.component)
             RUNTIME.forget_log(self.log)
         self.component = None
 
     def step_failure(self) -> str:
         """Name the failed step; 'terminated early' only when the FMU itself says so."""
+        if self.fmi3:       # fmi3DoStep's own terminateSimulation flag
+            early = " (the FMU terminated early)" if self.c_do_step.terminated() else ""
+            return "fmi3DoStep" + early
         terminated = ctypes.c_int(0)
         try:
             status = self.fmu._functions["fmi2GetBooleanStatus"](

@@ -1,6 +1,7 @@
 """The Python runtime each FMU carries, so it runs on a Linux x86_64 machine without Python.
 
-`make fmus` turns pythonfmu's FMU into a self-contained one:
+`make fmus` turns pythonfmu's FMU into a self-contained one (and pythonfmu3's FMI 3.0 FMU, with
+binaries/x86_64-linux/ for binaries/linux64/ and the loader compiled with -DLOADER_FMI3):
 
   binaries/linux64/<Model>.so            the loader (models/loader/loader.c, compiled here)
   binaries/linux64/<Model>.pythonfmu.so  pythonfmu's export library, as pythonfmu built it
@@ -43,7 +44,7 @@ from ..storage import cache_root, zip_bytes
 from .link import BINARY_DIR, binary_needs, find_libpython
 
 LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "loader.c"
-LOADER_SOURCES = (LOADER_SOURCE, LOADER_SOURCE.with_name("bundle_check.h"))
+BINARY_DIR3 = "binaries/x86_64-linux/"     # FMI 3.0's platform folder
 REAL_SUFFIX = ".pythonfmu.so"           # the loader's REAL_SUFFIX
 HOME = "resources/python/"
 MANIFEST = HOME + "MANIFEST"            # the loader's MANIFEST
@@ -51,6 +52,9 @@ MANIFEST = HOME + "MANIFEST"            # the loader's MANIFEST
 # libz.so.1 (binascii needs it; a "required" package on Debian/Ubuntu, in every base image).
 TARGET_LIBS = {"libc.so.6", "libm.so.6", "libpthread.so.0", "libdl.so.2", "librt.so.1",
                "libutil.so.1", "libz.so.1"}
+# pythonfmu3 imports ctypes: its _ctypes needs libffi, which an FMI 3.0 FMU carries next to its
+# binary (the FMI 3.0 loader loads it before pythonfmu3's library, loader/fmi3_instantiate.h)
+SHIPPED_LIBS = {"pythonfmu3": ("libffi.so.8",), "pythonfmu": ()}
 
 
 class EmbedUnavailable(RuntimeError):
@@ -68,7 +72,8 @@ class Runtime:
     @property
     def tag(self) -> str:
         """What goes into the FMU's GUID digest: any change makes the FMUs stale."""
-        loader = hashlib.sha256(b"".join(p.read_bytes() for p in LOADER_SOURCES)).hexdigest()[:16]
+        sources = sorted(LOADER_SOURCE.parent.glob("*.[ch]"))     # loader.c and its FMI 3 parts
+        loader = _key(*(hashlib.sha256(p.read_bytes()).hexdigest() for p in sources))[:16]
         return f"self-contained Python {self.version} ({self.libpython}), loader {loader}"
 
 
@@ -118,22 +123,30 @@ def runtime() -> Runtime:
     return Runtime(lib.resolve(), soname, include, sys.version.split()[0])
 
 
-def embed_entries(entries: dict[str, bytes], identifier: str,
-                  rt: Runtime) -> tuple[dict[str, bytes], list[Path]]:
-    """pythonfmu's FMU members (name -> bytes) made self-contained (see the module doc), and
-    archives holding the runtime members already deflated (write_zip's reuse=)."""
+def embed_entries(entries: dict[str, bytes], identifier: str, rt: Runtime,
+                  fmi3: bool = False) -> tuple[dict[str, bytes], list[Path]]:
+    """pythonfmu's FMU members (name -> bytes), or pythonfmu3's with fmi3, made self-contained
+    (see the module doc), and archives holding the runtime members already deflated
+    (write_zip's reuse=)."""
     out = dict(entries)
-    binary = f"{BINARY_DIR}{identifier}.so"
-    out[f"{BINARY_DIR}{identifier}{REAL_SUFFIX}"] = out.pop(binary)
-    out[binary] = _cached(f"loader-{_key(rt.tag)}.so", lambda dest: _compile_loader(rt, dest))
-    python = {BINARY_DIR + rt.soname: _cached(
+    folder = BINARY_DIR3 if fmi3 else BINARY_DIR
+    binary = f"{folder}{identifier}.so"
+    out[f"{folder}{identifier}{REAL_SUFFIX}"] = out.pop(binary)
+    loader_key = _key(rt.tag, "fmi3") if fmi3 else _key(rt.tag)
+    out[binary] = _cached(f"loader-{loader_key}.so",
+                          lambda dest: _compile_loader(rt, dest, fmi3))
+    python = {folder + rt.soname: _cached(
         f"libpython-{_key(str(rt.libpython), _stat(rt.libpython))}.so",
         lambda dest: _strip(rt.libpython, dest))}
     stdlib = stdlib_members({n: d for n, d in entries.items() if n.startswith("resources/")})
+    for name in SHIPPED_LIBS["pythonfmu3" if fmi3 else "pythonfmu"]:
+        path = _loaded_library(name)
+        python[folder + name] = _cached(f"lib-{_key(str(path), _stat(path))}.so",
+                                        lambda dest, p=path: _strip(p, dest))
     out.update(python)
     out.update(stdlib)
     out[MANIFEST] = manifest({n: d for n, d in out.items() if n != binary
-                              and (n.startswith(BINARY_DIR) or n.startswith(HOME))})
+                              and (n.startswith(folder) or n.startswith(HOME))})
     return out, [_deflated(python), _deflated(stdlib)]     # the loader is small: deflated anew
 
 
@@ -175,17 +188,18 @@ def _deflated(members: dict[str, bytes]) -> Path:
 def stdlib_members(resources: dict[str, bytes]) -> dict[str, bytes]:
     """resources/python/... members for the slave among resources (FMU name -> bytes)."""
     module = resources["resources/slavemodule.txt"].decode().strip()
-    names = sorted(_import_names(resources[f"resources/{module}.py"]) | {"pythonfmu"})
-    runtime_files = {n: d for n, d in resources.items() if n.startswith("resources/pythonfmu/")}
+    package = "pythonfmu3" if "resources/pythonfmu3/__init__.py" in resources else "pythonfmu"
+    names = sorted(_import_names(resources[f"resources/{module}.py"]) | {package})
+    runtime_files = {n: d for n, d in resources.items() if n.startswith(f"resources/{package}/")}
     # what gets imported depends only on the names the script imports (its maths is inlined)
     # and pythonfmu's runtime: slaves that import the same names share one probe
-    key = _key(sys.version, *names, *(n + hashlib.sha256(d).hexdigest()
+    key = _key(sys.version, *names, *SHIPPED_LIBS[package], *(n + hashlib.sha256(d).hexdigest()
                                       for n, d in sorted(runtime_files.items())))
     cached = cache_root() / "runtime" / f"modules-{key}.json"
     if cached.is_file():
         files = json.loads(cached.read_text())
     else:
-        files = _imported_stdlib(runtime_files, names)
+        files = _imported_stdlib(runtime_files, names, SHIPPED_LIBS[package])
         _atomic_write(cached, json.dumps(files).encode())
     zip_key = _key(sys.version, json.dumps(files, sort_keys=True))     # one zip per module set
     members = {HOME + "stdlib.zip": _cached(f"stdlib-{zip_key}.zip",
@@ -222,7 +236,8 @@ print(json.dumps({n: getattr(m, "__file__", None) for n, m in sys.modules.items(
 """
 
 
-def _imported_stdlib(runtime_files: dict[str, bytes], names: list[str]) -> dict:
+def _imported_stdlib(runtime_files: dict[str, bytes], names: list[str],
+                     shipped: tuple[str, ...]) -> dict:
     """{"sources": [stdlib-relative .py paths], "extensions": [lib-dynload file names]}."""
     with tempfile.TemporaryDirectory(prefix="mecanum_fmu_probe_") as tmp:
         for name, data in runtime_files.items():
@@ -233,17 +248,17 @@ def _imported_stdlib(runtime_files: dict[str, bytes], names: list[str]) -> dict:
                                *names], capture_output=True, text=True, cwd=tmp, timeout=120)
     if proc.returncode != 0:
         raise EmbedUnavailable(f"cannot list the modules a slave imports: {proc.stderr[-1000:]}")
-    return _classify(json.loads(proc.stdout))
+    return _classify(json.loads(proc.stdout), shipped)
 
 
-def _classify(loaded: dict[str, str | None]) -> dict:
+def _classify(loaded: dict[str, str | None], shipped: tuple[str, ...] = ()) -> dict:
     stdlib = Path(sysconfig.get_path("stdlib")).resolve()
     dynload = Path(sysconfig.get_config_var("DESTSHARED") or stdlib / "lib-dynload").resolve()
     sources, extensions = set(), set()
     for file in filter(None, loaded.values()):
         path = Path(file).resolve()
         if path.parent == dynload:
-            if _bundleable(path):
+            if _bundleable(path, shipped):
                 extensions.add(path.name)
         elif path.is_relative_to(stdlib) and path.suffix == ".py" \
                 and "site-packages" not in path.parts:
@@ -252,10 +267,20 @@ def _classify(loaded: dict[str, str | None]) -> dict:
 
 
 @functools.cache
-def _bundleable(extension: Path) -> bool:
-    """An extension module that needs no library a target machine may lack."""
+def _bundleable(extension: Path, shipped: tuple[str, ...] = ()) -> bool:
+    """An extension module that needs no library a target machine may lack (or the FMU ships)."""
     needs = binary_needs(extension.read_bytes())
-    return needs is not None and set(needs.needed) <= TARGET_LIBS
+    return needs is not None and set(needs.needed) <= TARGET_LIBS | set(shipped)
+
+
+def _loaded_library(soname: str) -> Path:
+    """The file of a shared library this process has loaded (libffi: ctypes is imported)."""
+    import ctypes  # noqa: F401  (loads libffi)
+    for line in Path("/proc/self/maps").read_text().splitlines():
+        path = line.split()[-1]
+        if Path(path).name == soname or Path(path).name.startswith(soname + "."):
+            return Path(path).resolve()
+    raise EmbedUnavailable(f"{soname} not found in this process (install libffi)")
 
 
 # Run by `python -I -S` with PYTHONHASHSEED=0: compile each source to an unchecked hash-based
@@ -289,9 +314,10 @@ def _write_stdlib_zip(files: dict, dest: Path) -> None:
     dest.write_bytes(zip_bytes(members, stored=True))
 
 
-def _compile_loader(rt: Runtime, dest: Path) -> None:
+def _compile_loader(rt: Runtime, dest: Path, fmi3: bool = False) -> None:
     cmd = ["gcc", "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-Wall",
            "-Wno-format-truncation", f"-I{rt.include}", f'-DBUNDLED_LIBPYTHON="{rt.soname}"',
+           *(["-DLOADER_FMI3"] if fmi3 else []),
            str(LOADER_SOURCE), "-o", str(dest), "-lpthread", "-s"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:

@@ -26,6 +26,13 @@ MAX_DESCRIPTION_BYTES = 50_000_000      # modelDescription.xml, inflated
 # `from mecanum_fmu.models.slaves.X import ...  # inline` (what slaves share)
 _INLINE = re.compile(r"^from mecanum_fmu\.models\.(blocks|slaves)\.(\w+) import [\w, ]+# inline$",
                      re.MULTILINE)
+_PYTHONFMU_IMPORT = re.compile(r"^from pythonfmu(?:\.\w+)? import [\w, ]+\n", re.MULTILINE)
+# The end of an FMI 3.0 script: the model class that pythonfmu3 finds (slaves/fmi3.py)
+_FMI3_MODEL = '''
+
+class {name}(Fmi3Model, {name}, Fmi3Slave):
+    """{name} as an FMI 3.0 co-simulation FMU: the slave above on pythonfmu3."""
+'''
 
 
 def default_fmu_dir() -> Path:
@@ -43,11 +50,12 @@ class SlaveSource:
     model_name: str
     module_name: str      # top-level module name inside the FMU
     script: str           # self-contained script text
+    tool: str = "pythonfmu"     # or pythonfmu3: an FMI 3.0 FMU
 
     @property
     def digest(self) -> str:
         """Hash of everything that goes into the FMU: our script and pythonfmu's version."""
-        text = self.script + "\npythonfmu " + version("pythonfmu")
+        text = self.script + f"\n{self.tool} " + version(self.tool)
         bundled = runtime_or_none()    # the Python runtime the FMU carries (embed.py)
         if bundled is not None:
             text += "\n" + bundled.tag
@@ -73,6 +81,23 @@ def slave_source(model_name: str) -> SlaveSource:
     return SlaveSource(model_name, f"mecanum_fmu_{module}", script)
 
 
+def fmi3_slave_source(model_name: str) -> SlaveSource:
+    """The FMI 3.0 script of a bundled model: its FMI 2.0 script with slaves/fmi3.py in place
+    of the pythonfmu imports, and the model class pythonfmu3 finds at the end."""
+    script = slave_source(model_name).script
+    first = _PYTHONFMU_IMPORT.search(script)
+    adapter = (PACKAGE_DIR / "slaves" / "fmi3.py").read_text()
+    script = (script[:first.start()]
+              + f"# --- inlined from mecanum_fmu/models/slaves/fmi3.py ---\n{adapter}# --- end ---\n"
+              + _PYTHONFMU_IMPORT.sub("", script[first.start():]) + _FMI3_MODEL.format(name=model_name))
+    return SlaveSource(model_name, f"mecanum_fmu3_{MODELS[model_name].module}", script, "pythonfmu3")
+
+
+def fmi3_dir(fmu_dir: Path) -> Path:
+    """Where `make fmus` puts the FMI 3.0 FMUs: fmus/fmi3/ beside the FMI 2.0 ones."""
+    return Path(fmu_dir) / "fmi3"
+
+
 def bundled_fmu_path(model_name: str, fmu_dir: Path) -> Path:
     return Path(fmu_dir) / f"{model_name}.fmu"
 
@@ -84,13 +109,14 @@ def is_current(model_name: str, fmu_path: Path) -> bool:
 
 
 def fmu_guid(fmu_path: Path) -> str | None:
-    """The GUID an FMU's model description declares; None when it cannot be read."""
+    """The GUID (FMI 3.0: instantiation token) an FMU's model description declares; None
+    when it cannot be read."""
     try:
         with zipfile.ZipFile(fmu_path) as zf:
             root = ElementTree.fromstring(read_member(zf, "modelDescription.xml", MAX_DESCRIPTION_BYTES))
     except (ArchiveError, *ZIP_ERRORS, KeyError, ElementTree.ParseError):
         return None
-    return root.get("guid")
+    return root.get("guid") or root.get("instantiationToken")      # FMI 2.0, FMI 3.0
 
 
 def stale_warning(spec: str, fmu_dir: Path) -> str | None:
@@ -98,17 +124,38 @@ def stale_warning(spec: str, fmu_dir: Path) -> str | None:
     if spec in MODELS and not is_current(spec, bundled_fmu_path(spec, fmu_dir)):
         return (f"the bundled FMU {spec} in {fmu_dir} is out of date (built from other "
                 "sources); `run` and `python -m mecanum_fmu fmus` rebuild it")
+    name, fmi3 = bundled_spec(spec)
+    if fmi3 and name in MODELS and not is_current3(name, bundled_fmu_path(name, fmi3_dir(fmu_dir))):
+        return (f"the bundled FMU {spec} in {fmi3_dir(fmu_dir)} is out of date (built from "
+                "other sources); `python -m mecanum_fmu fmus` rebuilds it")
     return None
 
 
+FMI3_PREFIX = "fmi3/"       # `fmu: fmi3/Center2Wheel`: the bundled model's FMI 3.0 FMU
+
+
+def bundled_spec(spec: str) -> tuple[str, bool]:
+    """(the model name a component's `fmu:` may name, whether it asks for FMI 3.0)."""
+    if spec.startswith(FMI3_PREFIX):
+        return spec[len(FMI3_PREFIX):], True
+    return spec, False
+
+
+def is_current3(model_name: str, fmu_path: Path) -> bool:
+    """is_current for the model's FMI 3.0 FMU."""
+    return fmu_guid(fmu_path) == fmi3_slave_source(model_name).guid
+
+
 def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
-    """A bundled model name -> its FMU in fmu_dir; otherwise a path relative to the scenario
+    """A bundled model name -> its FMU in fmu_dir (fmi3/<name>: in fmi3_dir); otherwise a path relative to the scenario
     file. Never builds (an out-of-date bundled FMU is still returned: see stale_warning).
     Raises ValueError with a user-facing reason."""
-    if spec in MODELS:
-        path = bundled_fmu_path(spec, fmu_dir)
+    bundled, fmi3 = bundled_spec(spec)
+    if bundled in MODELS:       # Center2Wheel, or fmi3/Center2Wheel: its FMI 3.0 twin
+        folder = fmi3_dir(fmu_dir) if fmi3 else fmu_dir
+        path = bundled_fmu_path(bundled, folder)
         if not path.is_file():
-            raise ValueError(f"the bundled FMU {spec} is not built in {fmu_dir}; build it "
+            raise ValueError(f"the bundled FMU {spec} is not built in {folder}; build it "
                              "with `python -m mecanum_fmu fmus` (make fmus)")
         return path
     if "\0" in spec:
@@ -131,7 +178,8 @@ def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
 
 
 def read_description(path: Path) -> ModelDescription:
-    """Read and check that the FMU is FMI 2.0 co-simulation. Raises ValueError with the reason."""
+    """Read and check that the FMU is FMI 2.0 or 3.0 co-simulation. Raises ValueError with the
+    reason."""
     if not zipfile.is_zipfile(path):
         raise ValueError(f"{path.name} is not an FMU (an FMU is a zip archive)")
     try:
@@ -149,18 +197,18 @@ def read_description(path: Path) -> ModelDescription:
                          f"{infos['modelDescription.xml'].file_size} bytes (limit "
                          f"{MAX_DESCRIPTION_BYTES}); is this a real FMU?")
     version = _fmi_version(path)        # before fmpy: its FMI 1.0 reader fails on a bare file
-    if version is not None and version != "2.0":
-        raise ValueError(f"{path.name} is an FMI {version} FMU; this master runs FMI 2.0 "
-                         "co-simulation FMUs")
+    if version is not None and version != "2.0" and not version.startswith("3."):
+        raise ValueError(f"{path.name} is an FMI {version[:20]} FMU; this master runs FMI 2.0 "
+                         "and 3.0 co-simulation FMUs")
     try:
         md = read_model_description(str(path), validate=False)
     except ValueError:
         raise
     except Exception as err:
         raise ValueError(f"{path.name}: cannot read modelDescription.xml: {err}") from None
-    if md.fmiVersion != "2.0":
+    if md.fmiVersion != "2.0" and not md.fmiVersion.startswith("3."):
         raise ValueError(f"{path.name} is an FMI {md.fmiVersion} FMU; this master runs FMI 2.0 "
-                         "co-simulation FMUs")
+                         "and 3.0 co-simulation FMUs")
     if md.coSimulation is None:
         raise ValueError(f"{path.name} supports model exchange only; this master needs "
                          "a co-simulation FMU (export it for co-simulation)")
@@ -191,7 +239,8 @@ def loading_problem(path: Path, md: ModelDescription) -> str | None:
     FMU) its slave script missing - pythonfmu's fmi2Instantiate then crashes the process.
     Cheap: reads the member list and resources/slavemodule.txt only."""
     ident = md.coSimulation.modelIdentifier
-    member = f"binaries/{fmpy.platform}/{ident}{fmpy.sharedLibraryExtension}"
+    platform = fmpy.platform_tuple if md.fmiVersion.startswith("3.") else fmpy.platform
+    member = f"binaries/{platform}/{ident}{fmpy.sharedLibraryExtension}"
     try:
         with zipfile.ZipFile(path) as zf:
             names = set(zf.namelist())
@@ -203,7 +252,7 @@ def loading_problem(path: Path, md: ModelDescription) -> str | None:
                         if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[2]})
     return (f"{path.name} has no binary for this platform ({member}); it has "
             f"{', '.join(platforms) if platforms else 'no binaries at all'}; export the FMU "
-            f"for {fmpy.platform}")
+            f"for {platform}")
 
 
 def _fmi_version(path: Path) -> str | None:
@@ -236,13 +285,18 @@ def _slave_script_problem(path: Path, names: set[str], md: ModelDescription) -> 
 
 def build_bundled(scenario, fmu_dir: Path | None = None) -> None:
     """Build the bundled FMUs the scenario (a scenario.Scenario: .components, .label) names
-    that are missing or stale. Raises ScenarioError naming the component whose build failed."""
+    that are missing or stale (`fmi3/<Model>`: its FMI 3.0 twin in fmu_dir/fmi3). Raises
+    ScenarioError naming the component whose build failed."""
     from .build import build_fmu     # startup: pythonfmu, only when building
+    from .build3 import build_fmu3
     fmu_dir = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
     for comp in scenario.components:
-        if comp.fmu in MODELS and not is_current(comp.fmu, bundled_fmu_path(comp.fmu, fmu_dir)):
+        name, fmi3 = bundled_spec(comp.fmu)
+        folder = fmi3_dir(fmu_dir) if fmi3 else fmu_dir
+        current = is_current3 if fmi3 else is_current
+        if name in MODELS and not current(name, bundled_fmu_path(name, folder)):
             try:
-                build_fmu(comp.fmu, fmu_dir)
+                (build_fmu3 if fmi3 else build_fmu)(name, folder)
             except Exception as err:  # the build is ours; report it with the place
                 raise ScenarioError([Problem(scenario.label, f"{comp.place}.fmu",
                                              f"building the bundled FMU {comp.fmu} into "

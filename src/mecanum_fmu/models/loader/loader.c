@@ -16,6 +16,8 @@
  * fmi2Instantiate returns NULL with one message naming the file.
  * On the first fmi2Instantiate, pythonfmu's library (<Model>.pythonfmu.so, next to this file) is loaded and every fmi2
  * function jumps to it (signature-free trampolines, x86_64).
+ * Compiled with -DLOADER_FMI3 it is the same loader for pythonfmu3's FMI 3.0 library: its entry
+ * points are in fmi3_api.h and fmi3_instantiate.h, everything else is shared.
  */
 #define _GNU_SOURCE
 #define PY_SSIZE_T_CLEAN
@@ -40,7 +42,15 @@ __asm__(".symver dladdr,dladdr@GLIBC_2.2.5");
 #define MARKER "_mecanum_fmu_runtime"    /* sys attribute: an interpreter this loader started */
 #define EXPORT __attribute__((visibility("default")))
 #define MANIFEST "resources/python/MANIFEST"   /* models/embed.py writes it */
+#ifdef LOADER_FMI3
+#define PLATFORM_DIR "binaries/x86_64-linux/"   /* FMI 3.0's platform folder */
+#else
+#define PLATFORM_DIR "binaries/linux64/"
+#endif
 
+#ifdef LOADER_FMI3
+#include "fmi3_api.h"
+#else
 typedef void (*fmi2Logger)(void *, const char *, int, const char *, const char *, ...);
 typedef struct {
     fmi2Logger logger;
@@ -62,6 +72,8 @@ typedef void *(*instantiate_fn)(const char *, int, const char *, const char *,
     X(fmi2SetRealInputDerivatives) X(fmi2GetRealOutputDerivatives) X(fmi2DoStep) \
     X(fmi2CancelStep) X(fmi2GetStatus) X(fmi2GetRealStatus) X(fmi2GetIntegerStatus) \
     X(fmi2GetBooleanStatus) X(fmi2GetStringStatus)
+#define INSTANTIATE "fmi2Instantiate"
+#endif
 
 /* Until pythonfmu's library is loaded, every call fails with fmi2Error: a host that goes on
  * after fmi2Instantiate returned NULL (Ecos' `ecos` does) gets an error, not a jump to NULL.
@@ -83,8 +95,10 @@ static instantiate_fn real_instantiate;
 static char message[1024];          /* why loading failed (kept: every later call says it) */
 static char binaries[4096], model[1024];    /* this file's folder and model name */
 
+#ifndef LOADER_FMI3
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
+#endif
 
 static int fail(const char *format, ...)
 {
@@ -99,7 +113,7 @@ static int fail(const char *format, ...)
 static int own_place(char *folder, size_t size, char *name, size_t name_size)
 {
     Dl_info info;
-    if (!dladdr((void *)&fmi2GetVersion, &info) || !info.dli_fname)
+    if (!dladdr((void *)&own_place, &info) || !info.dli_fname)
         return fail("cannot find the FMU's own binary (dladdr)");
     snprintf(folder, size, "%s", info.dli_fname);
     char *slash = strrchr(folder, '/');
@@ -250,9 +264,9 @@ static int load_real(const char *folder, const char *identifier)
 #define RESOLVE(name) real_##name = dlsym(handle, #name);
     FORWARDED(PRESENT)              /* all or none: a trampoline never jumps to NULL */
     FORWARDED(RESOLVE)
-    real_instantiate = (instantiate_fn)dlsym(handle, "fmi2Instantiate");
+    real_instantiate = (instantiate_fn)dlsym(handle, INSTANTIATE);
     if (!real_instantiate)
-        return fail("fmi2Instantiate missing in %s", lib);
+        return fail(INSTANTIATE " missing in %s", lib);
     release_state = (void (*)(void))dlsym(handle, "finalizePythonInterpreter");
     if (release_state)
         atexit(release_at_exit);
@@ -283,7 +297,7 @@ static int check_files(void)
 {
     char root[4200], why[sizeof message - 200], real[1100];
     snprintf(root, sizeof root, "%s/../..", binaries);
-    snprintf(real, sizeof real, "binaries/linux64/%s" REAL_SUFFIX, model);
+    snprintf(real, sizeof real, PLATFORM_DIR "%s" REAL_SUFFIX, model);
     if (bundle_check(root, MANIFEST, host_python() ? real : NULL, why, sizeof why) == 0)
         return 0;
     return fail("the FMU %s is damaged: %s; nothing of it was loaded. Unpack it again or "
@@ -305,6 +319,9 @@ static int load(void)
     return load_real(binaries, model);
 }
 
+#ifdef LOADER_FMI3
+#include "fmi3_instantiate.h"
+#else
 EXPORT void *fmi2Instantiate(const char *name, int type, const char *guid, const char *resources,
                              const fmi2CallbackFunctions *functions, int visible, int logging)
 {
@@ -331,3 +348,4 @@ EXPORT void *fmi2Instantiate(const char *name, int type, const char *guid, const
     }
     return NULL;
 }
+#endif

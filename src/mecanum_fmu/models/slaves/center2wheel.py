@@ -22,6 +22,8 @@ class Center2Wheel(FeedthroughSlave):
              "w_max": "rad/s"}
     DEPENDENCIES = {name: _TWIST for name in _WHEELS}
     INITIAL_DEPENDENCIES = {name: _TWIST + _GEOMETRY + ("w_max",) for name in _WHEELS}
+    # FMI 3.0 only (slaves/fmi3.py): the four wheel speeds also as one array output
+    ARRAYS = {"wheel_speeds": (_WHEELS, "w1..w4 as one array (front-right, front-left, rear-left, rear-right)")}
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
 
     def __init__(self, **kwargs):

@@ -21,6 +21,8 @@ class OmniCenter2Wheel(FeedthroughSlave):
              "w3": "rad/s", "w4": "rad/s", "L": "m", "R": "m"}
     DEPENDENCIES = {name: _TWIST for name in _WHEELS}
     INITIAL_DEPENDENCIES = {name: _TWIST + _GEOMETRY for name in _WHEELS}
+    # FMI 3.0 only (slaves/fmi3.py): the four wheel speeds also as one array output
+    ARRAYS = {"wheel_speeds": (_WHEELS, "w1..w4 as one array (front-left, rear-left, rear-right, front-right)")}
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
 
     def __init__(self, **kwargs):

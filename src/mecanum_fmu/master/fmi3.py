@@ -1,0 +1,97 @@
+"""FMI 3.0 co-simulation FMUs under the FMI 2.0 calls the master makes.
+
+RunningInstance (instance.py) takes fmpy's FMU3Slave as Fmu3 below and the raw calls from
+raw_calls(), so the stepping code calls the same things for both versions: c_get[kind] and
+c_set[kind] (fn(component, vrs, n, pointer)), c_do_step (fn(component, t, h, flag)), the state
+functions, and the fmpy object's setupExperiment / enterInitializationMode / getReal / ...
+The master's kinds map to FMI 3.0 types: Real is Float64, Integer is Int32, Boolean is
+fmi3Boolean (one byte, copied to and from the master's int32 buffer).
+"""
+from __future__ import annotations
+
+import ctypes
+
+from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback
+
+from ..runtime import RUNTIME
+
+_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+
+
+class Fmu3(FMU3Slave):
+    """fmpy's FMI 3.0 slave with the FMI 2.0 names the master calls."""
+
+    _experiment = (None, 0.0, None)
+
+    def instantiate(self, callbacks=None, loggingOn=False, **_):
+        """Instantiate with our logger: the instance's log key as its environment."""
+        self.logMessage = RUNTIME.logger3
+        resources = (self.unzipDirectory.rstrip("/") + "/resources/").encode()
+        self.component = self.fmi3InstantiateCoSimulation(
+            self.instanceName.encode(), self.guid.encode(), resources, False, loggingOn,
+            False, False, None, 0, ctypes.c_void_p(callbacks.componentEnvironment),
+            self.logMessage, fmi3IntermediateUpdateCallback())
+        if not self.component:
+            raise Exception("Failed to instantiate FMU")
+
+    def setupExperiment(self, tolerance=None, startTime=0.0, stopTime=None):
+        self._experiment = (tolerance, startTime, stopTime)
+
+    def enterInitializationMode(self):
+        tolerance, start, stop = self._experiment
+        super().enterInitializationMode(tolerance=tolerance, startTime=start, stopTime=stop)
+
+    def getReal(self, vr):
+        return self.getFloat64(vr)
+
+    def getInteger(self, vr):
+        return self.getInt32(vr)
+
+    def setReal(self, vr, values):
+        self.setFloat64(vr, values)
+
+    def setInteger(self, vr, values):
+        self.setInt32(vr, values)
+
+
+def raw_calls(f: dict) -> tuple[dict, dict, object]:
+    """(c_get, c_set, c_do_step) over fmpy's FMI 3.0 function table f."""
+    c_get = {kind: _scalars(f[f"fmi3Get{t}"]) for kind, t in _TYPES.items()}
+    c_set = {kind: _scalars(f[f"fmi3Set{t}"]) for kind, t in _TYPES.items()}
+    c_get["Boolean"], c_set["Boolean"] = _get_booleans(f["fmi3GetBoolean"]), _set_booleans(
+        f["fmi3SetBoolean"])
+    return c_get, c_set, _do_step(f["fmi3DoStep"])
+
+
+def _scalars(function):
+    """fmi3Get/SetX take the number of values too: for scalars, the number of references."""
+    return lambda component, vrs, n, pointer: function(component, vrs, n, pointer, n)
+
+
+def _get_booleans(function):
+    def get(component, vrs, n, pointer):
+        values = (ctypes.c_bool * n)()
+        status = function(component, vrs, n, values, n)
+        for i in range(n):
+            pointer[i] = values[i]
+        return status
+    return get
+
+
+def _set_booleans(function):
+    def set_(component, vrs, n, pointer):
+        return function(component, vrs, n, (ctypes.c_bool * n)(*pointer[:n]), n)
+    return set_
+
+
+def _do_step(function):
+    """fmi3DoStep with its four out-arguments; the last call's terminate flag is kept."""
+    event, terminate, early, last = (ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(),
+                                     ctypes.c_double())
+    refs = (ctypes.byref(event), ctypes.byref(terminate), ctypes.byref(early),
+            ctypes.byref(last))
+
+    def do_step(component, t, h, no_prior):
+        return function(component, t, h, no_prior, *refs)
+    do_step.terminated = lambda: terminate.value
+    return do_step
