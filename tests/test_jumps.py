@@ -140,3 +140,7 @@ def test_cuts_on_either_side_of_a_grid_point():
     assert cut.inside[0] < before and cut.restart == (False, True)
     cut = step_cuts(np.array([after]), start, h, 10, 1.0)[3]
     assert cut.inside[-1] == after and cut.restart[-2:] == (True, False)
+    # a jump on the stop time that ends a short last step (1.0 -> 1.005): that step is cut
+    last = step_cuts(np.array([1.005]), 0.0, 0.01, 101, 1.005)
+    assert list(last) == [100] and last[100].restart == (False, True)
+    assert 1.0 < last[100].inside[0] < 1.005

@@ -39,26 +39,27 @@ def step_cuts(breaks: np.ndarray, start: float, h: float, n_steps: int, stop: fl
               ) -> dict[int, Cut]:
     """The steps to cut, by index, for breakpoints `breaks` (jumps, or any that may be one):
     a breakpoint b on a communication point t_j (within NEAR steps) is reached from the left
-    first. At or before t_j, the step that ends there is cut at b - delta: its first piece
-    ends on the left value, the short second one on t_j, after which the holds restart. Just
-    after t_j, the next step is cut at b - delta and at b, the holds restarting at b. A
-    breakpoint inside a step (off the grid) is left alone: O(h) for a fixed step."""
+    first. At or before the end of the step that ends on t_j (as stepping computes it:
+    t_j-1 + h, the last one stop), that step is cut at b - delta: its first piece ends on the
+    left value, the short second one on t_j, after which the holds restart. Just after it,
+    the next step is cut at b - delta and at b, the holds restarting at b. A breakpoint inside
+    a step (off the grid) is left alone: O(h) for a fixed step."""
     pieces: dict[int, dict[float, bool]] = {}
-    for b in np.unique(breaks[(breaks > start) & (breaks <= stop)]):
-        j = int(round((b - start) / h))
-        t_j = stop if j >= n_steps else start + j * h
-        if abs(b - t_j) > NEAR * h:
+    for b in (float(x) for x in np.unique(breaks[(breaks > start) & (breaks <= stop)])):
+        j = n_steps if abs(b - stop) <= NEAR * h else int(round((b - start) / h))
+        if j < 1 or abs(b - (stop if j >= n_steps else start + j * h)) > NEAR * h:
             continue
-        before = float(b - max(CUT * h, 64 * np.spacing(b)))
-        k, end = (j - 1, True) if b <= t_j else (j, False)
+        delta = max(CUT * h, 64 * float(np.spacing(b)))
+        end_before = stop if j >= n_steps else start + (j - 1) * h + h
+        k = j - 1 if b <= end_before else j
         t_k = start + k * h
         mine = pieces.setdefault(k, {})
-        if before > t_k:
-            mine.setdefault(before, False)
-        if end:
-            mine[np.inf] = True
-        elif float(b) > t_k:
-            mine[float(b)] = True
+        if b - delta > t_k:
+            mine.setdefault(b - delta, False)
+        if k == j - 1:
+            mine[np.inf] = True                 # the restart at the step's end
+        else:
+            mine[b if b > t_k else t_k + delta] = True
     return {k: _cut(p) for k, p in pieces.items()}
 
 
