@@ -160,14 +160,15 @@ class Listener:
 
 
 HTTP = b"HTTP/1.1 200 OK\r\nContent-Length: 2\r\n\r\nok"
-# an 8-byte length of 3 EiB first: what made Dask's client allocate that much
+# an 8-byte length of 3 EiB first: what made Dask's client allocate that much (random bytes:
+# the test ids name the cases, so that every xdist worker collects the same tests)
 GARBAGE = (3 << 60).to_bytes(8, "little") + os.urandom(64)
 
 
 @pytest.mark.parametrize("reply, needle", [
     (None, "did not answer within"), (GARBAGE, "is not a Dask scheduler"),
     (b"\x10" + bytes(7) + b"\x01" + bytes(7) + b"\x08" + bytes(7) + b"notdask!",
-     "is not a Dask scheduler")])
+     "is not a Dask scheduler")], ids=["silent", "garbage", "not a greeting"])
 def test_a_scheduler_address_where_something_else_answers_is_refused(tmp_path, capsys, fmu_dir,
                                                                     reply, needle, monkeypatch):
     """A silent listener; an HTTP server (it waits for a request: silent too); garbage bytes;
