@@ -57,6 +57,7 @@ SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
 FLOOR, SLOPE, LOCAL = 0.15, 0.7, 32.0
 MIN_ROOM = 0.5 * SLOPE / LOCAL
 GROW = 1.3        # a longer step only when the controller wants GROW x it (step_to)
+_GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))   # two-point Gauss, on [0, 1]
 
 
 def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -73,7 +74,7 @@ class AdaptiveHolds(Holds):
         self.models = dict(models)
         self.clients: list = []     # the error models handed a blend
         self.paired: list["_VarBlend"] = []   # the blends no model takes: the embedded pair's
-        self.high = False       # the pair's other pass: each mean minus its next term
+        self.half = None        # the pair's half steps: which half is being taken (0, 1)
         self.since = None       # committed steps since the last breakpoint (None: none yet)
         self.jump_next = False  # the next step ends on a jump (it started JUMP before it)
 
@@ -125,30 +126,49 @@ class _VarBlend:
         self.ahead, self.fed = roles == "state_ahead", roles == "fed_back"
         self.third = np.zeros(m)          # u''' over this step (limited in error())
         self.third_before = np.zeros(m)
+        # the held polynomial's terms beyond the line through u_k, u_k+1 (fill): a s (s - h)
+        # (the limited parabola's or the cubic's) and b s (s - h) (s + g) (the cubic's)
+        self.a, self.b = np.zeros(m), np.zeros(m)
 
     def fill(self) -> None:
+        hs = self.holds
+        if hs.half is not None:
+            self._fill_half(hs.half)
+            return
         np.take(self.buffer, self.src, out=self.rows[0])
         now, u, u1, _ = self.rows
-        hs = self.holds
         h, g = hs.h, hs.g
-        mean = 0.5 * (now + u)
+        self.a[:], self.b[:] = 0.0, 0.0
         if hs.history >= 2:
             # the parabola's correction to the trapezoid, its second difference limited
             second = self._second()
-            correction = _minmod(second, 2 * self._second_before()) * h * h / 12
+            self.a[:] = _minmod(second, 2 * self._second_before()) / 2
             if hs.history >= 3:     # the cubic's where the third differences agree in sign
                 third = self._third()
-                cubic = second * h * h / 12 + third * h * h * (h + 2 * g) / 72
-                correction = np.where(third * self.third_before > 0, cubic, correction)
-            mean = mean - correction
+                smooth = third * self.third_before > 0
+                self.a[:] = np.where(smooth, second / 2, self.a)
+                self.b[:] = np.where(smooth, third / 6, 0.0)
+        # the mean over the step of u + (now - u) s/h + a s (s - h) + b s (s - h) (s + g)
+        mean = 0.5 * (now + u) - self.a * h * h / 6 - self.b * h * h * (h + 2 * g) / 12
         if hs.mode == hs.PREDICT:
             slope = (u - u1) / g
             self.staging[:] = np.where(self.ahead, u + slope * h / 2,
                                        np.where(self.fed, u + slope * h, mean))
         else:
-            if hs.high:             # the embedded pair's other pass: held - true taken off
-                mean = mean - self.error()[1]
             self.staging[:] = np.where(self.fed, now, mean)
+
+    def _fill_half(self, which: int) -> None:
+        """The pair's half steps: the mean over half `which` of the step of the polynomial the
+        whole step held (two-point Gauss, exact for a cubic; u_k+1 as the whole step saw it);
+        a fed-back input takes its value now."""
+        now, u = self.rows[0], self.rows[1]
+        h, g = self.holds.h, self.holds.g
+        mean = np.zeros_like(now)
+        for node in _GAUSS:
+            s = (which + node) * h / 2
+            mean += 0.5 * (u + (now - u) * s / h + self.a * s * (s - h)
+                           + self.b * s * (s - h) * (s + g))
+        self.staging[:] = np.where(self.fed, self.buffer[self.src], mean)
 
     def _second(self) -> np.ndarray:
         """u'', 2x the second divided difference over u_k-1, u_k, u_k+1."""
@@ -203,9 +223,10 @@ class _VarBlend:
 
 
 class OutputErrors:
-    """The recorded Real outputs that no error model covers: the embedded pair's difference
-    per step (held - better: the pass with the hold minus the pass with its next term taken
-    off) and its signed sum over the accepted steps."""
+    """The recorded Real outputs that no error model covers: the pair's estimate per step of
+    the two half steps' error, (whole - halves) / 3 (a local error ~ h^3: an FMU that sees
+    the held mean where the input changes within the step), and its signed sum over the
+    accepted steps."""
 
     def __init__(self, recorder: Recorder, clients: list, paired: bool):
         real = [p for p in recorder.graph.recorded if p.type == "Real"]
@@ -219,47 +240,54 @@ class OutputErrors:
         self.real = recorder.buffers.real
         # per error model, the slots of its recorded outputs: their size for rtol
         self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
-        self.better, self.step, self.sum = (np.zeros(len(self.slots)) for _ in range(3))
+        self.whole, self.step, self.sum, self.scaled, self.weighted = (
+            np.zeros(len(self.slots)) for _ in range(5))
 
     def size(self, i: int) -> float:
         """The largest |y| of the i-th error model's recorded outputs."""
         slots = self.model_slots[i]
         return float(np.max(np.abs(self.real[slots]))) if len(slots) else 0.0
 
-    def keep_better(self) -> None:
-        np.take(self.real, self.slots, out=self.better)
+    def keep_whole(self) -> None:
+        np.take(self.real, self.slots, out=self.whole)
 
     def measure(self) -> None:
-        np.subtract(self.real[self.slots], self.better, out=self.step)
+        np.subtract(self.whole, self.real[self.slots], out=self.step)
+        self.step /= 3.0
 
-    def ratios(self, atol: float, rtol: float) -> tuple[float, float]:
-        """(this step's own error, the sum with it), each in the max norm of
-        e_i / (atol + rtol |y_i|)."""
+    def ratios(self, atol: float, rtol: float) -> tuple[float, float, float]:
+        """(this step's own error, the sum with it, the sum without it), each in the max
+        norm of e_i / (atol + rtol |y_i|), every step's error weighed by |y_i| at its end
+        (so that a fall of |y_i| later does not make an error made earlier count more)."""
         if not len(self.slots):
-            return 0.0, 0.0
-        scale = atol + rtol * np.abs(self.real[self.slots])
-        return (float(np.max(np.abs(self.step) / scale)),
-                float(np.max(np.abs(self.sum + self.step) / scale)))
+            return 0.0, 0.0, 0.0
+        np.divide(self.step, atol + rtol * np.abs(self.real[self.slots]), out=self.scaled)
+        return (float(np.max(np.abs(self.scaled))),
+                float(np.max(np.abs(self.weighted + self.scaled))),
+                float(np.max(np.abs(self.weighted))))
 
     def accept(self) -> None:
         self.sum += self.step
+        self.weighted += self.scaled
 
 
 def step_errors(holds: AdaptiveHolds, errors: OutputErrors, left: float, h: float,
-                tol: tuple[float, float]) -> tuple[float, float, list]:
-    """(the step's own error, the accumulated error with it), in units of the tolerance, the
-    worst over the error models and the pair's outputs, and the models' updates."""
+                tol: tuple[float, float]) -> tuple[float, tuple[float, float], list]:
+    """(the step's own error, (the accumulated error with it, without it)), in units of the
+    tolerance, the worst over the error models and the pair's outputs, and the models'
+    updates."""
     atol, rtol = tol
-    own, drift = errors.ratios(atol, rtol)
+    own, drift, before = errors.ratios(atol, rtol)
     updates = []
     for i, client in enumerate(holds.clients):
         scale = atol + rtol * errors.size(i)
         error, update = client.step(holds.h, left)
         own, drift = max(own, error / scale), max(drift, client.after(h, update) / scale)
+        before = max(before, max(client.now()) / scale)
         updates.append(update)
     for blend in holds.paired:      # their third differences move on
         blend.error()
-    return own, drift, updates
+    return own, (drift, before), updates
 
 
 class Stops:
@@ -330,18 +358,21 @@ class Controller:
         self.wanted, self.ratio_before, self.last = first, 1.0, 0.0
         self.drift = 0.0      # the accumulated error so far, in units of the tolerance
 
-    def ratios(self, own: float, h: float, drift: float, elapsed: float
+    def ratios(self, own: float, h: float, drift: tuple[float, float], elapsed: float
                ) -> tuple[float, float]:
         """(the step's own error against its allowance, for the PI; over 1: reject). The
         allowance is LOCAL x its share h / span, times the room the accumulated error
         leaves under the line FLOOR + SLOPE elapsed / span (at least MIN_ROOM: the line
         grows faster than the steps then add); the accumulated error after the step must
-        stay under the line too."""
+        stay under the line too, unless it is over it without the step (`drift`: the
+        accumulated error with the step and without it)."""
         line = FLOOR + SLOPE * (elapsed - h) / self.span
         room = max(MIN_ROOM, 1.0 - self.drift / line)
         own = own / (LOCAL * room * h / self.span)
         line += SLOPE * h / self.span
-        return own, max(own, drift / line)
+        if drift[1] >= line:        # over the line already without this step (an output's
+            return own, own         # |y| fell, under a relative tolerance): no shorter step
+        return own, max(own, drift[0] / line)     # can undo that
 
     def accept(self, ratio: float, h: float, drift: float) -> None:
         r = min(max(ratio, 1e-10), 1e30)
@@ -466,7 +497,7 @@ class _Loop:
                                               self.tol)
             ratio, worst = control.ratios(own, h, drift, t + h - self.start)
             if worst <= 1.0:
-                return h, updates, ratio, drift
+                return h, updates, ratio, drift[0]
             self.counts["steps_rejected"] += 1
             control.reject(worst, h)
             smallest = smallest_step(t, self.span, self.interval)
@@ -481,8 +512,8 @@ class _Loop:
 
     def _attempt(self, t: float, h: float) -> None:
         """One step of h: in a loop predicted, rolled back, corrected; with the pair, the
-        corrected pass made twice, first with the hold's next term taken off (its recorded
-        outputs kept), rolled back, then with the hold."""
+        step's recorded outputs kept, every FMU rolled back, and the step taken again as two
+        halves on the same held polynomial (what is kept)."""
         holds = self.holds
         holds.h = h
         if holds.ahead:
@@ -492,13 +523,14 @@ class _Loop:
             holds.mode = holds.CORRECT
         if holds.paired:
             self.predicted[0][:], self.predicted[1][:] = self.real, self.ints
-            holds.high = True
-            self._pass(t, h)
-            holds.high = False
-            self.errors.keep_better()
-            self._restore(t, self.predicted)
         self._pass(t, h)
         if holds.paired:
+            self.errors.keep_whole()
+            self._restore(t, self.predicted)
+            for half in (0, 1):
+                holds.half = half
+                self._pass(t + half * h / 2, h / 2)
+            holds.half = None
             self.errors.measure()
 
     def _pass(self, t: float, h: float) -> None:
