@@ -138,18 +138,24 @@ class _VarBlend:
         np.take(self.buffer, self.src, out=self.rows[0])
         now, u, u1, _ = self.rows
         h, g = hs.h, hs.g
+        mean = 0.5 * (now + u)
+        # the held polynomial, u + (now - u) s/h + a s (s - h) + b s (s - h) (s + g) on the
+        # step's s in [0, h]: its mean is the trapezoid minus a h^2/6 + b h^2 (h + 2 g)/12
         self.a[:], self.b[:] = 0.0, 0.0
         if hs.history >= 2:
             # the parabola's correction to the trapezoid, its second difference limited
             second = self._second()
-            self.a[:] = _minmod(second, 2 * self._second_before()) / 2
+            limited = _minmod(second, 2 * self._second_before())
+            correction = limited * h * h / 12
+            self.a[:] = limited / 2
             if hs.history >= 3:     # the cubic's where the third differences agree in sign
                 third = self._third()
+                cubic = second * h * h / 12 + third * h * h * (h + 2 * g) / 72
                 smooth = third * self.third_before > 0
+                correction = np.where(smooth, cubic, correction)
                 self.a[:] = np.where(smooth, second / 2, self.a)
                 self.b[:] = np.where(smooth, third / 6, 0.0)
-        # the mean over the step of u + (now - u) s/h + a s (s - h) + b s (s - h) (s + g)
-        mean = 0.5 * (now + u) - self.a * h * h / 6 - self.b * h * h * (h + 2 * g) / 12
+            mean = mean - correction
         if hs.mode == hs.PREDICT:
             slope = (u - u1) / g
             self.staging[:] = np.where(self.ahead, u + slope * h / 2,
