@@ -179,3 +179,19 @@ def test_a_table_corner_starts_the_hold_afresh():
         error = np.abs(results[f"pose.{k}"] - getattr(truth, k))
         for which, value in (("max", error.max()), ("end", error[-1])):
             assert value / 3 <= estimate[f"pose.{k}"][which] <= 3 * value, (k, which, estimate)
+
+
+def test_a_segment_shorter_than_the_jump_stop_is_not_stepped_over(tmp_path):
+    # a 5e-9 s segment at vx = 1e5 m/s (5e-4 m, 5x the tolerance) inside the showcase, shorter
+    # than the 1e-8 s the adaptive master leaves before a jump: the stops before its two jumps
+    # fall inside it, and each jump's own step is cut until h |jump| / 2 fits the tolerance.
+    # No rotation until the spins, which turn back: the end is the showcase's (-0.6, 0.6)
+    # plus the segment's 5e-4 m in x (it ended 9.7e-5 m off, the estimate 2.8e-5)
+    text = (ROOT / "scenarios" / "modes" / "showcase.yaml").read_text().replace(
+        "      - {duration: 2, vy: 0.3}         # forward",
+        "      - {duration: 2, vy: 0.3}         # forward\n      - {duration: 5.0e-9, vx: 1.0e+5}")
+    graph, results = _run(write_scenario(tmp_path, "short", text), 1e-4)
+    off = results["pose.x"][-1] - (-0.6 + 5e-4)
+    assert abs(off) <= 1e-5 and abs(results["pose.y"][-1] - 0.6) <= 1e-8
+    end = results.extra["error_estimate"]["pose.x"]["end"]
+    assert abs(off) / 3 <= end <= 3 * abs(off)

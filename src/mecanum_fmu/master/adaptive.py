@@ -76,7 +76,9 @@ class AdaptiveHolds(Holds):
         self.paired: list["_VarBlend"] = []   # the blends no model takes: the embedded pair's
         self.half = None        # the pair's half steps: which half is being taken (0, 1)
         self.since = None       # committed steps since the last breakpoint (None: none yet)
-        self.jump_next = False  # the next step ends on a jump (it started JUMP before it)
+        # the next step ends on a jump (it started JUMP before it): until a step lands on a
+        # stop (at_breakpoint), a rejected jump step cut in pieces ends on it in the last
+        self.jump_next = False
 
     @property
     def history(self) -> int:
@@ -109,7 +111,6 @@ class AdaptiveHolds(Holds):
         self.f, self.g = self.g, self.h
         if self.since is not None:
             self.since += 1
-        self.jump_next = False
 
 
 class _VarBlend:
@@ -205,8 +206,8 @@ class _VarBlend:
         h, f = hs.h, hs.f
         self.third[:] = self._third()
         if hs.jump_next:       # held - true = (new - old) / 2 on the mean: the jump's own
-            now, u, _, _ = self.rows
-            return np.zeros_like(self.third), 0.5 * (now - u)
+            now, u, _, _ = self.rows   # step, for both (a huge jump gets a shorter step)
+            return 0.5 * (now - u), 0.5 * (now - u)
         if hs.history < 3:     # no history yet: the step is kept short instead (first_step)
             return np.zeros_like(self.third), self._start_up()
         smooth = self.third * self.third_before > 0
@@ -364,18 +365,21 @@ class Controller:
         self.wanted, self.ratio_before, self.last = first, 1.0, 0.0
         self.drift = 0.0      # the accumulated error so far, in units of the tolerance
 
-    def ratios(self, own: float, h: float, drift: tuple[float, float], elapsed: float
-               ) -> tuple[float, float]:
+    def ratios(self, own: float, h: float, drift: tuple[float, float], elapsed: float,
+               jump: bool = False) -> tuple[float, float]:
         """(the step's own error against its allowance, for the PI; over 1: reject). The
         allowance is LOCAL x its share h / span, times the room the accumulated error
         leaves under the line FLOOR + SLOPE elapsed / span (at least MIN_ROOM: the line
         grows faster than the steps then add); the accumulated error after the step must
         stay under the line too, unless it is over it without the step (`drift`: the
-        accumulated error with the step and without it)."""
+        accumulated error with the step and without it). A jump's own step (`jump`) errs
+        h |jump| / 2 whatever its length: it may take half the room left under the line."""
         line = FLOOR + SLOPE * (elapsed - h) / self.span
         room = max(MIN_ROOM, 1.0 - self.drift / line)
         own = own / (LOCAL * room * h / self.span)
         line += SLOPE * h / self.span
+        if jump:
+            return 0.0, (drift[0] - drift[1]) / max(0.5 * (line - drift[1]), 1e-300)
         if drift[1] >= line:        # over the line already without this step (an output's
             return own, own         # |y| fell, under a relative tolerance): no shorter step
         return own, max(own, drift[0] / line)     # can undo that
@@ -501,7 +505,8 @@ class _Loop:
             self._attempt(t, h)
             own, drift, updates = step_errors(self.holds, self.errors, self.stop - t - h, h,
                                               self.tol)
-            ratio, worst = control.ratios(own, h, drift, t + h - self.start)
+            ratio, worst = control.ratios(own, h, drift, t + h - self.start,
+                                          self.holds.jump_next)
             if worst <= 1.0:
                 return h, updates, ratio, drift[0]
             self.counts["steps_rejected"] += 1
