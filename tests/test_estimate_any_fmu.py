@@ -123,3 +123,14 @@ def test_a_tolerance_too_small_to_progress_stops_naming_the_step_and_keeps_its_r
     assert "the tolerance needs a step of" in str(info.value)
     assert info.value.results is not None and len(info.value.results.time) >= 1
     assert info.value.status == "no progress"
+
+
+def test_the_estimate_of_a_run_where_the_times_quantise_gives_an_answer(tmp_path, fmus):
+    # at 1e15 s a double steps by 0.125 s: the coarser runs' rows round onto shared keys
+    # several times (it ended in a broadcasting ValueError, shapes (120,) and (41,))
+    graph = runner.prepare(_scenario(tmp_path, fmus, "gauss-seidel"))
+    graph, exp = with_experiment(graph, start_time=1e15, stop_time=1e15 + 6.0, step_size=0.05)
+    results = master.simulate(graph, exp)
+    summary = master.estimate_error(graph, results)
+    assert set(summary["error_estimate"]) == {"lag.x"}
+    assert all(isinstance(v, (float, str)) for v in summary["error_estimate"]["lag.x"].values())
