@@ -28,6 +28,13 @@ def _positive(text: str) -> float:
     return value
 
 
+def _non_negative(text: str) -> float:
+    value = _number(text)
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number >= 0")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mecanum-fmu",
@@ -51,8 +58,12 @@ def _add_run(sub) -> None:
     run.add_argument("--master", help=f"{', '.join(MASTERS)} (default {DEFAULT_MASTER}; "
                      "docs/masters.md)")
     run.add_argument("--tolerance", type=_positive, metavar="TOL",
-                     help="choose the step to keep the pose's estimated error under TOL (m, "
-                     "rad): the adaptive master; rows stay every --step-size s")
+                     help="choose the step to keep every recorded output's estimated error "
+                     "under TOL (in its unit): the adaptive master; rows stay every "
+                     "--step-size s")
+    run.add_argument("--relative-tolerance", type=_non_negative, metavar="RTOL",
+                     help="with --tolerance: an output y may err TOL + RTOL |y| (default 0; "
+                     "docs/masters.md)")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument("--animate", action="store_true", help="also write animation.gif")
     run.add_argument("--bag", action="store_true",
@@ -229,7 +240,8 @@ def cmd_run(args) -> int:
     from .runner import prepare, run
     try:
         graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
-                        master_name=args.master, fmu_dir=args.fmu_dir, tolerance=args.tolerance)
+                        master_name=args.master, fmu_dir=args.fmu_dir, tolerance=args.tolerance,
+                        relative_tolerance=args.relative_tolerance)
     except BaseException:
         if plotter is not None:
             plotter.cancel()

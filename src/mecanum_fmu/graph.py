@@ -10,12 +10,14 @@ import graphlib
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Callable
 
 from fmpy.model_description import ModelDescription, ScalarVariable
 
 from . import plausibility
 from .models import library as fmu_library
 from .models.catalog import bundled_model
+from .models.pose_error import pose_error
 from .errors import Problem, ScenarioError
 from .masters import DEFAULT, entry as master_entry
 from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
@@ -71,6 +73,9 @@ class Graph:
     links: tuple[Link, ...]           # dependency order: walking it makes t0 consistent
     recorded: tuple[Port, ...]
     warnings: tuple[str, ...]
+    # per instance name, an error model the adaptive master hands its held inputs to (the
+    # PoseIntegrator's, models/pose_error.py): what the master cannot see on its own
+    error_models: tuple[tuple[str, Callable], ...] = ()
 
     def instance(self, name: str) -> Instance:
         return next(i for i in self.instances if i.name == name)
@@ -126,13 +131,13 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
                           _table(c, start_values[c.name], check.models[c.name][1].modelName))
                  for c in scenario.components]
     order, link_order = _dependency_order(instances, links, scenario.label)
-    refused = _adaptive_problems(scenario, order, links)
+    refused = _adaptive_problems(scenario, order)
     if refused:
         raise ScenarioError(refused)
     return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
                  tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
                        + _rollback_warning(scenario, order, links)
-                       + plausibility.warnings(scenario, order)))
+                       + plausibility.warnings(scenario, order)), _error_models(order))
 
 
 def _table(comp, values: dict[str, Scalar], model_name: str) -> Table | None:
@@ -143,26 +148,23 @@ def _table(comp, values: dict[str, Scalar], model_name: str) -> Table | None:
     return table_or_none(values.get("table"), model_name)
 
 
-def _adaptive_problems(scenario: Scenario, order: list[Instance], links: list[Link]
-                       ) -> list[Problem]:
-    """The adaptive master rejects and retakes steps with fmi2Get/SetFMUstate, and controls
-    the error of a PoseIntegrator whose twist (vx, vy, w) comes from other FMUs: without
-    either it cannot run (master/adaptive.py)."""
+def _adaptive_problems(scenario: Scenario, order: list[Instance]) -> list[Problem]:
+    """The adaptive master rejects and retakes steps with fmi2Get/SetFMUstate: an FMU that
+    cannot save its state is named (master/adaptive.py)."""
     how = master_entry(scenario.experiment.master)
-    if not how.adaptive:
-        return []
     unable = [inst.name for inst in order if not inst.can_get_set_state]
-    driven = {(l.target.ref.instance, l.target.ref.variable) for l in links}
-    poses = [inst.name for inst in order if _role(inst) == "pose"
-             and all((inst.name, v) in driven for v in ("vx", "vy", "w"))]
-    why = ("rejects and retakes steps with fmi2Get/SetFMUstate, which "
-           + ", ".join(repr(n) for n in unable) + " cannot do (canGetAndSetFMUstate is false)"
-           if unable else "controls the error of a PoseIntegrator's pose (its vx, vy and w "
-           "connected), and this graph has none" if not poses else "")
-    if not why:
+    if not how.adaptive or not unable:
         return []
-    return [Problem(scenario.label, "experiment.master", f"the {how.name} master {why}; "
-                    f"choose a fixed-step master (e.g. {DEFAULT}) and drop the tolerance")]
+    return [Problem(scenario.label, "experiment.master", f"the {how.name} master rejects and "
+                    "retakes steps with fmi2Get/SetFMUstate, which "
+                    + ", ".join(repr(n) for n in unable) + " cannot do (canGetAndSetFMUstate "
+                    f"is false); choose a fixed-step master (e.g. {DEFAULT}) and drop the "
+                    "tolerance")]
+
+
+def _error_models(order: list[Instance]) -> tuple[tuple[str, Callable], ...]:
+    """The bundled models' error models for the adaptive master (Graph.error_models)."""
+    return tuple((inst.name, pose_error) for inst in order if _role(inst) == "pose")
 
 
 def _role(inst: Instance) -> str | None:

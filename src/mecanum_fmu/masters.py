@@ -54,6 +54,10 @@ MASTERS = tuple(REGISTRY)
 DEFAULT = "quadratic"
 ADAPTIVE = "adaptive"   # what a tolerance chooses (--tolerance, experiment.tolerance)
 DEFAULT_TOLERANCE = 1e-4  # the adaptive master's, when neither --tolerance nor the scenario sets one
+# the adaptive master's relative tolerance (--relative-tolerance, experiment.relative_tolerance):
+# an output's error e is held to e / (tolerance + relative_tolerance |y|) <= 1. 0: the
+# tolerance alone, in each output's own unit, as before there was a relative one
+DEFAULT_RELATIVE_TOLERANCE = 0.0
 ZOH_HOST = "jacobi"     # the master that steps as a plain fixed-step host does (cross-check)
 
 

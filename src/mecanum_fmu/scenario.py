@@ -22,7 +22,7 @@ from .values import (is_finite, is_number, name_problem, scalar_problem, show,
 
 MAX_FILE_BYTES = 1_000_000
 DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
-                      "master": DEFAULT_MASTER, "tolerance": None}
+                      "master": DEFAULT_MASTER, "tolerance": None, "relative_tolerance": None}
 
 Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -48,6 +48,7 @@ class Experiment:
     step_size: float
     master: str
     tolerance: float | None = None    # the adaptive master's error bound (masters.py)
+    relative_tolerance: float | None = None   # its relative one (None: the registry's default)
 
 
 @dataclass(frozen=True)
@@ -299,6 +300,8 @@ def experiment_values(raw: Any, bad) -> tuple[dict[str, Any], bool]:
                 f"{did_you_mean(raw['master'], MASTERS)} (choose one of {', '.join(MASTERS)})")
     if "tolerance" in raw:
         _tolerance(raw, values, bad)
+    if "relative_tolerance" in raw:
+        _relative_tolerance(raw, values, bad)
     return values, ok
 
 
@@ -323,6 +326,19 @@ def tolerance_problem(value: Any, master: Any) -> str | None:
                 f"the master {master} (`master:` or --master; a tolerance chooses the adaptive "
                 "master) or the tolerance")
     return None
+
+
+def _relative_tolerance(raw: dict, values: dict, bad) -> None:
+    """experiment.relative_tolerance: a number >= 0, beside a tolerance (masters.py)."""
+    value = raw["relative_tolerance"]
+    if not is_number(value) or not is_finite(value) or not value >= 0:
+        bad("experiment.relative_tolerance", f"expected a number >= 0 (e.g. 1e-3), got "
+            f"{show(value)}")
+    elif "tolerance" not in values:
+        bad("experiment.relative_tolerance", "it weighs the adaptive master's error: add "
+            "`tolerance:` (the absolute one) beside it, or drop it")
+    else:
+        values["relative_tolerance"] = float(value)
 
 
 def override_experiment(scenario: "Scenario", changes: dict[str, Any], label: str,
@@ -359,8 +375,23 @@ def check_experiment(exp: Experiment) -> list[tuple[str, str]]:
     elif exp.step_size > 0 and (exp.stop_time - exp.start_time) / exp.step_size > 1e8:
         out.append(("experiment.step_size", f"{exp.step_size} gives more than 1e8 steps; "
                     "use a larger step"))
+    return out + _tolerance_problems(exp)
+
+
+def _tolerance_problems(exp: Experiment) -> list[tuple[str, str]]:
+    """The tolerances of an experiment made in code (prepare's arguments, a sweep): the
+    absolute one under tolerance_problem (the one rule), the relative one a number >= 0
+    beside it."""
+    out = []
     if exp.tolerance is not None and (problem := tolerance_problem(exp.tolerance, exp.master)):
         out.append(("experiment.tolerance", problem))
+    rel = exp.relative_tolerance
+    if rel is not None and not (is_number(rel) and is_finite(rel) and rel >= 0):
+        out.append(("experiment.relative_tolerance", f"expected a number >= 0 (e.g. 1e-3), "
+                    f"got {show(rel)}"))
+    elif rel is not None and exp.tolerance is None:
+        out.append(("experiment.relative_tolerance", "it weighs the adaptive master's error: "
+                    "give a tolerance (the absolute one) beside it, or drop it"))
     return out
 
 

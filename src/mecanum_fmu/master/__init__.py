@@ -16,12 +16,13 @@ import numpy as np
 from ..arguments import check_simulate
 from ..errors import Interrupted, Problem, ScenarioError, SimulationError
 from ..graph import Graph
-from ..masters import DEFAULT, DEFAULT_TOLERANCE, Master, entry as master_entry
+from ..masters import (DEFAULT, DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, Master,
+                       entry as master_entry)
 from ..process import ctrl_c_latched
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario import Experiment
-from .adaptive import AdaptiveHolds, estimate_of, step_adaptive
+from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .estimate import error_estimate
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
@@ -52,7 +53,7 @@ def simulate(graph: Graph, experiment: Experiment,
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
         holds = plan_transfers(running, graph, buffers, how.hold,
-                               AdaptiveHolds() if how.adaptive else None)
+                               AdaptiveHolds(graph.error_models) if how.adaptive else None)
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)
@@ -70,7 +71,8 @@ def simulate(graph: Graph, experiment: Experiment,
         if counts:
             results.steps_taken, results.steps_rejected = (counts["steps_taken"],
                                                            counts["steps_rejected"])
-            results.extra["error_estimate"] = estimate_of(graph, results, counts, holds)
+            results.extra["error_estimate"] = estimate_of(counts["names"], results, counts)
+            results.extra["passes"] = counts["passes"]
         return results
 
 
@@ -82,19 +84,20 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
         freeze = recorder.buffers.freeze if recorder.buffers.frozen else None
         return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
                                  holds.ahead and how.rolls_back and rollback)), {}
-    if not rollback or not holds.poses:
-        why = ("rejects and retakes steps with fmi2Get/SetFMUstate, which "
-               + ", ".join(repr(r.name) for r in running if not r.can_roll_back) + " cannot do"
-               if not rollback else "controls the error of a PoseIntegrator's pose, and this "
-               "graph has none")
+    if not rollback:
         raise ScenarioError([Problem(recorder.graph.scenario.label, "experiment.master",
-                                     f"the {how.name} master {why}; choose a fixed-step "
-                                     f"master (e.g. {DEFAULT})")])
-    counts = {"steps_taken": 0, "steps_rejected": 0,
-              "estimates": [[(0.0, 0.0, 0.0)] * len(holds.poses)]}
-    tolerance = recorder.experiment.tolerance or DEFAULT_TOLERANCE
-    return (lambda: step_adaptive(running, recorder, ctrl_c, progress, holds, tolerance,
-                                  counts)), counts
+                                     f"the {how.name} master rejects and retakes steps with "
+                                     "fmi2Get/SetFMUstate, which " + ", ".join(
+                                         repr(r.name) for r in running if not r.can_roll_back)
+                                     + f" cannot do; choose a fixed-step master (e.g. "
+                                     f"{DEFAULT})")])
+    counts = {"steps_taken": 0, "steps_rejected": 0, "passes": 0}
+    exp = recorder.experiment
+    tol = (exp.tolerance or DEFAULT_TOLERANCE,
+           DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance is None
+           else exp.relative_tolerance)
+    return (lambda: step_adaptive(running, recorder, ctrl_c, progress, holds, tol, counts)
+            ), counts
 
 
 def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
@@ -124,6 +127,14 @@ def _run_loop(recorder: Recorder, ctrl_c, buffers: Buffers, stepper: Callable[[]
     except NonFinite as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
         raise _not_finite(buffers, err.time, recorder) from None
+    except NoProgress as err:
+        recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
+        raise SimulationError(
+            f"the tolerance needs a step of {err.wanted:.3g} s here, below the smallest step "
+            f"the adaptive master takes ({err.smallest:.3g} s: 1e-9 of the output interval, "
+            f"or 64 round-offs of t); loosen the tolerance (--tolerance, "
+            f"experiment.tolerance, relative_tolerance)", time=err.time, status="no progress",
+            results=recorder.results(False)) from None
     except KeyboardInterrupt:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
         partial = recorder.results(False)

@@ -7,23 +7,28 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   difference limited by the previous one (minmod: a kink or a jump in a table adds nothing);
   in a loop the step is predicted with the linear extrapolation, rolled back and corrected;
   after a breakpoint no value from before it enters a hold (two trapezoids first);
-- the step's error comes from the pose's twist before and after the step (no extra doStep):
-  the cubic's next term, 19/720 h^4 u4 on the mean, u4 (the fourth derivative) from
-  the change of the third difference (nothing where the parabola holds: no storm of
-  rejections at a kink or a jump), as |u4| for the controller and signed for the estimate;
-  the frame turning within the step, J (w dv - dw v) h^2 / 12; a heading error moves every
-  later point by J (p - p_t);
-- the sum of the accepted steps' errors (|u4|) must stay under the line
-  TOL (FLOOR + SLOPE (t - start) / span), and a step's own error under LOCAL x its share
-  TOL h / span times the room that sum leaves under the line; a rejected step rolls every FMU
-  back (fmi2SetFMUstate) and is retried, shorter;
+- the step's error, per recorded Real output, from an embedded pair: the step is taken once
+  more (first) with each held input's mean corrected by the hold's signed next term (the
+  cubic's 19/720 h^4 u4, the first two steps' trapezoids, a jump's own step), every FMU rolled
+  back (fmi2SetFMUstate), then with the hold itself; the difference of the recorded outputs
+  is the step's error, the FMUs' own dynamics included. An FMU whose held inputs an error
+  model of Graph.error_models takes (the PoseIntegrator's, models/pose_error.py) is left to
+  it: the model computes the same from the step's values, without the extra pass, and adds
+  what the pair cannot see (the frame turning within the step). No pass is added when every
+  held input has a model;
+- the error is weighed per output as ODE solvers do: e_i / (atol + rtol |y_i|), the largest
+  over the outputs (the max norm); atol is the tolerance, rtol the relative one;
+- the signed sum of the accepted steps' errors must stay under the line
+  FLOOR + SLOPE (t - start) / span, and a step's own error under LOCAL x its share h / span
+  times the room that sum leaves under the line; a rejected step rolls every FMU back and is
+  retried, shorter; a step the tolerance wants below the smallest one the times can carry
+  ends the run (NoProgress);
 - the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
   [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval; the last
   step is kept unless the controller wants GROW x it or less than it; steps land on the
   output grid (every step_size seconds: results.csv's rows) and on the breakpoints of the
-  VelocitySources' tables and segments (Stops: a jump gets a step of 1e-6 h_out before it).
-The signed sum of the accepted steps' errors (u4 signed, plus the first two steps' trapezoids
-and each jump's own step) is the run's error estimate.
+  graph (Stops: a jump gets a short step before it).
+The signed sum of the accepted steps' errors is the run's error estimate.
 """
 from __future__ import annotations
 
@@ -35,15 +40,13 @@ from typing import Callable
 import numpy as np
 
 from ..graph import Instance, Port
-from ..models.catalog import bundled_model
 from ..results import BELOW_ROUND_OFF, round_off
 from .breakpoints import graph_breaks
 from .instance import RunningInstance
 from .plan import Holds
 from .recorder import Recorder
-from .stepping import NonFinite, _one_pass, _state_call
+from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
 
-_TWIST = ("vx", "vy", "w")
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
 # The signed sum of the accepted steps' errors must stay under the line
 # TOL x (FLOOR + SLOPE x elapsed / span): an error that grows steadily (the frame turning) gets
@@ -54,6 +57,7 @@ SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
 FLOOR, SLOPE, LOCAL = 0.15, 0.7, 32.0
 MIN_ROOM = 0.5 * SLOPE / LOCAL
 GROW = 1.3        # a longer step only when the controller wants GROW x it (step_to)
+_GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))   # two-point Gauss, on [0, 1]
 
 
 def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -61,14 +65,20 @@ def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class AdaptiveHolds(Holds):
-    """Holds over unequal steps: h (this step), g and f (the two before)."""
+    """Holds over unequal steps: h (this step), g and f (the two before). `models`:
+    Graph.error_models (per instance name, a factory of an error model for its held inputs)."""
 
-    def __init__(self):
+    def __init__(self, models: tuple = ()):
         super().__init__("quadratic")
         self.h = self.g = self.f = 1.0
-        self.poses: list["PoseError"] = []     # per PoseIntegrator: its vx, vy, w
+        self.models = dict(models)
+        self.clients: list = []     # the error models handed a blend
+        self.paired: list["_VarBlend"] = []   # the blends no model takes: the embedded pair's
+        self.half = None        # the pair's half steps: which half is being taken (0, 1)
         self.since = None       # committed steps since the last breakpoint (None: none yet)
-        self.jump_next = False  # the next step ends on a jump (it started JUMP before it)
+        # the next step ends on a jump (it started JUMP before it): until a step lands on a
+        # stop (at_breakpoint), a rejected jump step cut in pieces ends on it in the last
+        self.jump_next = False
 
     @property
     def history(self) -> int:
@@ -83,10 +93,10 @@ class AdaptiveHolds(Holds):
         blend = _VarBlend(self, buffer, src, roles)
         self.blends.append(blend)
         self.ahead = self.ahead or any(role != "state" for role in roles)
-        model = bundled_model(inst.model)
-        names = [t.ref.variable for t in targets]
-        if model is not None and model.role == "pose" and all(n in names for n in _TWIST):
-            self.poses.append(PoseError(blend, [names.index(n) for n in _TWIST], inst))
+        factory = self.models.get(inst.name)
+        client = factory(blend, [t.ref.variable for t in targets], inst) if factory else None
+        (self.paired if client is None else self.clients).append(blend if client is None
+                                                                 else client)
         return blend
 
     def prime(self) -> None:
@@ -101,7 +111,6 @@ class AdaptiveHolds(Holds):
         self.f, self.g = self.g, self.h
         if self.since is not None:
             self.since += 1
-        self.jump_next = False
 
 
 class _VarBlend:
@@ -118,21 +127,35 @@ class _VarBlend:
         self.ahead, self.fed = roles == "state_ahead", roles == "fed_back"
         self.third = np.zeros(m)          # u''' over this step (limited in error())
         self.third_before = np.zeros(m)
+        # the held polynomial's terms beyond the line through u_k, u_k+1 (fill): a s (s - h)
+        # (the limited parabola's or the cubic's) and b s (s - h) (s + g) (the cubic's)
+        self.a, self.b = np.zeros(m), np.zeros(m)
 
     def fill(self) -> None:
+        hs = self.holds
+        if hs.half is not None:
+            self._fill_half(hs.half)
+            return
         np.take(self.buffer, self.src, out=self.rows[0])
         now, u, u1, _ = self.rows
-        hs = self.holds
         h, g = hs.h, hs.g
         mean = 0.5 * (now + u)
+        # the held polynomial, u + (now - u) s/h + a s (s - h) + b s (s - h) (s + g) on the
+        # step's s in [0, h]: its mean is the trapezoid minus a h^2/6 + b h^2 (h + 2 g)/12
+        self.a[:], self.b[:] = 0.0, 0.0
         if hs.history >= 2:
             # the parabola's correction to the trapezoid, its second difference limited
             second = self._second()
-            correction = _minmod(second, 2 * self._second_before()) * h * h / 12
+            limited = _minmod(second, 2 * self._second_before())
+            correction = limited * h * h / 12
+            self.a[:] = limited / 2
             if hs.history >= 3:     # the cubic's where the third differences agree in sign
                 third = self._third()
                 cubic = second * h * h / 12 + third * h * h * (h + 2 * g) / 72
-                correction = np.where(third * self.third_before > 0, cubic, correction)
+                smooth = third * self.third_before > 0
+                correction = np.where(smooth, cubic, correction)
+                self.a[:] = np.where(smooth, second / 2, self.a)
+                self.b[:] = np.where(smooth, third / 6, 0.0)
             mean = mean - correction
         if hs.mode == hs.PREDICT:
             slope = (u - u1) / g
@@ -140,6 +163,19 @@ class _VarBlend:
                                        np.where(self.fed, u + slope * h, mean))
         else:
             self.staging[:] = np.where(self.fed, now, mean)
+
+    def _fill_half(self, which: int) -> None:
+        """The pair's half steps: the mean over half `which` of the step of the polynomial the
+        whole step held (two-point Gauss, exact for a cubic; u_k+1 as the whole step saw it);
+        a fed-back input takes its value now."""
+        now, u = self.rows[0], self.rows[1]
+        h, g = self.holds.h, self.holds.g
+        mean = np.zeros_like(now)
+        for node in _GAUSS:
+            s = (which + node) * h / 2
+            mean += 0.5 * (u + (now - u) * s / h + self.a * s * (s - h)
+                           + self.b * s * (s - h) * (s + g))
+        self.staging[:] = np.where(self.fed, self.buffer[self.src], mean)
 
     def _second(self) -> np.ndarray:
         """u'', 2x the second divided difference over u_k-1, u_k, u_k+1."""
@@ -170,8 +206,8 @@ class _VarBlend:
         h, f = hs.h, hs.f
         self.third[:] = self._third()
         if hs.jump_next:       # held - true = (new - old) / 2 on the mean: the jump's own
-            now, u, _, _ = self.rows
-            return np.zeros_like(self.third), 0.5 * (now - u)
+            now, u, _, _ = self.rows   # step, for both (a huge jump gets a shorter step)
+            return 0.5 * (now - u), 0.5 * (now - u)
         if hs.history < 3:     # no history yet: the step is kept short instead (first_step)
             return np.zeros_like(self.third), self._start_up()
         smooth = self.third * self.third_before > 0
@@ -193,101 +229,100 @@ class _VarBlend:
         np.take(self.buffer, self.src, out=self.rows[1])
 
 
-class PoseError:
-    """The signed error of one pose, accumulated over the accepted steps: the body-frame
-    errors of each step turned into the world frame (heading and position tracked from the
-    held twist), and the heading's errors carried along the path travelled since."""
+class OutputErrors:
+    """The recorded Real outputs that no error model covers: the pair's estimate per step of
+    the two half steps' error, (whole - halves) / 3 (a local error ~ h^3: an FMU that sees
+    the held mean where the input changes within the step), and its signed sum over the
+    accepted steps."""
 
-    def __init__(self, blend: "_VarBlend", index: list[int], inst: Instance):
-        self.blend, self.index, self.name = blend, index, inst.name
-        self.theta = float(inst.value("theta0"))
-        self.p = np.zeros(2)
-        # per sum: position errors made on the steps (world frame), the heading errors and
-        # the sum of p_t * heading error_t; [0] with the cubic's term as a bound (|u4|: the
-        # controller's), [1] signed (the run's estimate: errors that cancel do)
-        self.e = np.zeros((2, 2))
-        self.heading = np.zeros(2)
-        self.moment = np.zeros((2, 2))
+    def __init__(self, recorder: Recorder, clients: list, paired: bool):
+        real = [p for p in recorder.graph.recorded if p.type == "Real"]
+        slot = {str(p.ref): recorder.buffers.slot(p) for p in real}
+        covered = [[f"{c.name}.{o}" for o in c.outputs if f"{c.name}.{o}" in slot]
+                   for c in clients]
+        # not `paired` (every held input has a model, which sees only its own outputs): the
+        # others are left unestimated
+        self.names = [n for n in slot if paired and all(n not in c for c in covered)]
+        self.slots = np.array([slot[n] for n in self.names], dtype=np.intp)
+        self.real = recorder.buffers.real
+        # per error model, the slots of its recorded outputs: their size for rtol
+        self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
+        self.whole, self.step, self.sum, self.scaled, self.weighted = (
+            np.zeros(len(self.slots)) for _ in range(5))
 
-    def step(self, h: float, left: float) -> tuple[float, float, tuple]:
-        """(position error bound, |heading error|) of this step for the controller, and the
-        signed update to apply if the step is accepted."""
-        e, signed = self.blend.error()
-        ivx, ivy, iw = self.index
-        now, u, mean = self.blend.rows[0], self.blend.rows[1], self.blend.staging
-        vx, vy, w = mean[ivx], mean[ivy], mean[iw]
-        dvx, dvy, dw = now[ivx] - u[ivx], now[ivy] - u[ivy], now[iw] - u[iw]
-        # held minus true: the cubic's term (the third derivative's, h^4/24 over the step)
-        # and the frame turning within the step, -J (w dv - dw v) h^2 / 12 (docs/masters.md)
-        tx, ty = (w * dvx - dw * vx) * h * h / 12, (w * dvy - dw * vy) * h * h / 12
-        body = np.array([(h * abs(e[ivx]) + ty, h * abs(e[ivy]) - tx),
-                         (h * signed[ivx] + ty, h * signed[ivy] - tx)])
-        e_theta = np.array([h * abs(e[iw]), h * signed[iw]])
-        bound = math.hypot(*body[0]) + e_theta[0] * math.hypot(vx, vy) * left
-        return bound, float(e_theta[0]), (body, e_theta, (vx, vy, w))
+    def size(self, i: int) -> float:
+        """The largest |y| of the i-th error model's recorded outputs."""
+        slots = self.model_slots[i]
+        return float(np.max(np.abs(self.real[slots]))) if len(slots) else 0.0
 
-    def after(self, h: float, update: tuple) -> float:
-        """The largest |error| of x, y, theta if the step were accepted."""
-        saved = (self.theta, self.p.copy(), self.e.copy(), self.heading.copy(),
-                 self.moment.copy())
-        self.accept(h, update)
-        worst = max(self.now())
-        self.theta, self.p, self.e, self.heading, self.moment = saved
-        return worst
+    def keep_whole(self) -> None:
+        np.take(self.real, self.slots, out=self.whole)
 
-    def accept(self, h: float, update: tuple) -> None:
-        body, e_theta, (vx, vy, w) = update
-        c, s = math.cos(self.theta), math.sin(self.theta)
-        self.e += np.column_stack((c * body[:, 0] - s * body[:, 1],
-                                   s * body[:, 0] + c * body[:, 1]))
-        self.p += (h * (c * vx - s * vy), h * (s * vx + c * vy))
-        self.theta += h * w
-        self.heading += e_theta
-        self.moment += np.outer(e_theta, self.p)
+    def measure(self) -> None:
+        np.subtract(self.whole, self.real[self.slots], out=self.step)
+        self.step /= 3.0
 
-    def now(self, signed: bool = False) -> tuple[float, float, float]:
-        """|error| of x, y, theta now (the bound, or `signed`: the estimate): the steps' own,
-        plus J (p S - sum p_t e_t) of the heading errors (a heading error e_t at p_t moves
-        every later point by J (p - p_t))."""
-        k = int(signed)
-        carried = self.p * self.heading[k] - self.moment[k]
-        return (abs(self.e[k, 0] - carried[1]), abs(self.e[k, 1] + carried[0]),
-                abs(self.heading[k]))
+    def ratios(self, atol: float, rtol: float) -> tuple[float, float, float]:
+        """(this step's own error, the sum with it, the sum without it), each in the max
+        norm of e_i / (atol + rtol |y_i|), every step's error weighed by |y_i| at its end
+        (so that a fall of |y_i| later does not make an error made earlier count more)."""
+        if not len(self.slots):
+            return 0.0, 0.0, 0.0
+        np.divide(self.step, atol + rtol * np.abs(self.real[self.slots]), out=self.scaled)
+        return (float(np.max(np.abs(self.scaled))),
+                float(np.max(np.abs(self.weighted + self.scaled))),
+                float(np.max(np.abs(self.weighted))))
+
+    def accept(self) -> None:
+        self.sum += self.step
+        self.weighted += self.scaled
 
 
-def step_error(holds: AdaptiveHolds, left: float) -> tuple[float, float, list]:
-    """(position error bound in m, heading error in rad) of the step just taken, the worst
-    over every pose, and the signed updates."""
-    position = heading = 0.0
+def step_errors(holds: AdaptiveHolds, errors: OutputErrors, left: float, h: float,
+                tol: tuple[float, float]) -> tuple[float, tuple[float, float], list]:
+    """(the step's own error, (the accumulated error with it, without it)), in units of the
+    tolerance, the worst over the error models and the pair's outputs, and the models'
+    updates."""
+    atol, rtol = tol
+    own, drift, before = errors.ratios(atol, rtol)
     updates = []
-    for pose in holds.poses:
-        bound, e_theta, update = pose.step(holds.h, left)
-        position, heading = max(position, bound), max(heading, e_theta)
+    for i, client in enumerate(holds.clients):
+        scale = atol + rtol * errors.size(i)
+        error, update = client.step(holds.h, left)
+        own, drift = max(own, error / scale), max(drift, client.after(h, update) / scale)
+        before = max(before, max(client.now()) / scale)
         updates.append(update)
-    for blend in holds.blends:      # inputs of other FMUs: their third differences move on
-        if all(blend is not pose.blend for pose in holds.poses):
-            blend.error()
-    return position, heading, updates
+    for blend in holds.paired:      # their third differences move on
+        blend.error()
+    return own, (drift, before), updates
 
 
 class Stops:
-    """The times a step must end on besides the output grid: the breakpoints of the bundled
-    VelocitySources' tables (segments are hold tables). A kink (linear) is one stop; a jump
-    (hold) two: JUMP x the output interval before it, then on it, so that the step that sees
-    the new value at its end is that short (the hold's mean blends the two values: the jump
-    costs the step before it h |jump| / 2, under every hold, whatever the tolerance). A stop
-    is a breakpoint for the holds too (AdaptiveHolds.at_breakpoint)."""
+    """The times a step must end on besides the output grid: the graph's breakpoints
+    (breakpoints.py). A kink (linear) is one stop; a jump (hold) two: JUMP x the output
+    interval before it (at most a third of the way back to the stop before it, so that a
+    short segment keeps its own steps), then on it, so that the step that sees the new value
+    at its end is that short (the hold's mean blends the two values: the jump costs the step
+    before it h |jump| / 2, under every hold, whatever the tolerance). A stop is a breakpoint
+    for the holds too (AdaptiveHolds.at_breakpoint)."""
 
     JUMP = 1e-6
 
     def __init__(self, graph, start: float, stop: float, interval: float):
         breaks = graph_breaks(graph)
-        before = breaks.jumps - self.JUMP * interval
-        times = [float(x) for x in (*breaks.kinks, *breaks.jumps, *before)]
-        near = 1e-9 * interval
+        marks = np.unique(np.concatenate([[start], np.asarray(breaks.kinks, dtype=float),
+                                          np.asarray(breaks.jumps, dtype=float)]))
+        jumps = np.asarray(breaks.jumps, dtype=float)
+        gap = jumps - marks[np.maximum(np.searchsorted(marks, jumps) - 1, 0)]
+        gap = np.where(gap > 0, gap, interval)
+        before = jumps - np.minimum(self.JUMP * interval, gap / 3)
+        # two stops nearer than this are one: a few round-offs of the times, at most 1e-9 h_out
+        self.near = near = min(1e-9 * interval, 8 * np.finfo(float).eps * max(
+            abs(start), abs(stop), interval) + 1e-3 * float(np.min(gap, initial=interval)))
+        times = [float(x) for x in (*breaks.kinks, *jumps, *before)]
         self.times = sorted(x for x in set(times) if start + near < x < stop - near)
         self.before = sorted(float(x) for x in before)
-        self.near, self.i = near, 0
+        self.i = 0
 
     def on(self, t: float, times: list[float] | None = None) -> bool:
         """Whether t is one of the stops (or of `times`)."""
@@ -308,29 +343,49 @@ class Stops:
         return target
 
 
+class NoProgress(Exception):
+    """The tolerance wants a step shorter than the times can carry (`smallest`) at `time`."""
+
+    def __init__(self, time: float, wanted: float, smallest: float):
+        self.time, self.wanted, self.smallest = time, wanted, smallest
+
+
+def smallest_step(t: float, span: float, interval: float) -> float:
+    """The shortest step the controller may ask for at t: 1e-9 of the output interval, and
+    at least 64 round-offs of t (a step below it would not move t, or by a quantised amount)."""
+    return max(1e-9 * interval, 1e-12 * span, 64 * np.finfo(float).eps * abs(t))
+
+
 class Controller:
-    """The step: PI on the error ratio, clamped, cut to land on the next stop."""
+    """The step: PI on the error ratio, clamped, cut to land on the next stop. The errors
+    it gets are in units of the tolerance (e_i / (atol + rtol |y_i|), the max norm)."""
 
-    def __init__(self, tolerance: float, span: float, first: float, longest: float):
-        self.tolerance, self.span, self.longest = tolerance, span, longest
+    def __init__(self, span: float, first: float, longest: float):
+        self.span, self.longest = span, longest
         self.wanted, self.ratio_before, self.last = first, 1.0, 0.0
-        self.drift = 0.0      # the accumulated error so far (PoseError.now, the worst)
+        self.drift = 0.0      # the accumulated error so far, in units of the tolerance
 
-    def ratios(self, position: float, heading: float, h: float, drift: float,
-               elapsed: float) -> tuple[float, float]:
+    def ratios(self, own: float, h: float, drift: tuple[float, float], elapsed: float,
+               jump: bool = False) -> tuple[float, float]:
         """(the step's own error against its allowance, for the PI; over 1: reject). The
-        allowance is LOCAL x its share TOL h / span, times the room the accumulated error
-        leaves under the line TOL (FLOOR + SLOPE elapsed / span) (at least MIN_ROOM: the line
+        allowance is LOCAL x its share h / span, times the room the accumulated error
+        leaves under the line FLOOR + SLOPE elapsed / span (at least MIN_ROOM: the line
         grows faster than the steps then add); the accumulated error after the step must
-        stay under the line too."""
-        line = self.tolerance * (FLOOR + SLOPE * (elapsed - h) / self.span)
+        stay under the line too, unless it is over it without the step (`drift`: the
+        accumulated error with the step and without it). A jump's own step (`jump`) errs
+        h |jump| / 2 whatever its length: it may take half the room left under the line."""
+        line = FLOOR + SLOPE * (elapsed - h) / self.span
         room = max(MIN_ROOM, 1.0 - self.drift / line)
-        own = max(position, heading) / (LOCAL * room * self.tolerance * h / self.span)
-        line += self.tolerance * SLOPE * h / self.span
-        return own, max(own, drift / line)
+        own = own / (LOCAL * room * h / self.span)
+        line += SLOPE * h / self.span
+        if jump:
+            return 0.0, (drift[0] - drift[1]) / max(0.5 * (line - drift[1]), 1e-300)
+        if drift[1] >= line:        # over the line already without this step (an output's
+            return own, own         # |y| fell, under a relative tolerance): no shorter step
+        return own, max(own, drift[0] / line)     # can undo that
 
     def accept(self, ratio: float, h: float, drift: float) -> None:
-        r = max(ratio, 1e-10)
+        r = min(max(ratio, 1e-10), 1e30)
         factor = SAFETY * r ** -K_I * self.ratio_before ** K_P
         # never more than GROW x the output interval (a long quiet stretch must not leave a step
         # that takes many rejections to come down when the input turns), nor than the step
@@ -340,6 +395,7 @@ class Controller:
         self.ratio_before, self.drift, self.last = r, drift, h
 
     def reject(self, ratio: float, h: float) -> None:
+        ratio = ratio if ratio == ratio else math.inf      # NaN: as far over as can be
         self.wanted = h * max(0.2, min(0.9, SAFETY * ratio ** (-1 / 3)))
 
     def step_to(self, t: float, target: float) -> float:
@@ -364,115 +420,144 @@ def first_step(tolerance: float, interval: float) -> float:
 
 def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[int],
                   progress: Callable[[float], None] | None, holds: AdaptiveHolds,
-                  tolerance: float, counts: dict) -> None:
-    """The adaptive loop: rows recorded on the output grid only. counts gets steps_taken,
-    steps_rejected and the accumulated error estimate. Raises StepFailure, NonFinite,
-    KeyboardInterrupt."""
+                  tol: tuple[float, float], counts: dict) -> None:
+    """The adaptive loop: rows recorded on the output grid only. `tol`: (atol, rtol).
+    counts gets steps_taken, steps_rejected, the passes and the accumulated error estimate
+    per row. Raises StepFailure, NonFinite, NoProgress, KeyboardInterrupt."""
     exp = recorder.experiment
     start, stop, interval = exp.start_time, exp.stop_time, exp.step_size
-    program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
-    control = Controller(tolerance, stop - start, first_step(tolerance, interval), interval)
+    loop = _Loop(running, recorder, holds, tol, counts)
     stops = Stops(recorder.graph, start, stop, interval)
-    real, ints = recorder.buffers.real, recorder.buffers.int
-    saved_real, saved_int = real.copy(), ints.copy()    # the values at t_k, for a retry
+    counts["names"], counts["estimates"] = loop.names(), [loop.estimate()]
     t, j = start, 0
     next_report = _time.perf_counter() + 1.0
     while j < recorder.n_steps:
         target = stop if j == recorder.n_steps - 1 else start + (j + 1) * interval
-        goal = stops.next(t, target)
-        _save(running, t)
-        saved_real[:], saved_int[:] = real, ints
-        h, updates, (ratio, drift) = _take(running, program, holds, control,
-                                           (start, t, goal, stop),
-                                           ctrl_c, counts, (real, ints, saved_real, saved_int))
-        _free(running, t)
-        holds.commit()
-        counts["steps_taken"] += 1
-        for pose, update in zip(holds.poses, updates):
-            pose.accept(h, update)
-        if h >= 0.1 * min(control.wanted, interval):   # not cut short by a stop: a step
-            control.accept(ratio, h, drift)             # of 1e-6 h_out says nothing of the next
-        else:
-            control.drift = drift
-        if not np.isfinite(real).all():
-            raise NonFinite(t + h)
-        t = t + h
-        if abs(t - target) <= 1e-9 * interval:
-            t, j = target, j + 1
+        t = loop.step(t, stops.next(t, target), ctrl_c, stops.near)
+        if t == target:
+            j += 1
             recorder.record()
-            counts["estimates"].append([pose.now(signed=True) for pose in holds.poses])
+            counts["estimates"].append(loop.estimate())
             if progress is not None and _time.perf_counter() >= next_report:
                 progress((t - start) / (stop - start))
                 next_report = _time.perf_counter() + 0.5
-        elif abs(t - goal) <= 1e-9 * interval:
-            t = goal
         if stops.on(t):
             holds.at_breakpoint(stops.before_jump(t))
 
 
-def _take(running, program, holds: AdaptiveHolds, control: Controller, times: tuple,
-          ctrl_c, counts: dict, values: tuple) -> tuple[float, list, float]:
-    """One accepted step from t towards `goal` (times: start, t, goal, stop): tried, rejected
-    and rolled back (the FMUs and the values) until its error ratio is at most 1.
-    (h, the poses' updates, the ratio)."""
-    start, t, goal, stop = times
-    real, ints, saved_real, saved_int = values
-    span = stop - start
-    h = control.step_to(t, goal)
-    while True:
-        if ctrl_c[0]:
-            raise KeyboardInterrupt
-        _attempt(running, program, holds, t, h)
-        position, heading, updates = step_error(holds, stop - t - h)
-        drift = max([pose.after(h, u) for pose, u in zip(holds.poses, updates)])
-        ratio, worst = control.ratios(position, heading, h, drift, t + h - start)
-        if worst <= 1.0 or h <= 1e-12 * span:
-            return h, updates, (ratio, drift)
-        counts["steps_rejected"] += 1
-        control.reject(worst, h)
+class _Loop:
+    """What the adaptive loop steps with: the instances, the holds, the error models and the
+    pair's outputs, the controller, and the values at t_k for a retry."""
+
+    def __init__(self, running, recorder: Recorder, holds: AdaptiveHolds, tol: tuple,
+                 counts: dict):
+        exp = recorder.experiment
+        self.running, self.program = running, programs(running)
+        self.holds, self.tol, self.counts = holds, tol, counts
+        self.span, self.interval, self.stop = (exp.stop_time - exp.start_time, exp.step_size,
+                                               exp.stop_time)
+        self.start = exp.start_time
+        self.control = Controller(self.span, first_step(tol[0], exp.step_size), exp.step_size)
+        self.errors = OutputErrors(recorder, holds.clients,
+                                   bool(holds.paired) or not holds.clients)
+        self.real, self.ints = recorder.buffers.real, recorder.buffers.int
+        self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
+        self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
+
+    def estimate(self) -> list[float]:
+        """The accumulated error now, per covered output: the models' then the pair's."""
+        return [*(e for c in self.holds.clients for e in c.now(signed=True)),
+                *np.abs(self.errors.sum)]
+
+    def names(self) -> list[str]:
+        return [*(f"{c.name}.{o}" for c in self.holds.clients for o in c.outputs),
+                *self.errors.names]
+
+    def step(self, t: float, goal: float, ctrl_c, near: float) -> float:
+        """One accepted step from t towards goal; the time it ends at (goal itself when it
+        lands within `near` of it)."""
+        save_states(self.running, t)
+        self.saved[0][:], self.saved[1][:] = self.real, self.ints
+        h, updates, ratio, drift = self._take(t, goal, ctrl_c)
+        free_states(self.running, t)
+        self.holds.commit()
+        self.counts["steps_taken"] += 1
+        for client, update in zip(self.holds.clients, updates):
+            client.accept(h, update)
+        self.errors.accept()
+        control = self.control
+        if h >= 0.1 * min(control.wanted, self.interval):  # not cut short by a stop: a step
+            control.accept(ratio, h, drift)               # of 1e-6 h_out says nothing of the next
+        else:
+            control.drift = drift
+        if not np.isfinite(self.real).all():
+            raise NonFinite(t + h)
+        return goal if abs(t + h - goal) <= near else t + h
+
+    def _take(self, t: float, goal: float, ctrl_c) -> tuple:
+        """A step tried, rejected and rolled back (the FMUs and the values) until its error
+        ratio is at most 1: (h, the models' updates, the ratio, the accumulated error)."""
+        control = self.control
         h = control.step_to(t, goal)
-        _restore(running, t)
-        real[:], ints[:] = saved_real, saved_int
+        while True:
+            if ctrl_c[0]:
+                raise KeyboardInterrupt
+            self._attempt(t, h)
+            own, drift, updates = step_errors(self.holds, self.errors, self.stop - t - h, h,
+                                              self.tol)
+            ratio, worst = control.ratios(own, h, drift, t + h - self.start,
+                                          self.holds.jump_next)
+            if worst <= 1.0:
+                return h, updates, ratio, drift[0]
+            self.counts["steps_rejected"] += 1
+            control.reject(worst, h)
+            smallest = smallest_step(t, self.span, self.interval)
+            if control.wanted < smallest:
+                raise NoProgress(t, control.wanted, smallest)
+            h = control.step_to(t, goal)
+            self._restore(t, self.saved)
+
+    def _restore(self, t: float, values: tuple) -> None:
+        restore_states(self.running, t)
+        self.real[:], self.ints[:] = values
+
+    def _attempt(self, t: float, h: float) -> None:
+        """One step of h: in a loop predicted, rolled back, corrected; with the pair, the
+        step's recorded outputs kept, every FMU rolled back, and the step taken again as two
+        halves on the same held polynomial (what is kept)."""
+        holds = self.holds
+        holds.h = h
+        if holds.ahead:
+            holds.mode = holds.PREDICT
+            self._pass(t, h)
+            restore_states(self.running, t)
+            holds.mode = holds.CORRECT
+        if holds.paired:
+            self.predicted[0][:], self.predicted[1][:] = self.real, self.ints
+        self._pass(t, h)
+        if holds.paired:
+            self.errors.keep_whole()
+            self._restore(t, self.predicted)
+            for half in (0, 1):
+                holds.half = half
+                self._pass(t + half * h / 2, h / 2)
+            holds.half = None
+            self.errors.measure()
+
+    def _pass(self, t: float, h: float) -> None:
+        self.counts["passes"] += 1
+        one_pass(self.program, t, h)
 
 
-def _attempt(running, program, holds: AdaptiveHolds, t: float, h: float) -> None:
-    """One pass at step h (in a loop: predicted, rolled back, corrected)."""
-    holds.h = h
-    if holds.ahead:
-        holds.mode = holds.PREDICT
-        _one_pass(program, t, h)
-        _restore(running, t)
-        holds.mode = holds.CORRECT
-    _one_pass(program, t, h)
-
-
-def _save(running: list[RunningInstance], t: float) -> None:
-    for r in running:
-        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, r.state_ref), t)
-
-
-def _restore(running: list[RunningInstance], t: float) -> None:
-    for r in running:
-        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, r.state), t)
-
-
-def _free(running: list[RunningInstance], t: float) -> None:
-    for r in running:
-        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
-
-
-def estimate_of(graph, results, counts: dict, holds: AdaptiveHolds) -> dict:
+def estimate_of(names: list[str], results, counts: dict) -> dict:
     """summary.json's error estimate of an adaptive run: the accepted steps' signed errors
-    accumulated (PoseError), per output row: its largest and its last."""
-    rows = np.array(counts["estimates"])        # (row, pose, x/y/theta)
+    accumulated, per covered output and row: its largest and its last."""
+    rows = np.array(counts["estimates"], dtype=float).reshape(len(counts["estimates"]), -1)
     estimate = {}
-    for i, pose in enumerate(holds.poses):
-        for column, k in enumerate(("x", "y", "theta")):
-            name = f"{pose.name}.{k}"
-            if name in results.names:
-                values = rows[:, i, column]
-                floor = round_off(np.asarray(results[name], dtype=float),
-                                  counts["steps_taken"])
-                estimate[name] = {w: float(v) if v > floor else BELOW_ROUND_OFF
-                                  for w, v in (("max", values.max()), ("end", values[-1]))}
+    for i, name in enumerate(names):
+        if name in results.names:
+            values = rows[:, i]
+            floor = round_off(np.asarray(results[name], dtype=float), counts["steps_taken"])
+            estimate[name] = {w: float(v) if v > floor else BELOW_ROUND_OFF
+                              for w, v in (("max", values.max()), ("end", values[-1]))}
     return estimate

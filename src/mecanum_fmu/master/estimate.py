@@ -27,8 +27,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..graph import Graph
-from ..masters import DEFAULT_TOLERANCE, entry as master_entry
-from ..models.catalog import bundled_model
+from ..masters import DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, entry as master_entry
 from ..results import BELOW_ROUND_OFF, Results, round_off
 from .breakpoints import graph_breaks
 
@@ -40,9 +39,10 @@ ONE = Fraction(1)
 CANDIDATES = tuple((Fraction(a), Fraction(b)) for a, b in (
     ("3/2", "3"), ("5/4", "5/2"), ("5/3", "5"), ("2", "4"), ("2", "10"), ("5/2", "5"),
     ("5", "10"), ("5", "25")))
-ADAPTIVE_METHOD = ("the adaptive master's per-step errors, signed and summed: the cubic "
-                   "hold's next term from the twist, the first two steps' trapezoids, each "
-                   "jump's own step, the frame's turning, the heading's lever arm")
+ADAPTIVE_METHOD = ("the adaptive master's per-step errors, signed and summed: per recorded "
+                   "output the embedded hold pair's difference (each held input's next term "
+                   "taken off), where an FMU has an error model its own (a PoseIntegrator's: "
+                   "the hold's next term, the frame's turning, the heading's lever arm)")
 _END = np.iinfo(np.int64).max
 # the coarser runs' differences growing more than this times as fast as the master's order
 # allows: they are out of the range where the error goes as h^p, and no number is given
@@ -63,22 +63,19 @@ UNRESOLVED_END = (f"unresolved (the coarser runs are off by {FAR:.0%} of the out
 ACROSS_ORDER = 2
 
 
-def pose_outputs(graph: Graph, results: Results) -> list[str]:
-    """The recorded x, y, theta of every PoseIntegrator: what the estimate covers."""
-    names = []
-    for inst in graph.instances:
-        model = bundled_model(inst.model)
-        if model is not None and model.role == "pose":
-            names += [n for n in (f"{inst.name}.{k}" for k in ("x", "y", "theta"))
-                      if n in results.names]
-    return names
+def recorded_outputs(graph: Graph, results: Results) -> list[str]:
+    """Every recorded Real output (the scenario's `outputs:`, by default every output of
+    every FMU): what the estimate covers, for any FMUs."""
+    return [str(p.ref) for p in graph.recorded if p.type == "Real" and str(p.ref) in
+            results.names]
 
 
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:
-    """summary.json's `error_estimate` (per pose output {"max", "end"}, in its unit, or None)
+    """summary.json's `error_estimate` (per recorded Real output {"max", "end"}, in its unit,
+    or None)
     and `error_estimate_method` (how it was made, or why there is none). `simulate` is
     master.simulate (passed in: this module sits below it)."""
-    names = pose_outputs(graph, results)
+    names = recorded_outputs(graph, results)
     exp = graph.scenario.experiment
     if not names or not results.complete:
         return {}
@@ -86,6 +83,8 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
         return {"error_estimate": results.extra["error_estimate"],
                 "error_estimate_method": ADAPTIVE_METHOD,
                 "tolerance": exp.tolerance or DEFAULT_TOLERANCE,
+                "relative_tolerance": (DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance
+                                       is None else exp.relative_tolerance),
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
     marks = graph_breaks(graph).times()
     factors = coarse_factors(graph, exp, marks)
@@ -169,12 +168,18 @@ def _keys(exp, times: np.ndarray, every: float) -> np.ndarray:
 
 
 def _common(exp, every: float, *runs: tuple) -> list[np.ndarray]:
-    """The values of each (times, values) run on the times they all share, in time order."""
+    """The values of each (times, values) run on the times they all share, in time order:
+    one row per shared key (where the times quantise, at 1e15 s, several rows may round to
+    one key: the first is taken)."""
     keys = [_keys(exp, t, every) for t, _ in runs]
     shared = keys[0][keys[0] >= 0]
     for k in keys[1:]:
         shared = np.intersect1d(shared, k[k >= 0])
-    return [v[np.isin(k, shared)] for (_, v), k in zip(runs, keys)]
+    picked = []
+    for (_, v), k in zip(runs, keys):
+        unique, first = np.unique(k, return_index=True)
+        picked.append(v[first[np.isin(unique, shared)]])
+    return picked
 
 
 def _shared(*factors: Fraction) -> Fraction:

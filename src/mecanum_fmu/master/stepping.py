@@ -83,7 +83,7 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
     KeyboardInterrupt."""
     exp = recorder.experiment
     start, stop, h, n_steps = exp.start_time, exp.stop_time, exp.step_size, recorder.n_steps
-    program = [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
+    program = programs(running)
     record, commit = recorder.record, (holds.commit if holds.blends else None)
     cuts = jump_cuts(recorder.graph, exp, n_steps) if freeze is None else {}
     # One dot product per step finds any NaN or infinity in the Real values (0 * inf is NaN,
@@ -102,7 +102,7 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
         else:
             if rollback:
                 _predict(running, program, holds, t, h_k)
-            _one_pass(program, t, h_k)
+            one_pass(program, t, h_k)
             if commit is not None:
                 commit()
             if real_dot(zeros) != 0.0:
@@ -134,7 +134,7 @@ def _pieces(running: list[RunningInstance], program: list, holds: Holds, rollbac
     for until, restart in zip((*cut.inside, end), cut.restart):
         if rollback:
             _predict(running, program, holds, t, until - t)
-        _one_pass(program, t, until - t)
+        one_pass(program, t, until - t)
         if holds.blends:
             holds.prime() if restart else holds.commit()
         if real_dot(zeros) != 0.0:
@@ -142,7 +142,12 @@ def _pieces(running: list[RunningInstance], program: list, holds: Holds, rollbac
         t = until
 
 
-def _one_pass(program: list, t: float, h_k: float) -> None:
+def programs(running: list[RunningInstance]) -> list:
+    """What one_pass walks: per instance in step order, its component, doStep and transfers."""
+    return [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
+
+
+def one_pass(program: list, t: float, h_k: float) -> None:
     """Every instance in step order: set its inputs, step it, read its outputs."""
     for r, comp, do_step, writes, reads in program:
         for fill, c_set, vrs, n, pointer in writes:
@@ -160,17 +165,33 @@ def _one_pass(program: list, t: float, h_k: float) -> None:
                 raise StepFailure(r, "get", st, t + h_k, t + h_k)
 
 
+def save_states(running: list[RunningInstance], t: float) -> None:
+    """fmi2GetFMUstate of every instance (its one saved state: RunningInstance.state)."""
+    for r in running:
+        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, r.state_ref), t)
+
+
+def restore_states(running: list[RunningInstance], t: float) -> None:
+    """fmi2SetFMUstate of every instance: back to the state save_states saved at t."""
+    for r in running:
+        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, r.state), t)
+
+
+def free_states(running: list[RunningInstance], t: float) -> None:
+    """fmi2FreeFMUstate of every instance's saved state."""
+    for r in running:
+        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
+
+
 def _predict(running: list[RunningInstance], program: list, holds: Holds, t: float,
              h_k: float) -> None:
     """Save every instance's state, take the step with the predictor's inputs (the buffers
     then hold the predicted values at t_k+1), roll every instance back to t_k."""
-    for r in running:
-        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, r.state_ref), t)
+    save_states(running, t)
     holds.mode = holds.PREDICT
-    _one_pass(program, t, h_k)
-    for r in running:
-        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, r.state), t)
-        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
+    one_pass(program, t, h_k)
+    restore_states(running, t)
+    free_states(running, t)
     holds.mode = holds.CORRECT
 
 

@@ -1,0 +1,136 @@
+"""The error estimate and the tolerance on third-party FMUs (nothing the masters know of):
+a source u = cos t into a first-order lag x' = -k x + u, built here with pythonfmu, against
+the lag's closed form; the lag declares (in its model description, as a C exporter would)
+that x does not depend on the current u, so the masters may hold u (docs/masters.md)."""
+import math
+import re
+import zipfile
+
+import numpy as np
+import pytest
+
+from helpers import ROOT, run_main, test_fmus, with_experiment, write_scenario
+from mecanum_fmu import master, runner
+from mecanum_fmu.errors import SimulationError
+from mecanum_fmu.results import BELOW_ROUND_OFF
+
+SOURCES = ROOT / "tests" / "fmu_sources" / "with_state"
+K = 2.0
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    """XtestWave and XtestLag, each able to save its state; the lag's x declared free of u."""
+    from pythonfmu import FmuBuilder
+    dest = tmp_path_factory.mktemp("state_fmus")
+    built = {}
+    for script in sorted(SOURCES.glob("xtest_*.py")):
+        built[script.stem] = FmuBuilder.build_FMU(script, dest=dest, canGetAndSetFMUstate=True)
+    _declare_no_dependencies(built["xtest_lag"])
+    return built
+
+
+def _declare_no_dependencies(fmu) -> None:
+    with zipfile.ZipFile(fmu) as zf:
+        entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
+    xml = entries["modelDescription.xml"].decode()
+    entries["modelDescription.xml"] = re.sub(r'<Unknown index="(\d+)"/>',
+                                             r'<Unknown index="\1" dependencies=""/>',
+                                             xml).encode()
+    with zipfile.ZipFile(fmu, "w") as zf:
+        for name, data in entries.items():
+            zf.writestr(name, data)
+
+
+def _scenario(folder, fmus, master_name="quadratic", extra="", lag=None):
+    return write_scenario(folder, "lag", f"""\
+name: lag
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}{extra}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  lag: {{fmu: {lag or fmus["xtest_lag"]}, parameters: {{k: {K}}}}}
+connections:
+  - [wave.u, lag.u]
+outputs:
+  - lag.x
+""")
+
+
+def _truth(t: np.ndarray) -> np.ndarray:
+    """x' = -k x + cos t, x(0) = 0."""
+    return (K * np.cos(t) + np.sin(t) - K * np.exp(-K * t)) / (K * K + 1)
+
+
+def _within_3x(estimate: dict, error: np.ndarray) -> None:
+    for which, value in (("max", error.max()), ("end", error[-1])):
+        assert value / 3 <= estimate[which] <= 3 * value, (which, estimate, value)
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel"])
+@pytest.mark.parametrize("divide", [1, 2])
+def test_the_estimate_of_a_fixed_master_is_within_3x_of_the_closed_form(tmp_path, fmus,
+                                                                        master_name, divide):
+    graph = runner.prepare(_scenario(tmp_path, fmus, master_name))
+    graph, exp = with_experiment(graph, step_size=0.1 / divide)
+    results = master.simulate(graph, exp)
+    summary = master.estimate_error(graph, results)
+    error = np.abs(results["lag.x"] - _truth(results.time))
+    assert error.max() > 1e-9          # a coupling error there is to estimate
+    _within_3x(summary["error_estimate"]["lag.x"], error)
+
+
+@pytest.mark.parametrize("tolerance", [1e-4, 1e-6])
+def test_a_tolerance_holds_on_third_party_fmus(tmp_path, fmus, tolerance):
+    graph = runner.prepare(_scenario(tmp_path, fmus), tolerance=tolerance)
+    results = master.simulate(graph, graph.scenario.experiment)
+    error = np.abs(results["lag.x"] - _truth(results.time))
+    assert error.max() <= tolerance
+    estimate = results.extra["error_estimate"]["lag.x"]
+    assert estimate["max"] == BELOW_ROUND_OFF or estimate["max"] <= tolerance
+    # the pair: the whole step, then its two halves (no loop here)
+    assert results.extra["passes"] == 3 * (results.steps_taken + results.steps_rejected)
+
+
+def test_the_relative_tolerance_loosens_the_bound_by_the_outputs_size(tmp_path, fmus):
+    # |x| reaches 1/sqrt(k^2 + 1) = 0.45: with rtol = 10 atol the bound is up to 5.5x atol,
+    # so fewer steps are needed; the error stays under atol + rtol max|x|
+    atol = 1e-6
+    graph = runner.prepare(_scenario(tmp_path, fmus), tolerance=atol)
+    plain = master.simulate(graph, graph.scenario.experiment)
+    graph = runner.prepare(_scenario(tmp_path, fmus), tolerance=atol, relative_tolerance=10 * atol)
+    loose = master.simulate(graph, graph.scenario.experiment)
+    error = np.abs(loose["lag.x"] - _truth(loose.time))
+    assert error.max() <= atol + 10 * atol * np.abs(loose["lag.x"]).max()
+    assert loose.steps_taken < plain.steps_taken
+
+
+def test_an_fmu_that_cannot_save_its_state_is_named(tmp_path, fmus, capsys, tmp_path_factory):
+    plain = test_fmus(tmp_path_factory)["mtest_passthrough"]     # built without state saving
+    path = write_scenario(tmp_path, "named", _scenario(tmp_path, fmus).read_text()
+                          .replace("outputs:", f"  - [lag.x, pt.u_in]\noutputs:")
+                          .replace("components:\n", f"components:\n  pt: {{fmu: {plain}}}\n"))
+    code, out, err = run_main(capsys, "run", str(path), "--tolerance", "1e-4", "--no-plots",
+                              "--out", str(tmp_path / "out"))
+    assert code == 2 and "'pt' cannot do" in err and "Traceback" not in err, (code, err)
+
+
+def test_a_tolerance_too_small_to_progress_stops_naming_the_step_and_keeps_its_rows(tmp_path,
+                                                                                 fmus):
+    # 1e-300 cannot be met in float64: the run stops (exit 1) with the step it would need
+    graph = runner.prepare(_scenario(tmp_path, fmus), tolerance=1e-300)
+    with pytest.raises(SimulationError) as info:
+        master.simulate(graph, graph.scenario.experiment)
+    assert "the tolerance needs a step of" in str(info.value)
+    assert info.value.results is not None and len(info.value.results.time) >= 1
+    assert info.value.status == "no progress"
+
+
+def test_the_estimate_of_a_run_where_the_times_quantise_gives_an_answer(tmp_path, fmus):
+    # at 1e15 s a double steps by 0.125 s: the coarser runs' rows round onto shared keys
+    # several times (it ended in a broadcasting ValueError, shapes (120,) and (41,))
+    graph = runner.prepare(_scenario(tmp_path, fmus, "gauss-seidel"))
+    graph, exp = with_experiment(graph, start_time=1e15, stop_time=1e15 + 6.0, step_size=0.05)
+    results = master.simulate(graph, exp)
+    summary = master.estimate_error(graph, results)
+    assert set(summary["error_estimate"]) == {"lag.x"}
+    assert all(isinstance(v, (float, str)) for v in summary["error_estimate"]["lag.x"].values())
