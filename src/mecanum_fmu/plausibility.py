@@ -8,6 +8,8 @@ Graph.warnings.
   outside it the end rows are held (epoch timestamps hold the first row for the whole run).
 - A follower gain that makes the closed loop unstable at the chosen step: on x' = -k x closed
   through the integrator the masters are stable for h k below STABILITY_LIMIT (docs/masters.md).
+- A sampled block (Encoder, Gyro, Odometry) whose period is not a whole number of steps:
+  its samples do not land on communication points (docs/odometry.md, Sample times).
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
 .value(name), .can_get_set_state; this module imports nothing of graph.py.
@@ -32,6 +34,7 @@ LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2
                  "Bicycle")
 ANGLES = {"PoseIntegrator": ("theta0",)}
 TABLE_MODELS = {"VelocitySource": TABLE_COLUMNS, "PathFollower": PATH_COLUMNS}
+SAMPLED_MODELS = ("Encoder", "Gyro", "Odometry")
 _SMALLER = (("millimetres", 1e-3), ("centimetres", 1e-2))
 
 
@@ -49,7 +52,8 @@ def problems(scenario, instances) -> list[Problem]:
     found: list[Problem] = []
     for inst in instances:
         for place, message in (_units(scenario, inst) + _table_span(scenario, inst)
-                               + _stability(scenario, inst, instances)):
+                               + _stability(scenario, inst, instances)
+                               + _sampling(scenario, inst)):
             problem = Problem(scenario.label, place, message)
             if problem not in found:        # a shared parameter is seen by every taker
                 found.append(problem)
@@ -114,6 +118,29 @@ def _table_span(scenario, inst) -> list[tuple[str, str]]:
              f"the run {exp.start_time:g} to {exp.stop_time:g} s: {held} (timestamps in "
              "another unit or epoch? use table: {file: ..., units: {time: ms}, start: "
              "first_row} or an offset)")]
+
+
+def _sampling(scenario, inst) -> list[tuple[str, str]]:
+    if inst.model_name not in SAMPLED_MODELS:
+        return []
+    period, exp = inst.value("period"), scenario.experiment
+    if not isinstance(period, (int, float)) or isinstance(period, bool) \
+            or not (math.isfinite(period) and period > 0):
+        return []
+    if exp.master == "adaptive":
+        return [(_place(scenario, inst, "period"),
+                 f"period = {period:g} s: the adaptive master's steps do not land on the "
+                 f"sample times, so each sample is seen up to a step late; use a fixed-step "
+                 f"master (quadratic) with a step that divides the period")]
+    ratio = period / exp.step_size
+    if abs(ratio - round(ratio)) <= 1e-9 * max(1.0, ratio) and round(ratio) >= 1:
+        return []
+    what = (f"{math.ceil(1 / ratio - 1e-9)} samples fall in one step and only the last is seen"
+            if ratio < 1 else "a sample between two steps is taken at its own time but seen "
+            "at the next step, up to one step late")
+    return [(_place(scenario, inst, "period"),
+             f"period = {period:g} s is not a whole number of steps of {exp.step_size:g} s: "
+             f"{what}; use a step of period/n (e.g. {period / max(1, math.ceil(ratio)):g} s)")]
 
 
 def table_span(text: str) -> tuple[float, float] | None:
