@@ -170,6 +170,7 @@ class Roles:
     omni_inverse: str | None = None   # the omni X-drive's kinematics pair (docs/chassis.md)
     omni_forward: str | None = None
     steering: str | None = None     # a SteeringSource: the car-like chassis' (v, phi) input
+    odometry: str | None = None     # an Odometry: the robot's belief beside the pose (docs/odometry.md)
 
 
 def find_roles(graph) -> Roles:
@@ -182,4 +183,4 @@ def find_roles(graph) -> Roles:
     one = {role: names[0] for role, names in found.items() if len(names) == 1}
     return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"),
                  one.get("follower"), one.get("frame"), one.get("omni-inverse"),
-                 one.get("omni-forward"), one.get("steering"))
+                 one.get("omni-forward"), one.get("steering"), one.get("odometry"))
