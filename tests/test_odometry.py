@@ -333,3 +333,28 @@ def test_validate_warns_when_the_step_does_not_divide_the_period(fmu_dir):
     graph = prepare(OPEN, fmu_dir=fmu_dir, step_size=0.02)
     assert any("2 samples fall in one step and only the last is seen" in w for w in graph.warnings)
     assert not any("period" in w for w in prepare(OPEN, fmu_dir=fmu_dir).warnings)
+
+
+# ------------------------------------------------------------------ the drift study's sweep
+
+
+def test_a_sweep_draws_a_noise_seed_per_run(tmp_path, fmu_dir):
+    """`integers: [low, high]` draws whole numbers low <= n < high for an Integer parameter
+    (NumPy's integers on the sweep's generator, in file order), so each run has its own noise."""
+    from mecanum_fmu.errors import ScenarioError
+    from mecanum_fmu.sweep.cluster import prepare_sweep
+    path = tmp_path / "s.yaml"
+    path.write_text(f"name: s\nscenario: {OPEN}\nrandom:\n  samples: 30\n  seed: 4\n"
+                    "  enc1.seed: {integers: [0, 1000]}\n  enc1.sigma: {uniform: [0.0, 0.1]}\n")
+    _, _, runs = prepare_sweep(path, fmu_dir)
+    rng = np.random.default_rng(4)
+    seeds, sigmas = rng.integers(0, 1000, 30), rng.uniform(0.0, 0.1, 30)
+    assert [r.values[next(k for k in r.values if str(k) == "enc1.seed")] for r in runs] == list(seeds)
+    assert all(isinstance(v, int) for r in runs for k, v in r.values.items() if str(k) == "enc1.seed")
+    assert [r.values[next(k for k in r.values if str(k) == "enc1.sigma")] for r in runs] == list(sigmas)
+    for bad, words in (("enc1.sigma: {integers: [0, 5]}", "random draws are real numbers"),
+                       ("enc1.seed: {integers: [3, 3]}", "whole numbers with low < high"),
+                       ("enc1.seed: {integers: [0.5, 3]}", "whole numbers with low < high")):
+        path.write_text(f"name: s\nscenario: {OPEN}\nrandom:\n  samples: 3\n  {bad}\n")
+        with pytest.raises(ScenarioError, match=words):
+            prepare_sweep(path, fmu_dir)
