@@ -20,6 +20,7 @@ import math
 
 from .errors import Problem
 from .models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS
+from .models.catalog import SAMPLED_MODELS
 
 # h k below which the closed loop x' = -k x through the integrator is stable, per way of
 # stepping a loop (docs/masters.md, "The rollback"): the one home of these numbers. Measured
@@ -34,7 +35,6 @@ LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2
                  "Bicycle")
 ANGLES = {"PoseIntegrator": ("theta0",)}
 TABLE_MODELS = {"VelocitySource": TABLE_COLUMNS, "PathFollower": PATH_COLUMNS}
-SAMPLED_MODELS = ("Encoder", "Gyro", "Odometry")
 _SMALLER = (("millimetres", 1e-3), ("centimetres", 1e-2))
 
 

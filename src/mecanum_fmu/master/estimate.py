@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..graph import Graph
 from ..masters import DEFAULT_TOLERANCE, entry as master_entry
-from ..models.catalog import bundled_model
+from ..models.catalog import SAMPLED_MODELS, bundled_model
 from ..results import BELOW_ROUND_OFF, Results, round_off
 from .breakpoints import graph_breaks
 
@@ -87,6 +87,10 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "error_estimate_method": ADAPTIVE_METHOD,
                 "tolerance": exp.tolerance or DEFAULT_TOLERANCE,
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
+    sampled = sorted({i.model_name for i in graph.instances} & set(SAMPLED_MODELS))
+    if sampled:
+        return _none(f"{', '.join(sampled)} sample at their own period: a coarser step moves "
+                     "their samples (a different model, not a coarser run of this one)")
     marks = graph_breaks(graph).times()
     factors = coarse_factors(graph, exp, marks)
     if factors is None:

@@ -152,6 +152,11 @@ MODELS: dict[str, Model] = {m.name: m for m in (
 )}
 
 
+# Blocks that sample at their own period (docs/odometry.md, Sample times): the step must
+# divide it, and a run at another step samples differently (no Richardson estimate).
+SAMPLED_MODELS = ("Encoder", "Gyro", "Odometry")
+
+
 def bundled_model(md) -> Model | None:
     """The bundled model a model description belongs to, or None for any other FMU."""
     model = MODELS.get(md.modelName)
