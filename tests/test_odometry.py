@@ -392,3 +392,23 @@ def test_the_same_noise_on_one_worker_or_two(tmp_path, fmu_dir):
                          for i, r in done.results.items()}
     assert sorted(ends[1]) == list(range(6)) and ends[1] == ends[2]
     assert len({v for v in ends[1].values()}) == 6               # each run its own noise
+
+
+def test_a_loop_on_belief_reports_the_drift(fmu_dir, tmp_path):
+    """belief_track_circle: the follower holds the belief on the reference, so the true pose's
+    tracking error is the belief's drift; summary.json says so and gives the drift."""
+    import json
+    from mecanum_fmu.runner import run
+    graph = prepare(TRACK, fmu_dir=fmu_dir)
+    lines = []
+    run(graph, tmp_path, plots=False, quiet=False, log=lines.append)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    belief = summary["belief"]
+    assert belief["instance"] == "odom" and belief["closes_the_loop"] is True
+    ref, end = summary["reference_end_pose"], summary["end_pose"]
+    # the belief ends on the reference (within the follower's lag), the truth 27 mm off it
+    assert math.dist((belief["end_pose"]["x"], belief["end_pose"]["y"]), (ref["x"], ref["y"])) < 1e-3
+    drift = math.dist((belief["end_pose"]["x"], belief["end_pose"]["y"]), (end["x"], end["y"]))
+    assert belief["drift"]["position"] == pytest.approx(drift, rel=1e-12) and drift > 0.01
+    assert any("fed the odometry's belief" in line for line in lines)
+    assert "no estimate" in summary["error_estimate_method"]
