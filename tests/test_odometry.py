@@ -73,10 +73,13 @@ def test_ros2_formulas_are_the_seed_forward_kinematics_at_45_degrees():
 
 
 @pytest.mark.parametrize("master_name", ["gauss-seidel", "trapezoidal"])
-def test_ideal_sensors_with_the_exact_update_are_the_true_pose(fmu_dir, master_name):
-    """Turning (w = 0.5 cos 0.7t): encoders without noise or quantisation, update exact."""
-    results = simulate(fmu_dir, ideal(**{"odom.update": "exact", "source.w_expr": "0.5*cos(0.7*t)"}),
-                       master_name=master_name)
+@pytest.mark.parametrize("heading", ["wheels", "gyro"])
+def test_ideal_sensors_with_the_exact_update_are_the_true_pose(fmu_dir, master_name, heading):
+    """Turning (w = 0.5 cos 0.7t): encoders without noise or quantisation (and the gyro
+    without bias or noise, for the heading), update exact."""
+    values = ideal(**{"odom.update": "exact", "odom.heading": heading,
+                      "source.w_expr": "0.5*cos(0.7*t)"})
+    results = simulate(fmu_dir, values, master_name=master_name)
     assert abs(results.final("pose.theta")) > 0.3            # it turns
     assert pose_gap(results) <= 1e-9
 
@@ -315,6 +318,24 @@ def encoder(fmu_dir, **values):
         yield fmu, vr
     finally:
         fmu._functions["fmi2FreeInstance"](fmu.component)   # never unload the library
+
+
+def test_ticks_count_the_wheel_angle_as_a_32_bit_counter(fmu_dir):
+    """At a constant 200 rad/s for 100 steps of 0.01 s the count is floor(angle cpr / 2 pi)
+    after each step; with cpr = 2^31 - 1 it passes 2^31 and wraps to negative, as a 32-bit
+    register does, while w_meas (from the unwrapped counts) stays right."""
+    for cpr in (1000, 2**31 - 1):
+        with encoder(fmu_dir, cpr=cpr, period=0.01) as (fmu, vr):
+            seen = []
+            for k in range(100):
+                fmu.setReal([vr["w"]], [200.0])
+                fmu.doStep(0.01 * k, 0.01)
+                seen.append((fmu.getInteger([vr["ticks"]])[0], fmu.getReal([vr["w_meas"]])[0]))
+        for k, (ticks, w_meas) in enumerate(seen, start=1):
+            count = math.floor(200.0 * 0.01 * k * cpr / (2 * math.pi))
+            assert ticks == (count + 2**31) % 2**32 - 2**31
+            assert abs(w_meas - 200.0) <= 2 * math.pi / cpr / 0.01 + 1e-6
+    assert any(t < 0 for t, _ in seen)                           # it wrapped
 
 
 def test_a_rollback_repeats_the_samples(fmu_dir):
