@@ -433,3 +433,25 @@ def test_a_loop_on_belief_reports_the_drift(fmu_dir, tmp_path):
     assert belief["drift"]["position"] == pytest.approx(drift, rel=1e-12) and drift > 0.01
     assert any("fed the odometry's belief" in line for line in lines)
     assert "no estimate" in summary["error_estimate_method"]
+
+
+# ------------------------------------------------------------------ the step order
+
+
+def test_a_block_steps_after_the_blocks_feeding_it(fmu_dir):
+    """The Odometry steps after its Encoders (their outputs depend on no input, so the
+    variable-level sort alone put it first and it read the step before's samples); the
+    orders of the existing scenarios are those the sort gave before (printed by `validate`
+    on main)."""
+    order = [i.name for i in prepare(OPEN, fmu_dir=fmu_dir).instances]
+    assert all(order.index("odom") > order.index(e) for e in ENCODERS + ("gyro",))
+    before = {"circle.yaml": "source c2w w2c pose",
+              "closed_loop/track_circle.yaml": "pose follower c2w w2c",
+              "chassis/compare.yaml": "command car_command mecanum_c2w omni_c2w car mecanum_w2c "
+                                      "omni_w2c car_pose mecanum_pose omni_pose",
+              "chassis/omni_field_circle.yaml": "command pose field c2w w2c"}
+    for name, names in before.items():
+        graph = prepare(ROOT / "scenarios" / name, fmu_dir=fmu_dir)
+        assert [i.name for i in graph.instances] == names.split(), name
+    track = [i.name for i in prepare(TRACK, fmu_dir=fmu_dir).instances]
+    assert track[:5] == list(ENCODERS) + ["odom"]                 # the loop's state first
