@@ -41,6 +41,7 @@ DASHBOARDS = {
     "omni_field_dashboard.png": ("chassis/omni_field_circle.yaml", "dashboard.png"),
     "bicycle_dashboard.png": ("chassis/bicycle_circle.yaml", "dashboard.png"),
     "showcase_dashboard.png": ("modes/showcase.yaml", "dashboard.png"),
+    "belief_track_circle_dashboard.png": ("robot/belief_track_circle.yaml", "dashboard.png"),
 }
 SWEEP_FILES = ("end_points.png", "paths.png", "error_histogram.png")
 GRID = """name: wheel_tolerance_grid

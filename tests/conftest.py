@@ -55,7 +55,9 @@ except ImportError:  # package not installed: fall back to the src layout
 
 MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator", "PathFollower",
                # the other chassis (docs/chassis.md, tests/test_chassis.py)
-               "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource")
+               "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource",
+               # sensors and dead reckoning (docs/odometry.md, tests/test_odometry.py)
+               "Encoder", "Gyro", "Odometry")
 
 
 BUILD = """import json, sys

@@ -42,6 +42,8 @@ SKIPS = [
     (r"--animate\b", "draws a GIF frame by frame: minutes on a loaded machine "
                      "(tests/test_plots.py covers the animation)"),
     (r"\bdocs/make_gallery\.py\b", "redraws docs/img/ (the gallery and its animation): minutes"),
+    (r"\bdocs/drift_study\.py\b", "reads the runs.csv of the belief_drift sweep (minutes; "
+                                  "skipped above)"),
     (r"\bOMSimulator\b", "OpenModelica's OMSimulator: not installed by make "
                          "(docs/openmodelica.md is followed by hand)"),
     (r"\$B/ecos\b|\./ecos\b", "the Ecos program copied out of ecospy by hand; `cross-check` "

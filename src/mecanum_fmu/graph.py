@@ -16,7 +16,7 @@ from fmpy.model_description import ModelDescription, ScalarVariable
 
 from . import plausibility
 from .models import library as fmu_library
-from .models.catalog import bundled_model
+from .models.catalog import SAMPLED_MODELS, bundled_model
 from .models.pose_error import pose_error
 from .errors import Problem, ScenarioError
 from .masters import DEFAULT, entry as master_entry
@@ -85,6 +85,12 @@ class Graph:
         """Where its sources jump or kink (tables.source_breaks), from the start values it
         runs with (a sweep's graph has its own)."""
         return source_breaks(self.instances)
+
+    @property
+    def sampled(self) -> list[str]:
+        """The models in it that sample at their own period (Encoder, Gyro, Odometry): a
+        coarser step samples them differently (the Richardson estimate says so)."""
+        return sorted({i.model_name for i in self.instances} & set(SAMPLED_MODELS))
 
     def find_model(self, model_name: str) -> Instance | None:
         """The single instance of a model, or None when there is none or several."""
@@ -428,8 +434,34 @@ def _dependency_order(instances: list[Instance], links: list[Link], label: str):
         name = link.target.ref.instance
         last_input[name] = max(last_input.get(name, -1), position[node])
     declared = {inst.name: i for i, inst in enumerate(instances)}
-    step_order = sorted(instances, key=lambda i: (last_input.get(i.name, -1), declared[i.name]))
-    return step_order, link_order
+    key = {i.name: (last_input.get(i.name, -1), declared[i.name]) for i in instances}
+    return _after_sources(instances, links, feedback, key), link_order
+
+
+def _after_sources(instances: list[Instance], links: list[Link], feedback: set[str],
+                   key: dict) -> list[Instance]:
+    """The instances sorted by key, except that each steps after the instances feeding it
+    (outside the feedback into a state), so that it takes their t_k+1 values, also from a
+    block whose outputs do not depend on its inputs (an Encoder feeding an Odometry). Where
+    the key order already does so it is kept; an instance-level cycle keeps the key order."""
+    by_key = sorted(instances, key=lambda i: key[i.name])
+    sorter = graphlib.TopologicalSorter({i.name: set() for i in instances})
+    for link in links:
+        source, target = link.source.ref.instance, link.target.ref.instance
+        if str(link.target.ref) not in feedback and source != target:
+            sorter.add(target, source)
+    try:
+        sorter.prepare()
+    except graphlib.CycleError:
+        return by_key
+    named, ready, order = {i.name: i for i in instances}, set(), []
+    while sorter.is_active():
+        ready.update(sorter.get_ready())
+        first = min(ready, key=lambda n: key[n])
+        ready.remove(first)
+        order.append(named[first])
+        sorter.done(first)
+    return order
 
 
 def _feedback_into_state(instances: list[Instance], links: list[Link]) -> set[str]:

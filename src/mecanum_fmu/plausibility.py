@@ -9,6 +9,8 @@ Graph.warnings.
 - A follower gain that makes the closed loop unstable at the chosen step: on x' = -k x closed
   through the integrator each master is stable for h k below its registry entry's loop limit
   (masters.py, docs/masters.md).
+- A sampled block (Encoder, Gyro, Odometry) whose period is not a whole number of steps:
+  its samples do not land on communication points (docs/odometry.md, Sample times).
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
 .value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of
@@ -20,6 +22,7 @@ import math
 
 from .errors import Problem
 from .masters import entry as master_entry
+from .models.catalog import SAMPLED_MODELS
 
 LENGTHS = {"R": (0.005, 1.0), "L": (0.01, 5.0), "W": (0.01, 5.0), "l": (0.05, 10.0)}
 LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2Center",
@@ -42,7 +45,8 @@ def problems(scenario, instances) -> list[Problem]:
     found: list[Problem] = []
     for inst in instances:
         for place, message in (_units(scenario, inst) + _table_span(scenario, inst)
-                               + _stability(scenario, inst, instances)):
+                               + _stability(scenario, inst, instances)
+                               + _sampling(scenario, inst)):
             problem = Problem(scenario.label, place, message)
             if problem not in found:        # a shared parameter is seen by every taker
                 found.append(problem)
@@ -106,6 +110,29 @@ def _table_span(scenario, inst) -> list[tuple[str, str]]:
              f"the run {exp.start_time:g} to {exp.stop_time:g} s: {held} (timestamps in "
              "another unit or epoch? use table: {file: ..., units: {time: ms}, start: "
              "first_row} or an offset)")]
+
+
+def _sampling(scenario, inst) -> list[tuple[str, str]]:
+    if inst.model_name not in SAMPLED_MODELS:
+        return []
+    period, exp = inst.value("period"), scenario.experiment
+    if not isinstance(period, (int, float)) or isinstance(period, bool) \
+            or not (math.isfinite(period) and period > 0):
+        return []
+    if master_entry(exp.master).adaptive:
+        return [(_place(scenario, inst, "period"),
+                 f"period = {period:g} s: the adaptive master's steps do not land on the "
+                 f"sample times, so each sample is seen up to a step late; use a fixed-step "
+                 f"master (quadratic) with a step that divides the period")]
+    ratio = period / exp.step_size
+    if abs(ratio - round(ratio)) <= 1e-9 * max(1.0, ratio) and round(ratio) >= 1:
+        return []
+    what = (f"{math.ceil(1 / ratio - 1e-9)} samples fall in one step and only the last is seen"
+            if ratio < 1 else "a sample between two steps is taken at its own time but seen "
+            "at the next step, up to one step late")
+    return [(_place(scenario, inst, "period"),
+             f"period = {period:g} s is not a whole number of steps of {exp.step_size:g} s: "
+             f"{what}; use a step of period/n (e.g. {period / max(1, math.ceil(ratio)):g} s)")]
 
 
 def _stability(scenario, inst, instances) -> list[tuple[str, str]]:

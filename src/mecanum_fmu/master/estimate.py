@@ -86,6 +86,10 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "relative_tolerance": (DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance
                                        is None else exp.relative_tolerance),
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
+    sampled = graph.sampled
+    if sampled:
+        return _none(f"{', '.join(sampled)} sample at their own period: a coarser step moves "
+                     "their samples (a different model, not a coarser run of this one)")
     marks = graph_breaks(graph).times()
     factors = coarse_factors(graph, exp, marks)
     if factors is None:

@@ -26,7 +26,7 @@ from . import embed
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},
               "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"},
-              "1/s": {"s": "-1"}}
+              "1/s": {"s": "-1"}, "s": {"s": "1"}}
 
 
 def build_fmu(model_name: str, dest_dir: Path) -> Path:

@@ -16,6 +16,8 @@ from .blocks.expression import ExpressionError, compile_expression
 from .blocks.bicycle import bicycle_problem
 from .blocks.kinematics import GEOMETRY, geometry_problem, radius_deviation_problem
 from .blocks.omni import omni_geometry_problem
+from .blocks.odometry import odometry_problem
+from .blocks.sensors import encoder_problem, gyro_problem
 from ..values import is_number
 
 AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
@@ -118,6 +120,13 @@ def _check_follower(values: Mapping[str, object], start_time: float) -> list[tup
     return problems
 
 
+def _check_odometry(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """Odometry: the geometry it assumes, a period > 0, a known update and heading."""
+    problems = _check_geometry(values, start_time)
+    found = odometry_problem(values.get("period"), values.get("update"), values.get("heading"))
+    return problems + ([found] if found else [])
+
+
 def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
     return []
 
@@ -136,7 +145,16 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("FieldToBody", "field_to_body", "frame", _no_rules),
     Model("Bicycle", "bicycle", "forward", _numbers_rule(("l", "reference"), bicycle_problem)),
     Model("SteeringSource", "steering_source", "steering", _check_expressions),
+    # what the robot knows: sensors and dead reckoning (docs/odometry.md)
+    Model("Encoder", "encoder", "encoder", _numbers_rule(("cpr", "period", "sigma"), encoder_problem)),
+    Model("Gyro", "gyro", "gyro", _numbers_rule(("period", "sigma", "bias"), gyro_problem)),
+    Model("Odometry", "odometry", "odometry", _check_odometry),
 )}
+
+
+# Blocks that sample at their own period (docs/odometry.md, Sample times): the step must
+# divide it, and a run at another step samples differently (no Richardson estimate).
+SAMPLED_MODELS = ("Encoder", "Gyro", "Odometry")
 
 
 def bundled_model(md) -> Model | None:
@@ -157,6 +175,7 @@ class Roles:
     omni_inverse: str | None = None   # the omni X-drive's kinematics pair (docs/chassis.md)
     omni_forward: str | None = None
     steering: str | None = None     # a SteeringSource: the car-like chassis' (v, phi) input
+    odometry: str | None = None     # an Odometry: the robot's belief beside the pose (docs/odometry.md)
 
 
 def find_roles(graph) -> Roles:
@@ -169,4 +188,4 @@ def find_roles(graph) -> Roles:
     one = {role: names[0] for role, names in found.items() if len(names) == 1}
     return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"),
                  one.get("follower"), one.get("frame"), one.get("omni-inverse"),
-                 one.get("omni-forward"), one.get("steering"))
+                 one.get("omni-forward"), one.get("steering"), one.get("odometry"))

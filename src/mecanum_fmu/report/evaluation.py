@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.modes import constant_twist_signs
-from ..models.topology import Drive, Topology, topology
+from ..models.topology import Drive, Topology, topology, upstream
 from ..results import Results
 from .ground_truth import pose_truth
 from .truth import Truth
@@ -66,6 +66,7 @@ class Evaluation:
     topology: Topology
     poses: tuple[PoseEvaluation, ...]
     wheel_signs: str | None
+    belief: dict | None = None    # an Odometry's end drift from the pose (docs/odometry.md)
 
     @property
     def roles(self):
@@ -101,6 +102,8 @@ class Evaluation:
             out.pop("ground_truth_error", None)
         elif len(self.poses) > 1:
             out["poses"] = {p.pose: p.as_dict() for p in self.poses if p.end is not None}
+        if self.belief is not None and self.single is not None:
+            out["belief"] = self.belief
         if self.wheel_signs is not None:
             out["wheel_signs"] = self.wheel_signs
         if self.failure is not None:
@@ -126,7 +129,22 @@ def evaluate(graph, results: Results, *, topo: Topology | None = None,
         poses.append(_compare(results, drive, end, truth, failure))
     signs = (constant_twist_signs(graph, results, topo.roles, topo.geometry)
              if len(results.time) else None)
-    return Evaluation(topo, tuple(poses), signs)
+    return Evaluation(topo, tuple(poses), signs, _belief(graph, results, topo))
+
+
+def _belief(graph, results: Results, topo: Topology) -> dict | None:
+    """The Odometry's end pose and its drift from the (single) true pose, and whether the
+    follower is fed by it (a loop closed on belief: the tracking error is the drift)."""
+    odom, drives = topo.roles.odometry, topo.drives
+    end = _end_pose(results, odom) if odom is not None and len(drives) == 1 else None
+    true = _end_pose(results, drives[0].pose) if end is not None else None
+    if true is None:
+        return None
+    drift = {f"d{k}": end[k] - true[k] for k in AXES}
+    drift["position"] = math.hypot(drift["dx"], drift["dy"])
+    follower = topo.roles.follower
+    fed = follower is not None and (upstream(graph, follower, "x") or ("",))[0] == odom
+    return {"instance": odom, "end_pose": end, "drift": drift, "closes_the_loop": fed}
 
 
 def solve_truth(graph, drive: Drive, times: np.ndarray) -> tuple[Truth | None, str | None]:
@@ -185,6 +203,9 @@ def mismatch_hint(entry: dict) -> str:
     if s is not None and not s["in_ground_truth"]:
         return (f"{saturation_words(s)} and the ground truth (the reference) does not; "
                 "a smaller step changes nothing")
+    if entry.get("belief", {}).get("closes_the_loop"):
+        return ("the follower is fed the odometry's belief, not the true pose: the gap is the "
+                "belief's drift, which a smaller step does not remove")
     return "the end points differ at 3 decimals; try a smaller step"
 
 
@@ -202,6 +223,11 @@ def report_lines(summary: dict) -> list[str]:
             lines.append("match!" if summary["match"] else f"no match ({mismatch_hint(summary)})")
         if (s := summary.get("saturation")) is not None and s["in_ground_truth"]:
             lines.append(f"{saturation_words(s)}; the ground truth saturates them too")
+    if (b := summary.get("belief")) is not None:
+        d = b["drift"]
+        lines.append(f"belief ({b['instance']}) - true pose at the end: dx = {d['dx']:.3e}, "
+                     f"dy = {d['dy']:.3e}, |e| = {d['position']:.3e} m, dtheta = "
+                     f"{d['dtheta']:.3e} rad")
     for name, p in summary.get("poses", {}).items():
         lines.append(pose_line(name, p))
     if "wheel_signs" in summary:

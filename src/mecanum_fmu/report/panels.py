@@ -273,6 +273,42 @@ def _draw_error(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -
     _finish(ax, "t [s]", f"error (log scale, floor {ERROR_FLOOR:g})")
 
 
+def _draw_belief(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """The true path (the PoseIntegrator) and the robot's belief (the Odometry)."""
+    idx = decimate_index(len(results.time))
+    for inst, label, style in ((roles.pose, "true", dict(color="C0", lw=2.0)),
+                               (roles.odometry, "believed (odometry)",
+                                dict(color="C1", lw=1.2, ls="--"))):
+        x, y = results[f"{inst}.x"], results[f"{inst}.y"]
+        ax.plot(x[idx], y[idx], label=label, **style)
+        ax.plot([x[-1]], [y[-1]], "s", color=style["color"], label=f"{label} end")
+    ax.plot([results[f"{roles.pose}.x"][0]], [results[f"{roles.pose}.y"][0]], "o", color="C2",
+            label="start")
+    _finish(ax, "x [m] (right)", "y [m] (forward)", equal=True)
+
+
+def belief_drift(results: Results, roles: Roles) -> tuple[np.ndarray, np.ndarray]:
+    """(distance, heading difference) between the believed and the true pose at every row."""
+    b, p = roles.odometry, roles.pose
+    distance = np.hypot(results[f"{b}.x"] - results[f"{p}.x"], results[f"{b}.y"] - results[f"{p}.y"])
+    dth = np.zeros_like(distance)
+    if _col(results, b, "theta") and _col(results, p, "theta"):
+        dth = results[f"{b}.theta"] - results[f"{p}.theta"]
+        dth = np.arctan2(np.sin(dth), np.cos(dth))
+    return distance, dth
+
+
+def _draw_drift(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """How far the belief is from the truth, against time: position (left axis), heading."""
+    idx, t = _t(results)
+    distance, dth = belief_drift(results, roles)
+    ax.plot(t, distance[idx] * 1e3, color="C3",
+            label=f"position: |believed - true| [mm], end {distance[-1] * 1e3:.3g}")
+    ax.plot(t, dth[idx] * 1e3, color="C4", ls="--",
+            label=f"heading: believed - true [mrad], end {dth[-1] * 1e3:.3g}")
+    _finish(ax, "t [s]", "drift [mm] and [mrad]")
+
+
 class MinorLogTicks(Artist):
     """The minor tick marks of a log y axis as one line of markers, in the places and look
     of matplotlib's own (the same pixels): those are a Tick of five artists each (72 on the
@@ -320,6 +356,10 @@ def _has_pose(r: Results, ro: Roles) -> bool:
     return bool(_col(r, ro.pose, "x") and _col(r, ro.pose, "y"))
 
 
+def _has_belief(r: Results, ro: Roles) -> bool:
+    return bool(_col(r, ro.odometry, "x") and _col(r, ro.odometry, "y"))
+
+
 def _has_inputs(r: Results, ro: Roles) -> bool:
     block, channels = inputs(ro)
     return any(_col(r, block, v) for v in channels)
@@ -339,6 +379,11 @@ PANELS: dict[str, Panel] = {
     "tracking_error": Panel("Tracking error",
                             lambda r, ro: bool(ro.follower) and _has_pose(r, ro), _draw_error,
                             truth=True),
+    # only with an Odometry beside the pose (docs/odometry.md): what the robot believes
+    "belief": Panel("True path vs believed path (odometry)",
+                    lambda r, ro: _has_pose(r, ro) and _has_belief(r, ro), _draw_belief),
+    "drift": Panel("Drift of the belief against time",
+                   lambda r, ro: _has_pose(r, ro) and _has_belief(r, ro), _draw_drift),
     "velocities": Panel("Input velocities", _has_inputs, _draw_velocities),
     "vy": Panel("Vy(t)", lambda r, ro: bool(_col(r, ro.source, "vy")), _draw_vy),
     "wheels": Panel("Wheel speeds",

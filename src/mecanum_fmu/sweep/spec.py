@@ -38,7 +38,9 @@ from ..values import is_finite, name_problem, scalar_problem, show, unknown_keys
 
 _TOP_KEYS = ("name", "description", "scenario", "experiment", "grid", "random")
 MAX_RUNS = 100_000              # grid points x samples; more is likely a typo (--max-runs)
-DISTRIBUTIONS = {"normal": "[mean, sd] with sd >= 0", "uniform": "[low, high] with low <= high"}
+DISTRIBUTIONS = {"normal": "[mean, sd] with sd >= 0", "uniform": "[low, high] with low <= high",
+                 # whole numbers low <= n < high, for an Integer parameter (a noise seed per run)
+                 "integers": "[low, high] whole numbers with low < high"}
 
 
 @dataclass(frozen=True)
@@ -203,6 +205,11 @@ def _distribution(spec, place: str, bad):
     if not (isinstance(args, list) and len(args) == 2 and all(is_finite(a) for a in args)):
         bad(f"{place}.{kind}", f"expected {DISTRIBUTIONS[kind]}, got {show(args)}")
         return None, ()
+    if kind == "integers":
+        if not all(float(v).is_integer() for v in args) or not args[0] < args[1]:
+            bad(f"{place}.{kind}", f"expected {DISTRIBUTIONS[kind]}, got {show(args)}")
+            return None, ()
+        return kind, (int(args[0]), int(args[1]))
     a, b = float(args[0]), float(args[1])
     if (kind == "normal" and b < 0) or (kind == "uniform" and b < a):
         bad(f"{place}.{kind}", f"expected {DISTRIBUTIONS[kind]}, got {show(args)}")
@@ -246,7 +253,7 @@ def parameter_problems(sweep: Sweep, graph: Graph,
     got, or cannot set, or (random draws) that is not Real."""
     problems = []
     names = [i.name for i in graph.instances]
-    drawn = {str(ref) for ref, _, _ in sweep.random}
+    drawn = {str(ref): kind for ref, kind, _ in sweep.random}
     if named is None:
         named = [(f"grid.{ref}", ref) for ref, _ in sweep.grid] + [
             (f"random.{ref}", ref) for ref, _, _ in sweep.random]
@@ -264,9 +271,11 @@ def parameter_problems(sweep: Sweep, graph: Graph,
         elif ref.variable not in settable:
             problems.append((place, f"'{ref.variable}' is {var.causality} ({var.variability}) "
                                     f"and cannot be set; settable: {', '.join(settable)}"))
-        elif place.startswith("random.") and str(ref) in drawn and var.type != "Real":
-            problems.append((place, f"'{ref}' is {var.type}; random draws are real numbers "
-                                    "(sweep it with `grid:` instead)"))
+        elif place.startswith("random.") and str(ref) in drawn and var.type != (
+                "Integer" if drawn[str(ref)] == "integers" else "Real"):
+            problems.append((place, f"'{ref}' is {var.type}; random draws are real numbers, "
+                                    "`integers` draws whole numbers for an Integer parameter "
+                                    "(else sweep it with `grid:`)"))
     return [Problem(str(sweep.path), place, message) for place, message in problems]
 
 
