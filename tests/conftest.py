@@ -60,9 +60,14 @@ MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator
                "Encoder", "Gyro", "Odometry")
 
 
+# both versions in one child: fmu_dir holds the FMI 2.0 FMUs and fmu_dir/fmi3 their FMI 3.0
+# twins (a scenario's `fmu: fmi3/<Model>`)
 BUILD = """import json, sys
 from mecanum_fmu.models.build import build_all
-print(json.dumps([str(p) for p in build_all(sys.argv[1])]))
+from mecanum_fmu.models.build3 import build_all3
+paths = build_all(sys.argv[1])
+build_all3(sys.argv[1])
+print(json.dumps([str(p) for p in paths]))
 """
 
 
@@ -92,18 +97,16 @@ def fmu_dir():
             assert all(path.is_file() and path.parent == partial for path in paths)
             assert sorted(p.stem for p in paths) == sorted(MODEL_NAMES)
             partial.rename(dest)
-    assert sorted(p.stem for p in dest.iterdir()) == sorted(MODEL_NAMES)
+    assert sorted(p.stem for p in dest.glob("*.fmu")) == sorted(MODEL_NAMES)
     return dest
 
 
 @pytest.fixture(scope="session")
 def fmi3_fmus(fmu_dir):
-    """modelName -> Path of its FMI 3.0 FMU, built once into fmu_dir/fmi3/ (a scenario's
-    `fmu: fmi3/<Model>`)."""
-    from mecanum_fmu.models.build3 import build_all3
-
-    paths = [Path(p) for p in build_all3(fmu_dir)]
-    assert sorted(p.stem for p in paths) == sorted(MODEL_NAMES)
+    """modelName -> Path of its FMI 3.0 FMU, built with the FMI 2.0 ones into fmu_dir/fmi3/
+    (a scenario's `fmu: fmi3/<Model>`)."""
+    paths = sorted((fmu_dir / "fmi3").glob("*.fmu"))
+    assert [p.stem for p in paths] == sorted(MODEL_NAMES)
     return {p.stem: p for p in paths}
 
 
