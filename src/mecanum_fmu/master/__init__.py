@@ -53,7 +53,8 @@ def simulate(graph: Graph, experiment: Experiment,
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
         holds = plan_transfers(running, graph, buffers, how.hold,
-                               AdaptiveHolds(graph.error_models) if how.adaptive else None)
+                               AdaptiveHolds(how.hold, graph.error_models) if how.adaptive
+                               else None)
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)

@@ -65,11 +65,13 @@ def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class AdaptiveHolds(Holds):
-    """Holds over unequal steps: h (this step), g and f (the two before). `models`:
-    Graph.error_models (per instance name, a factory of an error model for its held inputs)."""
+    """Holds over unequal steps: h (this step), g and f (the two before). `hold`: the
+    registry's (masters.py) for the adaptive master, whose fixed weights the blends replace;
+    `models`: Graph.error_models (per instance name, a factory of an error model for its
+    held inputs)."""
 
-    def __init__(self, models: tuple = ()):
-        super().__init__("quadratic")
+    def __init__(self, hold: str, models: tuple = ()):
+        super().__init__(hold)
         self.h = self.g = self.f = 1.0
         self.models = dict(models)
         self.clients: list = []     # the error models handed a blend

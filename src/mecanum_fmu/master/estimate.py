@@ -99,7 +99,7 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
         factor = float(factor)
         try:
             coarse.append(_coarse_run(graph, dataclasses.replace(
-                exp, step_size=factor * exp.step_size), names, simulate))
+                exp, step_size=factor * exp.step_size), names, simulate, results.time))
         except SimulationError as err:
             return _none(f"the same run at {factor}x the step failed ({err})")
     order = master_entry(exp.master).order
@@ -152,12 +152,23 @@ def _none(reason: str) -> dict:
     return {"error_estimate": None, "error_estimate_method": f"no estimate: {reason}"}
 
 
-def _coarse_run(graph: Graph, exp, names: list[str], simulate) -> tuple:
-    """(stepping seconds, times, {name: values}) of the run at exp's step: only the pose
-    columns are kept (a sink), so that a long run costs little memory."""
+def _coarse_run(graph: Graph, exp, names: list[str], simulate, fine: np.ndarray) -> tuple:
+    """(stepping seconds, times, {name: values}) of the run at exp's step: only the estimated
+    columns, and only the rows at times the run kept (`fine`: the run's Results may hold a
+    few evenly spaced rows of a long run), are kept (a sink): memory stays flat."""
     parts: list[np.ndarray] = []
-    results = simulate(graph, exp, sink=lambda chunk: parts.append(chunk[["time"] + names]),
-                       keep_rows=2)
+    def quarters(t: np.ndarray) -> np.ndarray:      # the times in quarters of exp's step
+        return np.round((t - exp.start_time) / exp.step_size * 4).astype(np.int64)
+
+    wanted = quarters(fine)
+    ends = np.array([fine[-1]]) if len(fine) else fine
+
+    def keep(chunk: np.ndarray) -> None:
+        t = chunk["time"]
+        on = np.isin(quarters(t), wanted) | np.isin(t, ends)
+        parts.append(chunk[["time"] + names][on])
+
+    results = simulate(graph, exp, sink=keep, keep_rows=2)
     rows = np.concatenate(parts)
     return results.wall_time, rows["time"], {n: np.asarray(rows[n], dtype=float) for n in names}
 

@@ -1,0 +1,58 @@
+"""A sweep's runs against the same runs by master.simulate alone, in one process: what the
+sweep worker adds per run (the error estimate above all, docs/masters.md) as a ratio of
+medians. The runs are the first N variants of scenarios/sweeps/wheel_tolerance.yaml, made by
+the worker's own run_batch; interleaved rounds, the first run of each kind not timed.
+
+Run: .venv/bin/python bench/sweep_estimate.py [--runs N] [--rounds R]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+from mecanum_fmu import master
+from mecanum_fmu.models.catalog import find_roles
+from mecanum_fmu.sweep.cluster import prepare_sweep
+from mecanum_fmu.sweep.worker import run_batch, with_values
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "scenarios" / "sweeps" / "wheel_tolerance.yaml"
+
+
+def main(argv=None) -> float:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args(argv)
+    graph, batch, path_names = _study(args.runs)
+    exp = graph.scenario.experiment
+    run_batch(graph, batch[:1], path_names)                    # warm: unpack, instantiate
+    master.simulate(with_values(graph, batch[0][1]), exp)
+    alone, sweep = [], []
+    for _ in range(args.rounds):
+        tick = time.perf_counter()
+        for _, values in batch:
+            master.simulate(with_values(graph, values), exp)
+        alone.append((time.perf_counter() - tick) / len(batch))
+        tick = time.perf_counter()
+        run_batch(graph, batch, path_names)
+        sweep.append((time.perf_counter() - tick) / len(batch))
+    a, s = statistics.median(alone), statistics.median(sweep)
+    print(f"{len(batch)} runs x {args.rounds} rounds: master.simulate alone {a * 1e3:.1f} ms a "
+          f"run, the sweep worker's run (estimate included) {s * 1e3:.1f} ms: ratio {s / a:.2f}")
+    return s / a
+
+
+def _study(runs: int):
+    """The compiled graph, the first `runs` (index, values) and the path names of the study
+    (the pose's x and y, as the sweep's client asks for them)."""
+    _, graph, planned = prepare_sweep(STUDY)
+    batch = [(r.index, r.values) for r in planned if r.problem is None][:runs]
+    pose = find_roles(graph).pose
+    return graph, batch, ((f"{pose}.x", f"{pose}.y") if pose else None)
+
+
+if __name__ == "__main__":
+    main()
