@@ -28,7 +28,9 @@ except ImportError:  # package not installed: fall back to the src layout
 
 MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator", "PathFollower",
                # the other chassis (docs/chassis.md, tests/test_chassis.py)
-               "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource")
+               "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource",
+               # the drive train (docs/robot.md, tests/test_robot.py)
+               "DCMotor", "MecanumDynamics")
 
 
 @pytest.fixture(scope="session")

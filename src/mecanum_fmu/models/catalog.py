@@ -15,7 +15,9 @@ from typing import Callable, Mapping
 from .blocks.expression import ExpressionError, compile_expression
 from .blocks.bicycle import bicycle_problem
 from .blocks.kinematics import GEOMETRY, geometry_problem, radius_deviation_problem
+from .blocks.motor import DEFAULT_MOTOR, motor_problem
 from .blocks.omni import omni_geometry_problem
+from .blocks.traction import BODY, body_problem
 from ..values import is_number
 
 AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
@@ -118,6 +120,12 @@ def _check_follower(values: Mapping[str, object], start_time: float) -> list[tup
     return problems
 
 
+def _check_dynamics(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """MecanumDynamics: the geometry, and a body with positive mass, inertia and friction."""
+    return _check_geometry(values, start_time) + _numbers_rule(BODY, body_problem)(
+        values, start_time)
+
+
 def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
     return []
 
@@ -136,6 +144,9 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("FieldToBody", "field_to_body", "frame", _no_rules),
     Model("Bicycle", "bicycle", "forward", _numbers_rule(("l", "reference"), bicycle_problem)),
     Model("SteeringSource", "steering_source", "steering", _check_expressions),
+    # the drive train and the floor (docs/robot.md)
+    Model("DCMotor", "dc_motor", "motor", _numbers_rule(tuple(DEFAULT_MOTOR), motor_problem)),
+    Model("MecanumDynamics", "mecanum_dynamics", "dynamics", _check_dynamics),
 )}
 
 
