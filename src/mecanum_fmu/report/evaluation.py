@@ -17,6 +17,7 @@ import numpy as np
 from ..models.modes import constant_twist_signs
 from ..models.topology import Drive, Topology, topology
 from ..results import Results
+from .drive_train import drive_train_limits, limit_lines
 from .ground_truth import pose_truth
 from .truth import Truth
 
@@ -66,6 +67,7 @@ class Evaluation:
     topology: Topology
     poses: tuple[PoseEvaluation, ...]
     wheel_signs: str | None
+    drive_train: dict | None = None     # the motors' clamps and the contacts' slip
 
     @property
     def roles(self):
@@ -105,6 +107,8 @@ class Evaluation:
             out["wheel_signs"] = self.wheel_signs
         if self.failure is not None:
             out["ground_truth_error"] = self.failure
+        if self.drive_train is not None:
+            out["drive_train"] = self.drive_train
         return out
 
 
@@ -126,7 +130,7 @@ def evaluate(graph, results: Results, *, topo: Topology | None = None,
         poses.append(_compare(results, drive, end, truth, failure))
     signs = (constant_twist_signs(graph, results, topo.roles, topo.geometry)
              if len(results.time) else None)
-    return Evaluation(topo, tuple(poses), signs)
+    return Evaluation(topo, tuple(poses), signs, drive_train_limits(graph, results))
 
 
 def solve_truth(graph, drive: Drive, times: np.ndarray) -> tuple[Truth | None, str | None]:
@@ -185,6 +189,9 @@ def mismatch_hint(entry: dict) -> str:
     if s is not None and not s["in_ground_truth"]:
         return (f"{saturation_words(s)} and the ground truth (the reference) does not; "
                 "a smaller step changes nothing")
+    if "drive_train" in entry:
+        return ("motors and floor lie between the command and the pose, and the ground truth "
+                "is the kinematic path: the error estimate says how much of it is the step")
     return "the end points differ at 3 decimals; try a smaller step"
 
 
@@ -206,6 +213,8 @@ def report_lines(summary: dict) -> list[str]:
         lines.append(pose_line(name, p))
     if "wheel_signs" in summary:
         lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
+    if "drive_train" in summary:
+        lines += limit_lines(summary["drive_train"])
     return lines
 
 
