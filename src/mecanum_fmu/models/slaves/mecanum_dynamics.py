@@ -53,11 +53,11 @@ class MecanumDynamics(Fmi2Slave):
              "eps_min": "m/s", "eps": "m/s", "vx0": "m/s", "vy0": "m/s", "w0": "rad/s", "vx": "m/s",
              "vy": "m/s", "w": "rad/s", **{n: "N.m" for n in _LOADS},
              **{n: "m/s" for n in _SLIPS}, **{n: "J" for n in _ENERGIES}}
-    DEPENDENCIES = {**{n: () for n in _TWIST + _ENERGIES},
+    DEPENDENCIES = {**{n: () for n in _TWIST + _ENERGIES + ("eps",)},
                     **{n: (w,) for n, w in zip(_LOADS + _SLIPS, _WHEELS * 2)}}
     INITIAL_DEPENDENCIES = {**{n: (s,) for n, s in zip(_TWIST, _START)},
                             **{n: () for n in _ENERGIES[:2]},
-                            "E_kinetic": _START + ("m", "Iz"),
+                            "E_kinetic": _START + ("m", "Iz"), "eps": ("eps_min",),
                             **{n: (w,) + _START + _GEOMETRY + BODY
                                for n, w in zip(_LOADS + _SLIPS, _WHEELS * 2)}}
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
@@ -73,7 +73,7 @@ class MecanumDynamics(Fmi2Slave):
         self._register(_GEOMETRY + BODY + _START, Fmi2Causality.parameter, Fmi2Variability.fixed)
         self._register(_TWIST + _LOADS + _SLIPS + _ENERGIES, Fmi2Causality.output,
                        Fmi2Variability.continuous)
-        self._register(("eps",), Fmi2Causality.local, Fmi2Variability.continuous)
+        self._register(("eps",), Fmi2Causality.output, Fmi2Variability.continuous)
 
     def _register(self, names, causality, variability):
         for name in names:
