@@ -146,7 +146,8 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("SteeringSource", "steering_source", "steering", _check_expressions),
     # the drive train and the floor (docs/robot.md)
     Model("DCMotor", "dc_motor", "motor", _numbers_rule(tuple(DEFAULT_MOTOR), motor_problem)),
-    Model("MecanumDynamics", "mecanum_dynamics", "dynamics", _check_dynamics),
+    # the forward map with physics: wheel speeds in, the twist the floor allows out
+    Model("MecanumDynamics", "mecanum_dynamics", "forward", _check_dynamics),
 )}
 
 

@@ -34,6 +34,8 @@ _DOCS = {
     "E_viscous": "viscous friction loss since the start, integral of b w^2",
     "E_gear": "gearbox loss since the start, integral of (k_e - k_t) i w",
     "E_load": "work done on the floor's reaction since the start, integral of tau_load w",
+    "V_clamp": "the voltage clamp in effect, V_supply (for plots and reports of the run)",
+    "i_clamp": "the current limit in effect, i_max (for plots and reports of the run)",
     "R_a": "armature resistance V_supply / stall_current",
     "k_t": "torque constant at the wheel, stall_torque / stall_current",
     "k_e": "back-EMF constant at the wheel, (V_supply - R_a no_load_current) / no_load_speed",
@@ -52,13 +54,15 @@ class DCMotor(Fmi2Slave):
              "stall_current": "A", "no_load_speed": "rad/s", "no_load_current": "A", "La": "H",
              "J": "kg.m2", "kp": "V.s/rad", "ki": "V/rad", "i_max": "A", "w0": "rad/s",
              "w": "rad/s", "i": "A", "V": "V", "tau": "N.m", "z": "V",
+             "V_clamp": "V", "i_clamp": "A",
              "R_a": "ohm", "k_t": "N.m/A", "k_e": "V.s/rad", "b": "N.m.s/rad",
              **{name: "J" for name in _ENERGIES}}
     DEPENDENCIES = {"w": (), "i": ("w_ref",), "V": ("w_ref",), "tau": ("w_ref",),
-                    **{name: () for name in _ENERGIES}}
+                    **{name: () for name in _ENERGIES}, "V_clamp": (), "i_clamp": ()}
     INITIAL_DEPENDENCIES = {name: ("w_ref",) + _PARAMETERS for name in ("w", "i", "V", "tau")}
     INITIAL_DEPENDENCIES.update({name: () for name in _ENERGIES})
     INITIAL_DEPENDENCIES.update({name: tuple(DEFAULT_MOTOR)[:5] for name in _DERIVED})
+    INITIAL_DEPENDENCIES.update({"V_clamp": ("V_supply",), "i_clamp": ("i_max",)})
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
 
     def __init__(self, **kwargs):
@@ -66,7 +70,7 @@ class DCMotor(Fmi2Slave):
         for name, value in DEFAULT_MOTOR.items():
             setattr(self, name, value)
         self.w0 = self.w_ref = self.tau_load = 0.0
-        for name in _STATE + ("V", "tau") + _DERIVED:
+        for name in _STATE + ("V", "tau", "V_clamp", "i_clamp") + _DERIVED:
             setattr(self, name, 0.0)
         self._motor = None
         self._register(_INPUTS, Fmi2Causality.input, Fmi2Variability.continuous)
@@ -75,6 +79,7 @@ class DCMotor(Fmi2Slave):
                        Fmi2Variability.continuous)
         self._register(("z",), Fmi2Causality.local, Fmi2Variability.continuous)
         self._register(_DERIVED, Fmi2Causality.calculatedParameter, Fmi2Variability.fixed)
+        self._register(("V_clamp", "i_clamp"), Fmi2Causality.output, Fmi2Variability.discrete)
 
     def _register(self, names, causality, variability):
         for name in names:
@@ -89,6 +94,7 @@ class DCMotor(Fmi2Slave):
             raise ValueError(problem[1])
         self._motor = m = Motor(*values)
         self.R_a, self.k_t, self.k_e, self.b = m.R_a, m.k_t, m.k_e, m.b
+        self.V_clamp, self.i_clamp = self.V_supply, self.i_max
         self.w = self.w0
         self.z = (m.k_e + m.R_a * m.b / m.k_t) * self.w0       # holds w0 without load
         self.i = m.b * self.w0 / m.k_t
