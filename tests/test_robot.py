@@ -157,3 +157,22 @@ def test_follower_with_motors_and_floor_reaches_the_reference(fmu_dir):
     # the follower's reference at t = 10 is the seed's kinematic end point
     assert math.hypot(results.final("pose.x") - KINEMATIC_END[0],
                       results.final("pose.y") - KINEMATIC_END[1]) < 0.01
+
+
+@pytest.mark.parametrize("host", ["ecos-cli"])
+def test_hard_start_ssp_runs_in_ecos_program_as_our_jacobi(fmu_dir, tmp_path, host):
+    from helpers import run_host_or_skip
+    from mecanum_fmu.interop.cross_check import HOST_TOLERANCE, compared_outputs, difference, \
+        ours_jacobi
+    from mecanum_fmu.interop.ssp_write import export_ssp
+    graph = prepare(ROBOT / "hard_start.yaml", master_name="jacobi", fmu_dir=fmu_dir)
+    graph, exp = with_experiment(graph, stop_time=0.2)
+    ssp = export_ssp(graph, tmp_path / "hard_start.ssp")
+    names = compared_outputs(graph)
+    assert "body.vy" in names and "motor1.w" in names     # the states, no feedthrough
+    ours = ours_jacobi(graph, names)
+    theirs = run_host_or_skip(host, ssp, start=0.0, stop=0.2, step=exp.step_size,
+                              variables=names)
+    assert theirs.end_time == pytest.approx(0.2, abs=1e-9)
+    assert difference(theirs.values, ours.values, names) <= HOST_TOLERANCE[host]  # its CSV
+    assert theirs.values["body.vy"] > 0.5      # it moved: the free-roller limit is 6.9 m/s^2
