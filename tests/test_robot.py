@@ -176,3 +176,15 @@ def test_hard_start_ssp_runs_in_ecos_program_as_our_jacobi(fmu_dir, tmp_path, ho
     assert theirs.end_time == pytest.approx(0.2, abs=1e-9)
     assert difference(theirs.values, ours.values, names) <= HOST_TOLERANCE[host]  # its CSV
     assert theirs.values["body.vy"] > 0.5      # it moved: the free-roller limit is 6.9 m/s^2
+
+
+def test_sweep_over_mu_and_the_four_motors_kp_plans_one_run_per_pair(fmu_dir):
+    from mecanum_fmu.sweep.cluster import prepare_sweep
+    sweep, graph, runs = prepare_sweep(ROBOT / "sweep_mu_kp.yaml", fmu_dir)
+    pairs = []
+    for run_ in runs:
+        gains = {run_.values[r] for r in sweep.varied if r.variable == "kp"}
+        assert len(gains) == 1 and len([r for r in sweep.varied if r.variable == "kp"]) == 4
+        pairs.append((next(v for r, v in run_.values.items() if r.variable == "mu"), *gains))
+    assert pairs == [(1.0, 0.5), (1.0, 4.0), (0.1, 0.5), (0.1, 4.0)]
+    assert graph.scenario.experiment.stop_time == 4.0
