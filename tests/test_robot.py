@@ -188,3 +188,17 @@ def test_sweep_over_mu_and_the_four_motors_kp_plans_one_run_per_pair(fmu_dir):
         pairs.append((next(v for r, v in run_.values.items() if r.variable == "mu"), *gains))
     assert pairs == [(1.0, 0.5), (1.0, 4.0), (0.1, 0.5), (0.1, 4.0)]
     assert graph.scenario.experiment.stop_time == 4.0
+
+
+def test_a_fine_step_reference_run_confirms_the_error_estimate(fmu_dir):
+    """No closed form for the dynamics: a run at h / 8 stands in for it, and the estimate of
+    the run at h must be within a factor 3 of its distance from that reference."""
+    graph = prepare(ROBOT / "hard_start.yaml", fmu_dir=fmu_dir)
+    graph, exp = with_experiment(graph, stop_time=0.5)
+    results = master.simulate(graph, exp)
+    estimate = master.estimate_error(graph, results)["error_estimate"]["pose.y"]["end"]
+    fine_graph, fine = with_experiment(graph, stop_time=0.5, step_size=exp.step_size / 8)
+    reference = master.simulate(fine_graph, fine, keep_rows=2).final("pose.y")
+    actual = abs(results.final("pose.y") - reference)
+    assert actual > 1e-5                     # the step matters: eps follows it
+    assert actual / 3 <= estimate <= 3 * actual

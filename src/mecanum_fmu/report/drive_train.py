@@ -58,8 +58,10 @@ def drive_train_limits(graph, results) -> dict | None:
 
 
 def limit_lines(limits: dict) -> list[str]:
-    """One line per motor that hit a clamp and per body whose contacts slid."""
-    lines = []
+    """Which reference judged the run, then one line per motor that hit a clamp and per body
+    whose contacts slid."""
+    lines = ["drive train: no closed form; the ground truth is the kinematic path (what the "
+             "motors and the floor fall short of) and the error estimate judges the step"]
     for name, m in limits["motors"].items():
         for key, what in (("voltage_clamp", f"|V| at V_supply = {m['V_supply']:g} V"),
                           ("current_limit", f"|i| at i_max = {m['i_max']:g} A")):
