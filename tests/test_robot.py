@@ -186,7 +186,7 @@ def test_sweep_over_mu_and_the_four_motors_kp_plans_one_run_per_pair(fmu_dir):
         gains = {run_.values[r] for r in sweep.varied if r.variable == "kp"}
         assert len(gains) == 1 and len([r for r in sweep.varied if r.variable == "kp"]) == 4
         pairs.append((next(v for r, v in run_.values.items() if r.variable == "mu"), *gains))
-    assert pairs == [(1.0, 0.5), (1.0, 4.0), (0.1, 0.5), (0.1, 4.0)]
+    assert pairs == [(mu, kp) for mu in (1.0, 0.3, 0.2, 0.1) for kp in (0.5, 4.0)]
     assert graph.scenario.experiment.stop_time == 4.0
 
 
