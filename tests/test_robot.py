@@ -101,6 +101,9 @@ def test_hard_start_is_capped_at_the_free_roller_limit_and_balances(fmu_dir, mu)
     e_in, residual = energy_residual(results)
     assert abs(residual) < 0.01 * e_in
     assert np.max(np.abs(results["motor1.V"])) == pytest.approx(V_S)     # the supply clamps it
+    # no chatter across the two FMUs: the reaction rises and falls, it does not flip step by step
+    load = np.asarray(results["body.tau_load1"])
+    assert np.sum(np.abs(np.diff(load))) <= 3 * (load.max() - load.min())
 
 
 def test_hard_start_report_names_the_clamp_and_the_slip(fmu_dir, tmp_path):
