@@ -16,6 +16,7 @@ from scipy.linalg import expm
 from helpers import ROOT, cli_args, with_experiment
 from mecanum_fmu import master
 from mecanum_fmu.models.modes import MODES, wheel_sign_list
+from mecanum_fmu.report.drive_train import drive_train_limits, limit_lines
 from mecanum_fmu.runner import prepare, run
 
 ROBOT = ROOT / "scenarios" / "robot"
@@ -44,6 +45,13 @@ def test_unloaded_at_full_voltage_settles_at_the_no_load_speed(fmu_dir):
     results = motor_alone(fmu_dir, 1.0, w_ref=2.0 * W_0)
     assert abs(results.final("motor.w") / W_0 - 1.0) < 0.005
     assert results.final("motor.V") == pytest.approx(V_S, rel=1e-12)
+    # and the report names the saturation, as it names a Center2Wheel's w_max
+    graph = prepare({"components": {"motor": {"fmu": "DCMotor", "parameters": {
+        "w_ref": 2.0 * W_0}}}, "connections": []}, fmu_dir=fmu_dir)
+    clamp = drive_train_limits(graph, results)["motors"]["motor"]["voltage_clamp"]
+    assert clamp["from"] == 0.0 and clamp["to"] == pytest.approx(1.0)
+    assert any("motor: |V| at V_supply = 12 V" in line for line in limit_lines(
+        drive_train_limits(graph, results)))
 
 
 def test_held_at_zero_speed_at_full_voltage_it_gives_the_stall_torque(fmu_dir):
