@@ -57,7 +57,9 @@ MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator
                # the other chassis (docs/chassis.md, tests/test_chassis.py)
                "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource",
                # sensors and dead reckoning (docs/odometry.md, tests/test_odometry.py)
-               "Encoder", "Gyro", "Odometry")
+               "Encoder", "Gyro", "Odometry",
+               # the drive train (docs/robot.md, tests/test_robot.py)
+               "DCMotor", "MecanumDynamics")
 
 
 # both versions in one child: fmu_dir holds the FMI 2.0 FMUs and fmu_dir/fmi3 their FMI 3.0

@@ -39,6 +39,9 @@ SKIPS = [
                                          "(docs/benchmarks.md)"),
     (r"-m mecanum_fmu sweep\b", "a sweep: 1,000 runs on Dask workers, a minute or more "
                                 "(tests/test_sweep.py runs small sweeps)"),
+    (r"run scenarios/robot/(circle|track_circle)\.yaml", "10,000 steps of eight FMUs and "
+     "the estimate's two more runs: minutes on a loaded machine (tests/test_robot.py runs "
+     "both scenarios)"),
     (r"--animate\b", "draws a GIF frame by frame: minutes on a loaded machine "
                      "(tests/test_plots.py covers the animation)"),
     (r"\bdocs/make_gallery\.py\b", "redraws docs/img/ (the gallery and its animation): minutes"),

@@ -26,7 +26,18 @@ from . import embed
 
 UNIT_BASES = {"m": {"m": "1"}, "m/s": {"m": "1", "s": "-1"},
               "rad": {"rad": "1"}, "rad/s": {"rad": "1", "s": "-1"},
-              "1/s": {"s": "-1"}, "s": {"s": "1"}}
+              "1/s": {"s": "-1"}, "s": {"s": "1"},
+              # the drive train (docs/robot.md)
+              "1": {}, "kg": {"kg": "1"}, "kg.m2": {"kg": "1", "m": "2"},
+              "m/s2": {"m": "1", "s": "-2"}, "A": {"A": "1"},
+              "V": {"kg": "1", "m": "2", "s": "-3", "A": "-1"},
+              "N.m": {"kg": "1", "m": "2", "s": "-2"}, "J": {"kg": "1", "m": "2", "s": "-2"},
+              "H": {"kg": "1", "m": "2", "s": "-2", "A": "-2"},
+              "ohm": {"kg": "1", "m": "2", "s": "-3", "A": "-2"},
+              "V.s/rad": {"kg": "1", "m": "2", "s": "-2", "A": "-1", "rad": "-1"},
+              "V/rad": {"kg": "1", "m": "2", "s": "-3", "A": "-1", "rad": "-1"},
+              "N.m/A": {"kg": "1", "m": "2", "s": "-2", "A": "-1"},
+              "N.m.s/rad": {"kg": "1", "m": "2", "s": "-1", "rad": "-1"}}
 
 
 def build_fmu(model_name: str, dest_dir: Path) -> Path:
@@ -127,7 +138,9 @@ def _fix_model_description(xml: bytes, slave_class, guid: str) -> bytes:
             ET.SubElement(node, "Unknown", index=index[name],
                           dependencies=dependency_list(deps[name]))
         node = ET.SubElement(structure, "InitialUnknowns")
-        for name in outputs:
+        # outputs and calculated parameters (a DCMotor's R_a, k_t, ...), in index order
+        for name in [sv.get("name") for sv in variables
+                     if sv.get("causality") in ("output", "calculatedParameter")]:
             ET.SubElement(node, "Unknown", index=index[name],
                           dependencies=dependency_list(init_deps[name]))
     ET.indent(root, space="  ")

@@ -15,9 +15,11 @@ from typing import Callable, Mapping
 from .blocks.expression import ExpressionError, compile_expression
 from .blocks.bicycle import bicycle_problem
 from .blocks.kinematics import GEOMETRY, geometry_problem, radius_deviation_problem
+from .blocks.motor import DEFAULT_MOTOR, motor_problem
 from .blocks.omni import omni_geometry_problem
 from .blocks.odometry import odometry_problem
 from .blocks.sensors import encoder_problem, gyro_problem
+from .blocks.traction import BODY, body_problem
 from ..values import is_number
 
 AUTHOR = "mecanum_fmu"     # the author attribute of every bundled model description
@@ -127,6 +129,12 @@ def _check_odometry(values: Mapping[str, object], start_time: float) -> list[tup
     return problems + ([found] if found else [])
 
 
+def _check_dynamics(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
+    """MecanumDynamics: the geometry, and a body with positive mass, inertia and friction."""
+    return _check_geometry(values, start_time) + _numbers_rule(BODY, body_problem)(
+        values, start_time)
+
+
 def _no_rules(values: Mapping[str, object], start_time: float) -> list[tuple[str, str]]:
     return []
 
@@ -149,6 +157,10 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("Encoder", "encoder", "encoder", _numbers_rule(("cpr", "period", "sigma"), encoder_problem)),
     Model("Gyro", "gyro", "gyro", _numbers_rule(("period", "sigma", "bias"), gyro_problem)),
     Model("Odometry", "odometry", "odometry", _check_odometry),
+    # the drive train and the floor (docs/robot.md)
+    Model("DCMotor", "dc_motor", "motor", _numbers_rule(tuple(DEFAULT_MOTOR), motor_problem)),
+    # the forward map with physics: wheel speeds in, the twist the floor allows out
+    Model("MecanumDynamics", "mecanum_dynamics", "forward", _check_dynamics),
 )}
 
 

@@ -15,7 +15,9 @@ from .modes import graph_geometry
 
 # blocks a body twist passes through unchanged: model -> the input to follow upstream
 PASS_THROUGH = {"Wheel2Center": "w1", "OmniWheel2Center": "w1",
-                "Center2Wheel": "vx", "OmniCenter2Wheel": "vx"}
+                "Center2Wheel": "vx", "OmniCenter2Wheel": "vx",
+                # the drive train (docs/robot.md): the twist the motors and the floor allow
+                "MecanumDynamics": "w1", "DCMotor": "w_ref"}
 LIMITER = "Center2Wheel"        # the block with a wheel speed limit (w_max)
 
 

@@ -17,6 +17,7 @@ import numpy as np
 from ..models.modes import constant_twist_signs
 from ..models.topology import Drive, Topology, topology, upstream
 from ..results import Results
+from .drive_train import drive_train_limits, limit_lines
 from .ground_truth import pose_truth
 from .truth import Truth
 
@@ -67,6 +68,7 @@ class Evaluation:
     poses: tuple[PoseEvaluation, ...]
     wheel_signs: str | None
     belief: dict | None = None    # an Odometry's end drift from the pose (docs/odometry.md)
+    drive_train: dict | None = None     # the motors' clamps and the contacts' slip
 
     @property
     def roles(self):
@@ -108,6 +110,8 @@ class Evaluation:
             out["wheel_signs"] = self.wheel_signs
         if self.failure is not None:
             out["ground_truth_error"] = self.failure
+        if self.drive_train is not None:
+            out["drive_train"] = self.drive_train
         return out
 
 
@@ -129,7 +133,8 @@ def evaluate(graph, results: Results, *, topo: Topology | None = None,
         poses.append(_compare(results, drive, end, truth, failure))
     signs = (constant_twist_signs(graph, results, topo.roles, topo.geometry)
              if len(results.time) else None)
-    return Evaluation(topo, tuple(poses), signs, _belief(graph, results, topo))
+    return Evaluation(topo, tuple(poses), signs, _belief(graph, results, topo),
+                      drive_train_limits(graph, results))
 
 
 def _belief(graph, results: Results, topo: Topology) -> dict | None:
@@ -206,6 +211,9 @@ def mismatch_hint(entry: dict) -> str:
     if entry.get("belief", {}).get("closes_the_loop"):
         return ("the follower is fed the odometry's belief, not the true pose: the gap is the "
                 "belief's drift, which a smaller step does not remove")
+    if "drive_train" in entry:
+        return ("motors and floor lie between the command and the pose, and the ground truth "
+                "is the kinematic path: the error estimate says how much of it is the step")
     return "the end points differ at 3 decimals; try a smaller step"
 
 
@@ -232,6 +240,8 @@ def report_lines(summary: dict) -> list[str]:
         lines.append(pose_line(name, p))
     if "wheel_signs" in summary:
         lines.append(f"wheel signs (constant twist): {summary['wheel_signs']}")
+    if "drive_train" in summary:
+        lines += limit_lines(summary["drive_train"])
     return lines
 
 

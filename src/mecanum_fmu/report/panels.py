@@ -340,6 +340,63 @@ class MinorLogTicks(Artist):
         self._marks.draw(renderer)
 
 
+# ------------------------------------------------- the drive train (docs/robot.md)
+def motors_of(results: Results) -> list[str]:
+    """The DCMotor instances of the run, wheel order: those that recorded V and V_clamp."""
+    return sorted(n[:-2] for n in results.names
+                  if n.endswith(".V") and f"{n[:-2]}.V_clamp" in results.names)
+
+
+def bodies_of(results: Results) -> list[str]:
+    """The MecanumDynamics instances: those that recorded slip1."""
+    return [n[:-6] for n in results.names if n.endswith(".slip1")]
+
+
+def _draw_motor_speeds(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Commanded (the inverse kinematics, wide and pale) against actual wheel speed."""
+    idx, t = _t(results)
+    block, wheels = wheels_of(roles)
+    for k, (motor, (var, where)) in enumerate(zip(motors_of(results), wheels)):
+        if cmd := _col(results, block, var):
+            ax.plot(t, results[cmd][idx], "-", color=f"C{k}", lw=3, alpha=0.4,
+                    label=f"{var} commanded")
+        ax.plot(t, results[f"{motor}.w"][idx], "--", color=f"C{k}", label=f"{motor} {where}")
+    _finish(ax, "t [s]", "wheel speed [rad/s]")
+
+
+def _draw_against_limit(ax: Axes, results: Results, var: str, limit: str, label: str) -> None:
+    idx, t = _t(results)
+    for k, motor in enumerate(motors_of(results)):
+        ax.plot(t, results[f"{motor}.{var}"][idx], color=f"C{k}", label=motor,
+                **WHEEL_STYLES[k % len(WHEEL_STYLES)])
+    clamp = max(float(np.max(results[f"{m}.{limit}"])) for m in motors_of(results))
+    for sign in (1.0, -1.0):
+        ax.axhline(sign * clamp, color="k", ls=":", lw=1.5,
+                   label=f"±{limit} = {clamp:g}" if sign > 0 else None)
+    _finish(ax, "t [s]", label)
+
+
+def _draw_voltage(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    _draw_against_limit(ax, results, "V", "V_clamp", "armature voltage V [V]")
+
+
+def _draw_current(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    _draw_against_limit(ax, results, "i", "i_clamp", "armature current i [A]")
+
+
+def _draw_slip(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Each contact's sliding speed along its roller axis; the body's eps shaded."""
+    idx, t = _t(results)
+    for body in bodies_of(results):
+        for (var, where), style in zip(WHEELS, WHEEL_STYLES):
+            k = var[1]
+            ax.plot(t, results[f"{body}.slip{k}"][idx], label=f"slip{k} {where}", **style)
+        if f"{body}.eps" in results.names:
+            eps = results[f"{body}.eps"][idx]
+            ax.fill_between(t, -eps, eps, color="0.85", zorder=1, label="|slip| < eps")
+    _finish(ax, "t [s]", "slip along the roller axis [m/s]")
+
+
 # --------------------------------------------------------------------------- the table
 Drawer = Callable[[Axes, Results, Roles, Truth | None], None]
 
@@ -393,6 +450,14 @@ PANELS: dict[str, Panel] = {
                    lambda r, ro: any(_col(r, forward_of(ro), v) for v in TWIST), _draw_twist),
     "theta": Panel("Heading θ(t)", lambda r, ro: bool(_col(r, ro.pose, "theta")), _draw_theta,
                    truth=True),
+    # a drive train (DCMotor, MecanumDynamics): what the motors and the floor allowed
+    "motor_speeds": Panel("Wheel speed: commanded vs actual", lambda r, ro: bool(motors_of(r)),
+                          _draw_motor_speeds),
+    "voltage": Panel("Motor voltage vs its clamp", lambda r, ro: bool(motors_of(r)),
+                     _draw_voltage),
+    "current": Panel("Motor current vs its limit", lambda r, ro: bool(motors_of(r)),
+                     _draw_current),
+    "slip": Panel("Slip per wheel", lambda r, ro: bool(bodies_of(r)), _draw_slip),
     "icr": Panel("Instantaneous centre of rotation (world frame)",
                  lambda r, ro: _has_pose(r, ro) and all(_col(r, ro.forward, v)
                                                         for v in ("icr_x", "icr_y", "has_icr")),

@@ -53,10 +53,14 @@ class Sweep:
     samples: int                    # 0: no random part
     seed: int
     random: tuple[tuple[VarRef, str, tuple[float, float]], ...]
+    # (follower, leader): a grid key naming several parameters, "m1.kp, m2.kp": one value
+    # list, every one set to the leader's (the first's) value in each run
+    linked: tuple[tuple[VarRef, VarRef], ...] = ()
 
     @property
     def varied(self) -> list[VarRef]:
-        return [ref for ref, _ in self.grid] + [ref for ref, _, _ in self.random]
+        return ([ref for ref, _ in self.grid] + [f for f, _ in self.linked]
+                + [ref for ref, _, _ in self.random])
 
 
 @dataclass(frozen=True)
@@ -117,11 +121,12 @@ def read_sweep(path: str | Path, max_runs: int = MAX_RUNS
         scenario = ""
     experiment, _ = experiment_values(raw.get("experiment"), bad)
     named: list[tuple[str, VarRef]] = []
-    grid = _grid(raw.get("grid"), bad, named)
+    grid, linked = _grid(raw.get("grid"), bad, named)
     samples, seed, random = _random(raw.get("random"), bad, named)
     if raw.get("grid") is None and raw.get("random") is None:
         bad("grid", "nothing to sweep: give a `grid:` of value lists and/or `random:` draws")
-    seen = [str(ref) for ref, _ in grid] + [str(ref) for ref, _, _ in random]
+    seen = ([str(ref) for ref, _ in grid] + [str(ref) for ref, _ in linked]
+            + [str(ref) for ref, _, _ in random])
     for dup in sorted({r for r in seen if seen.count(r) > 1}):
         bad(f"random.{dup}", f"'{dup}' is varied in both grid and random; vary it in one")
     total = math.prod(len(v) for _, v in grid) * max(samples, 1)
@@ -130,7 +135,7 @@ def read_sweep(path: str | Path, max_runs: int = MAX_RUNS
             f"is more than the limit of {max_runs:,} (each run is a row held in memory); "
             f"split the study, or give --max-runs {total} to run them all")
     sweep = Sweep(path, name if isinstance(name, str) else path.stem, path.parent / scenario,
-                  experiment, grid, samples, seed, random)
+                  experiment, grid, samples, seed, random, linked)
     return sweep, problems, named
 
 
@@ -141,26 +146,28 @@ def _ref(key, place: str, bad) -> VarRef | None:
     return ref
 
 
-def _grid(raw, bad, named: list) -> tuple:
+def _grid(raw, bad, named: list) -> tuple[tuple, tuple]:
+    """(the grid's (leader, values), the (follower, leader) pairs of keys naming several)."""
     if raw is None:
-        return ()
+        return (), ()
     if not isinstance(raw, dict) or not raw:
         bad("grid", "empty: give at least one `instance.parameter: [values...]`, or leave "
                     "`grid:` out")
-        return ()
-    grid = []
+        return (), ()
+    grid, linked = [], []
     for key, values in raw.items():
         place = f"grid.{key}"
-        ref = _ref(key, place, bad)
-        if ref is not None:
-            named.append((place, ref))
+        refs = [_ref(part.strip(), place, bad) for part in str(key).split(",")]
+        named += [(place, r) for r in refs if r is not None]
+        ref = refs[0] if all(refs) else None
+        linked += [(r, ref) for r in refs[1:] if ref is not None]
         if not isinstance(values, list) or not values:
             bad(place, f"expected a non-empty list of values, got {show(values)}")
         elif (problem := next(filter(None, map(scalar_problem, values)), None)) is not None:
             bad(place, f"every value must be a finite number, true/false or text: {problem}")
         elif ref is not None:
             grid.append((ref, tuple(values)))
-    return tuple(grid)
+    return tuple(grid), tuple(linked)
 
 
 def _random(raw, bad, named: list) -> tuple[int, int, tuple]:
@@ -239,6 +246,7 @@ def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
     for point in points:
         for s in range(sweep.samples or 1):
             values = dict(zip(refs, point))
+            values.update({follower: values[leader] for follower, leader in sweep.linked})
             values.update({ref: column[s] for ref, column in draws})
             problem = None
             if draws:

@@ -1,0 +1,110 @@
+"""A DC gear motor with a PI speed loop, from its datasheet (docs/robot.md, The motor).
+
+All values at the output shaft, at the rated voltage V_supply:
+    R_a = V_supply / stall_current            k_t = stall_torque / stall_current
+    k_e = (V_supply - R_a no_load_current) / no_load_speed
+    b   = k_t no_load_current / no_load_speed (the no-load friction, as viscous)
+so that the no-load speed and the stall torque come out exactly. A gear motor's numbers give
+k_e > k_t: (k_e - k_t) i w is the gearbox's loss, kept and reported (never forced to 0).
+
+The PI loop sets the voltage V = kp (w_ref - w) + z, z' = ki (w_ref - w); V is clamped so that
+|V - k_e w| <= R_a i_max (the current limit: with La = 0 it is exact, with La > 0 it limits the
+current the winding tends to) and then to |V| <= V_supply. Anti-windup: z stops integrating
+while V is clamped and the error pushes further into the clamp.
+
+State x = (w, z, i, E_el, E_cu, E_visc, E_gear, E_load); i is a state only when La > 0 (else
+the algebraic (V - k_e w)/R_a); the energies are the integrals of V i, R_a i^2, b w^2,
+(k_e - k_t) i w and tau_load w, taken with the same Runge-Kutta stages as the motion.
+"""
+import math
+
+DATASHEET = ("V_supply", "stall_torque", "stall_current", "no_load_speed", "no_load_current")
+# Pololu 37D Metal Gearmotor, 30:1, 12 V (items #4742/#4752), 37D datasheet rev 1.2:
+# no load 330 rpm at 0.2 A, stall 14 kg cm (140 kg mm) at 5.5 A (docs/robot.md).
+DEFAULT_MOTOR = {"V_supply": 12.0, "stall_torque": 140.0e-3 * 9.80665,
+                 "stall_current": 5.5, "no_load_speed": 330.0 * math.pi / 30.0,
+                 "no_load_current": 0.2, "La": 0.0, "J": 2.0e-3,
+                 "kp": 2.0, "ki": 150.0, "i_max": 5.5}
+RATE_STEP = 0.05    # substeps keep (fastest rate) x (substep) at or below this: RK4 error ~1e-9
+
+
+def derived(V_supply, stall_torque, stall_current, no_load_speed, no_load_current):
+    """(R_a, k_t, k_e, b) from the datasheet by the standard relations."""
+    R_a = V_supply / stall_current
+    k_t = stall_torque / stall_current
+    k_e = (V_supply - R_a * no_load_current) / no_load_speed
+    return R_a, k_t, k_e, k_t * no_load_current / no_load_speed
+
+
+def motor_problem(V_supply, stall_torque, stall_current, no_load_speed, no_load_current,
+                  La, J, kp, ki, i_max):
+    """(parameter, message) for the first value outside its range, else None."""
+    values = dict(zip(DATASHEET + ("La", "J", "kp", "ki", "i_max"),
+                      (V_supply, stall_torque, stall_current, no_load_speed, no_load_current,
+                       La, J, kp, ki, i_max)))
+    for name, value in values.items():
+        if not isinstance(value, (int, float)) or not math.isfinite(value):
+            return name, f"parameter {name} = {value!r} is not a finite number"
+    for name in ("V_supply", "stall_torque", "stall_current", "no_load_speed", "J", "i_max"):
+        if not values[name] > 0.0:
+            return name, f"parameter {name} = {values[name]!r} must be > 0 (a datasheet value)"
+    for name in ("La", "kp", "ki"):
+        if values[name] < 0.0:
+            return name, f"parameter {name} = {values[name]!r} must be >= 0"
+    if not 0.0 <= no_load_current < stall_current:
+        return "no_load_current", (f"parameter no_load_current = {no_load_current!r} A must be "
+                                   f">= 0 and below stall_current = {stall_current!r} A")
+    return None
+
+
+class Motor:
+    """The parameters of one motor, with the derived constants."""
+
+    def __init__(self, V_supply, stall_torque, stall_current, no_load_speed, no_load_current,
+                 La, J, kp, ki, i_max):
+        self.V_supply, self.La, self.J = V_supply, La, J
+        self.kp, self.ki, self.i_max = kp, ki, i_max
+        self.R_a, self.k_t, self.k_e, self.b = derived(
+            V_supply, stall_torque, stall_current, no_load_speed, no_load_current)
+        rate = (self.b + self.k_t * (self.k_e + kp) / self.R_a) / J + math.sqrt(
+            self.k_t * ki / (self.R_a * J))
+        self.rate = max(rate, self.R_a / La) if La > 0.0 else rate
+
+    def voltage(self, w: float, z: float, w_ref: float) -> tuple[float, bool]:
+        """(V after the current limit and the supply clamp, whether z may integrate)."""
+        wanted = self.kp * (w_ref - w) + z
+        back = self.k_e * w
+        span = self.R_a * self.i_max
+        V = max(back - span, min(back + span, wanted))      # the current limit, then
+        V = max(-self.V_supply, min(self.V_supply, V))      # the supply: it always wins
+        error = w_ref - w
+        integrate = not ((wanted > V and error > 0.0) or (wanted < V and error < 0.0))
+        return V, integrate
+
+    def current(self, w: float, i: float, V: float) -> float:
+        return i if self.La > 0.0 else (V - self.k_e * w) / self.R_a
+
+    def rates(self, x: list, w_ref: float, tau_load: float) -> list:
+        w, z, i = x[0], x[1], x[2]
+        V, integrate = self.voltage(w, z, w_ref)
+        i = self.current(w, i, V)
+        di = (V - self.R_a * i - self.k_e * w) / self.La if self.La > 0.0 else 0.0
+        return [(self.k_t * i - self.b * w - tau_load) / self.J,
+                self.ki * (w_ref - w) if integrate else 0.0, di,
+                V * i, self.R_a * i * i, self.b * w * w, (self.k_e - self.k_t) * i * w,
+                tau_load * w]
+
+    def step(self, x: list, w_ref: float, tau_load: float, h: float) -> list:
+        """Advance the state by h with w_ref and tau_load held (classic RK4 substeps)."""
+        n = max(1, math.ceil(h * self.rate / RATE_STEP))
+        dt = h / n
+        for _ in range(n):
+            k1 = self.rates(x, w_ref, tau_load)
+            k2 = self.rates([a + 0.5 * dt * b for a, b in zip(x, k1)], w_ref, tau_load)
+            k3 = self.rates([a + 0.5 * dt * b for a, b in zip(x, k2)], w_ref, tau_load)
+            k4 = self.rates([a + dt * b for a, b in zip(x, k3)], w_ref, tau_load)
+            x = [a + dt / 6.0 * (p + 2.0 * q + 2.0 * r + s)
+                 for a, p, q, r, s in zip(x, k1, k2, k3, k4)]
+        if self.La == 0.0:
+            x[2] = self.current(x[0], x[2], self.voltage(x[0], x[1], w_ref)[0])
+        return x
