@@ -9,11 +9,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .arguments import check_prepare, check_run
+from .scenario.arguments import check_prepare, check_run
 from .bag_output import check_room, remove_previous, write_run_bag
 from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
                      SimulationError)
-from .graph import Graph, compile_graph
+from .scenario.graph import Graph, compile_graph
 from .models.library import build_bundled
 from .models.topology import Topology, topology
 from .report import against_recorded
@@ -24,7 +24,7 @@ from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
 from .masters import tolerance_master
 from .results import Results, error_estimate_lines
-from .scenario import (MAPPING_LABEL, Scenario, override_experiment, read_scenario,
+from .scenario.document import (MAPPING_LABEL, Scenario, override_experiment, read_scenario,
                        scenario_from_doc)
 
 

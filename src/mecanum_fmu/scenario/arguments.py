@@ -8,11 +8,11 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from .errors import ArgumentError, Problem, did_you_mean
+from ..errors import ArgumentError, Problem, did_you_mean
 from .graph import Graph
-from .models.library import fmu_guid
-from .scenario import MASTERS, Experiment, check_experiment, tolerance_problem
-from .values import is_finite, is_number, show
+from ..models.library import fmu_guid
+from .document import MASTERS, Experiment, check_experiment, tolerance_problem
+from ..values import is_finite, is_number, show
 
 
 def _problem(call: str, name: str, message: str) -> Problem:
