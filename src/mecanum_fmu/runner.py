@@ -166,9 +166,10 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
     if plotter is not None:     # it draws what needs no truth while the truth is integrated
         plotter.draft(results, topo.roles, graph.scenario.name)
     evaluation = evaluate(graph, results, topo=topo)    # after the tables: it costs only itself
+    from .master import estimate_error  # here: `validate` needs no FMI runtime
     if graph.scenario.recorded:
         summary["against_recorded"] = against_recorded.compare(results, graph.scenario.recorded)
-    if added := evaluation.summary() | _estimate(graph, results):
+    if added := evaluation.summary() | estimate_error(graph, results):
         summary.update(added)
         _rewrite_summary(out, summary, files)
     for line in report_lines(summary):
@@ -192,13 +193,6 @@ def _bag(out: OutputFolder, topo: Topology, files: list[Path]) -> dict:
     except OSError as err:
         raise MecanumError(f"writing the bag into {out.path} failed: {err}",
                            files=files) from err
-
-
-def _estimate(graph: Graph, results: Results) -> dict:
-    """The coupling error estimate (the run again at two coarser steps; the adaptive
-    master's own)."""
-    from .master import estimate_error  # here: `validate` needs no FMI runtime
-    return estimate_error(graph, results)
 
 
 def _draw(results: Results, evaluation: Evaluation, out: OutputFolder, summary: dict,
