@@ -178,7 +178,20 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
         with out.atomic("recorded.png") as temp:
             against_recorded.write_figure(results, graph.scenario.recorded, temp)
         files.append(out.path / "recorded.png")
-    _draw(results, evaluation, out, summary, files, plotter, animate, graph.scenario.name)
+    stage = "plots"         # the plots and the animation; a failure is reported, files kept
+    try:
+        if plotter is not None:
+            files += plotter.finish(results, evaluation, out.path, title=graph.scenario.name)
+        stage = "animation"
+        if animate:
+            from .report.animation import write_animation   # startup: matplotlib
+            files.append(write_animation(results, evaluation, out.path / "animation.gif"))
+    except Exception as err:    # the results are written: report the figure, keep the rest
+        failed = MecanumError(f"writing the {stage} into {out.path} failed: "
+                              f"{type(err).__name__}: {err}", files=files)
+        summary[f"{stage}_error"] = str(failed)
+        _rewrite_summary(out, summary, [])
+        raise failed from err
     if evaluation.failure:
         raise MecanumError(f"the ground truth could not be computed ({evaluation.failure}); "
                            f"the run itself is complete", files=files)
@@ -193,25 +206,6 @@ def _bag(out: OutputFolder, topo: Topology, files: list[Path]) -> dict:
     except OSError as err:
         raise MecanumError(f"writing the bag into {out.path} failed: {err}",
                            files=files) from err
-
-
-def _draw(results: Results, evaluation: Evaluation, out: OutputFolder, summary: dict,
-          files: list[Path], plotter: PlotWorker | None, animate: bool, title: str) -> None:
-    """The plots and the animation; a failure is reported with the files kept."""
-    stage = "plots"
-    try:
-        if plotter is not None:
-            files += plotter.finish(results, evaluation, out.path, title=title)
-        stage = "animation"
-        if animate:
-            from .report.animation import write_animation   # startup: matplotlib
-            files.append(write_animation(results, evaluation, out.path / "animation.gif"))
-    except Exception as err:    # the results are written: report the figure, keep the rest
-        failed = MecanumError(f"writing the {stage} into {out.path} failed: "
-                              f"{type(err).__name__}: {err}", files=files)
-        summary[f"{stage}_error"] = str(failed)
-        _rewrite_summary(out, summary, [])
-        raise failed from err
 
 
 def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> None:
