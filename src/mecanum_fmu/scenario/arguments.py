@@ -142,7 +142,8 @@ def check_simulate(graph: Any, experiment: Any, progress: Any, sink: Any,
     """master.simulate's arguments."""
     call = "master.simulate"
     problems = _graph_problems(call, graph)
-    _raise((problems or _fmu_problems(call, graph)) + experiment_problems(call, experiment)
+    wrong_experiment = experiment_problems(call, experiment)   # the checks that read no file
+    _raise((problems or _fmu_problems(call, graph)) + wrong_experiment
            + _callable_problems(call, progress=progress, sink=sink)
            + keep_rows_problems(call, keep_rows))
 
