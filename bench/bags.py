@@ -18,7 +18,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from mecanum_fmu.bag_output import write_run_bag
-from mecanum_fmu.bags import read_topic
+from mecanum_fmu.scenario.bags import read_topic
 from mecanum_fmu.models.topology import Drive
 
 SIZES = (1_000, 10_000, 100_000)

@@ -6,7 +6,7 @@ import numpy as np
 from helpers import ROOT
 from mecanum_fmu import runner
 from mecanum_fmu.master.breakpoints import graph_breaks
-from mecanum_fmu.tables import compared_times, read_table
+from mecanum_fmu.scenario.tables import compared_times, read_table
 
 TABLE = "time,vx,vy,w\n0,0,0,0\n1,1,0,0\n2,2,0,0\n3,2,0,0\n4,0,0.5,0\n"
 

@@ -295,7 +295,7 @@ def test_waypoints_at_a_speed_are_a_path_table(fmu_dir, tmp_path):
 ])
 def test_bad_waypoints_are_named(tmp_path, spec, words):
     from mecanum_fmu.errors import ScenarioError
-    from mecanum_fmu.scenario import load_scenario
+    from mecanum_fmu.scenario.document import load_scenario
     text = ("experiment: {stop_time: 1.0}\ncomponents:\n"
             f"  follower: {{fmu: PathFollower, {spec}}}\n")
     with pytest.raises(ScenarioError, match=re.escape(words)):

@@ -17,10 +17,10 @@ from hypothesis import strategies as st
 
 from helpers import ROOT
 from test_fuzz_scenarios import CIRCLE, keys, mutate, scalars, values
-from mecanum_fmu.arguments import check_simulate
+from mecanum_fmu.scenario.arguments import check_simulate
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.runner import prepare
-from mecanum_fmu.scenario import MAPPING_LABEL, Experiment
+from mecanum_fmu.scenario.document import MAPPING_LABEL, Experiment
 from mecanum_fmu.sweep.cluster import prepare_sweep
 
 FMUS = ROOT / "fmus"

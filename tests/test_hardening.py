@@ -27,7 +27,7 @@ from mecanum_fmu.interop import ssp_read
 from mecanum_fmu.archive import ArchiveError, extract_all
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.runtime import RUNTIME
-from mecanum_fmu.scenario import load_scenario, usable_name
+from mecanum_fmu.scenario.document import load_scenario, usable_name
 from mecanum_fmu.interop.ssp_read import load_ssp
 
 POSE_ALONE = """\

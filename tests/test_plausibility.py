@@ -9,7 +9,7 @@ import math
 import pytest
 
 from helpers import ROOT, write_scenario
-from mecanum_fmu import plausibility
+from mecanum_fmu.scenario import plausibility
 from mecanum_fmu.cli import main
 from mecanum_fmu.errors import SimulationError
 from mecanum_fmu.runner import prepare, run

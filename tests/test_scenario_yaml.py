@@ -6,7 +6,7 @@ import pytest
 from helpers import ROOT
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.runner import prepare
-from mecanum_fmu.scenario import load_scenario
+from mecanum_fmu.scenario.document import load_scenario
 
 CIRCLE = (ROOT / "scenarios" / "circle.yaml").read_text()
 

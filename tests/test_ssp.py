@@ -10,9 +10,9 @@ import pytest
 
 from helpers import CHAIN_CONNECTIONS, child_env, run_child
 from mecanum_fmu.models.library import read_description
-from mecanum_fmu.graph import compile_graph, port_type
+from mecanum_fmu.scenario.graph import compile_graph, port_type
 from mecanum_fmu.errors import ScenarioError
-from mecanum_fmu.scenario import load_scenario
+from mecanum_fmu.scenario.document import load_scenario
 from mecanum_fmu.interop import ssp, ssp_read, ssp_write
 
 REPO = Path(__file__).resolve().parents[1]

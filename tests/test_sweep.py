@@ -122,7 +122,7 @@ def test_wheel_radius_deviations_follow_the_rolling_radius(built_fmus):
     from mecanum_fmu import master
     from mecanum_fmu.report.ground_truth import ground_truth
     from mecanum_fmu.runner import prepare
-    from mecanum_fmu.scenario import VarRef
+    from mecanum_fmu.scenario.document import VarRef
     from mecanum_fmu.sweep.worker import with_values
     graph = prepare(CIRCLE, fmu_dir=built_fmus["Wheel2Center"].parent)
     d = 0.0006
@@ -259,7 +259,7 @@ def test_one_worn_wheel_turns_the_car_by_the_integrated_wheel_speed(built_fmus):
     it by -dR2 / (4kR) * (sin 10 - cos 10 + 1)."""
     from mecanum_fmu import master
     from mecanum_fmu.runner import prepare
-    from mecanum_fmu.scenario import VarRef
+    from mecanum_fmu.scenario.document import VarRef
     from mecanum_fmu.sweep.worker import with_values
     import math
     graph = prepare(CIRCLE, fmu_dir=built_fmus["Wheel2Center"].parent)

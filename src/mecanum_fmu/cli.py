@@ -8,7 +8,8 @@ import os
 import sys
 from pathlib import Path
 
-from . import __version__, plausibility
+from . import __version__
+from .scenario import plausibility
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
 from .masters import DEFAULT as DEFAULT_MASTER, MASTERS
 

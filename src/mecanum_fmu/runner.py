@@ -9,11 +9,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .arguments import check_prepare, check_run
+from .scenario.arguments import check_prepare, check_run
 from .bag_output import check_room, remove_previous, write_run_bag
 from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
                      SimulationError)
-from .graph import Graph, compile_graph
+from .scenario.graph import Graph, compile_graph
 from .models.library import build_bundled
 from .models.topology import Topology, topology
 from .report import against_recorded
@@ -24,7 +24,7 @@ from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
 from .masters import tolerance_master
 from .results import Results, error_estimate_lines
-from .scenario import (MAPPING_LABEL, Scenario, override_experiment, read_scenario,
+from .scenario.document import (MAPPING_LABEL, Scenario, override_experiment, read_scenario,
                        scenario_from_doc)
 
 
@@ -166,9 +166,10 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
     if plotter is not None:     # it draws what needs no truth while the truth is integrated
         plotter.draft(results, topo.roles, graph.scenario.name)
     evaluation = evaluate(graph, results, topo=topo)    # after the tables: it costs only itself
+    from .master import estimate_error  # here: `validate` needs no FMI runtime
     if graph.scenario.recorded:
         summary["against_recorded"] = against_recorded.compare(results, graph.scenario.recorded)
-    if added := evaluation.summary() | _estimate(graph, results):
+    if added := evaluation.summary() | estimate_error(graph, results):
         summary.update(added)
         _rewrite_summary(out, summary, files)
     for line in report_lines(summary):
@@ -177,7 +178,20 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
         with out.atomic("recorded.png") as temp:
             against_recorded.write_figure(results, graph.scenario.recorded, temp)
         files.append(out.path / "recorded.png")
-    _draw(results, evaluation, out, summary, files, plotter, animate, graph.scenario.name)
+    stage = "plots"         # the plots and the animation; a failure is reported, files kept
+    try:
+        if plotter is not None:
+            files += plotter.finish(results, evaluation, out.path, title=graph.scenario.name)
+        stage = "animation"
+        if animate:
+            from .report.animation import write_animation   # startup: matplotlib
+            files.append(write_animation(results, evaluation, out.path / "animation.gif"))
+    except Exception as err:    # the results are written: report the figure, keep the rest
+        failed = MecanumError(f"writing the {stage} into {out.path} failed: "
+                              f"{type(err).__name__}: {err}", files=files)
+        summary[f"{stage}_error"] = str(failed)
+        _rewrite_summary(out, summary, [])
+        raise failed from err
     if evaluation.failure:
         raise MecanumError(f"the ground truth could not be computed ({evaluation.failure}); "
                            f"the run itself is complete", files=files)
@@ -192,32 +206,6 @@ def _bag(out: OutputFolder, topo: Topology, files: list[Path]) -> dict:
     except OSError as err:
         raise MecanumError(f"writing the bag into {out.path} failed: {err}",
                            files=files) from err
-
-
-def _estimate(graph: Graph, results: Results) -> dict:
-    """The coupling error estimate (the run again at two coarser steps; the adaptive
-    master's own)."""
-    from .master import estimate_error  # here: `validate` needs no FMI runtime
-    return estimate_error(graph, results)
-
-
-def _draw(results: Results, evaluation: Evaluation, out: OutputFolder, summary: dict,
-          files: list[Path], plotter: PlotWorker | None, animate: bool, title: str) -> None:
-    """The plots and the animation; a failure is reported with the files kept."""
-    stage = "plots"
-    try:
-        if plotter is not None:
-            files += plotter.finish(results, evaluation, out.path, title=title)
-        stage = "animation"
-        if animate:
-            from .report.animation import write_animation   # startup: matplotlib
-            files.append(write_animation(results, evaluation, out.path / "animation.gif"))
-    except Exception as err:    # the results are written: report the figure, keep the rest
-        failed = MecanumError(f"writing the {stage} into {out.path} failed: "
-                              f"{type(err).__name__}: {err}", files=files)
-        summary[f"{stage}_error"] = str(failed)
-        _rewrite_summary(out, summary, [])
-        raise failed from err
 
 
 def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> None:

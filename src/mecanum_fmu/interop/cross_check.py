@@ -25,7 +25,7 @@ from pathlib import Path
 
 from .. import __version__, master
 from ..errors import Problem, ScenarioError
-from ..graph import Graph, port_type
+from ..scenario.graph import Graph, port_type
 from ..masters import ZOH_HOST
 from .other_hosts import HOSTS, HostFailed, HostRun, HostUnavailable, run_host
 from .ssp_write import export_ssp

@@ -18,10 +18,10 @@ from typing import Callable
 from xml.etree import ElementTree as ET
 
 from ..errors import Problem, ScenarioError
-from ..scenario import (Component, Connection, Scenario, Scalar, VarRef, is_finite,
+from ..scenario.document import (Component, Connection, Scenario, Scalar, VarRef, is_finite,
                        is_identifier, parse_experiment, parse_ref, show, usable_name)
 from .ssp import ANNOTATION_TYPE, FMU_MIME, NS, SSD_NAME, as_type, local, namespace, q
-from ..graph import port_type
+from ..scenario.graph import port_type
 from ..models.library import read_description
 from ..archive import ZIP_ERRORS, ArchiveError, checked_members, extract_file, read_member
 from ..storage import NotARegularFile, cache_root, open_regular, read_regular

@@ -6,8 +6,8 @@ import re
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from ..graph import port_type
-from ..scenario import Scalar
+from ..scenario.graph import port_type
+from ..scenario.document import Scalar
 from . import ssp_bake, ssp_vendor
 from .ssp import ANNOTATION_TYPE, FMU_MIME, PARAMETER_SET, SSD_NAME, VALUE_TAGS, as_type, q
 from ..output import check_output_file, output_file

@@ -13,15 +13,15 @@ from typing import Callable
 
 import numpy as np
 
-from ..arguments import check_simulate
+from ..scenario.arguments import check_simulate
 from ..errors import Interrupted, Problem, ScenarioError, SimulationError
-from ..graph import Graph
+from ..scenario.graph import Graph
 from ..masters import (DEFAULT, DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, Master,
                        entry as master_entry)
 from ..process import ctrl_c_latched
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
-from ..scenario import Experiment
+from ..scenario.document import Experiment
 from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .estimate import error_estimate
 from .instance import FmuCallError, RunningInstance

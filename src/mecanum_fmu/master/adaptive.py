@@ -39,7 +39,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..graph import Instance, Port
+from ..scenario.graph import Instance, Port
 from ..results import BELOW_ROUND_OFF, round_off
 from .breakpoints import graph_breaks
 from .instance import RunningInstance

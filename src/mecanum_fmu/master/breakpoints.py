@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..graph import Graph
-from ..tables import Breaks
+from ..scenario.graph import Graph
+from ..scenario.tables import Breaks
 
 __all__ = ["Breaks", "Cut", "graph_breaks", "step_cuts"]
 

@@ -26,7 +26,7 @@ from fractions import Fraction
 import numpy as np
 
 from ..errors import SimulationError
-from ..graph import Graph
+from ..scenario.graph import Graph
 from ..masters import DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, entry as master_entry
 from ..results import BELOW_ROUND_OFF, Results, round_off
 from .breakpoints import graph_breaks

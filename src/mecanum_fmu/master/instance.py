@@ -10,7 +10,7 @@ import os
 from fmpy.fmi2 import FMU2Slave
 
 from ..errors import Problem, ScenarioError
-from ..graph import Instance, Port
+from ..scenario.graph import Instance, Port
 from ..runtime import RUNTIME, STATUS, Kept
 from . import fmi3
 

@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..graph import Graph, Instance, Port
+from ..scenario.graph import Graph, Instance, Port
 from .instance import RunningInstance
 
 _C_TYPES = {"Real": (ctypes.c_double, np.float64), "Integer": (ctypes.c_int, np.int32),

@@ -13,9 +13,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..graph import Graph
+from ..scenario.graph import Graph
 from ..results import Results
-from ..scenario import Experiment
+from ..scenario.document import Experiment
 from .plan import Buffers
 
 CHUNK_ROWS = 4096

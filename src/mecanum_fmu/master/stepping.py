@@ -7,7 +7,7 @@ from typing import Callable
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from ..graph import Graph, port_type
+from ..scenario.graph import Graph, port_type
 from .breakpoints import Cut, graph_breaks, step_cuts
 from .instance import FmuCallError, RunningInstance
 from .plan import Holds

@@ -19,9 +19,9 @@ from .. import master
 from ..errors import MecanumError, ScenarioError
 from ..process import exit_now
 from ..results import Results
-from ..graph import Graph, compile_graph
+from ..scenario.graph import Graph, compile_graph
 from ..models.library import build_bundled
-from ..scenario import read_scenario
+from ..scenario.document import read_scenario
 from .evaluation import Evaluation, evaluate, report_lines
 from .plots import new_figure
 

@@ -21,7 +21,7 @@ from ..models.blocks.bicycle import bicycle_twist
 from ..models.blocks.expression import compile_expression
 from ..models.blocks.pose import world_to_body
 from ..models.topology import Drive, upstream
-from ..profiles import table_twist
+from ..scenario.profiles import table_twist
 
 Twist = Callable[[float, float], tuple[float, float, float]]   # (t, theta) -> body twist
 Channel = Callable[[float], float]

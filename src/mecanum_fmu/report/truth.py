@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..profiles import integrate_piecewise
+from ..scenario.profiles import integrate_piecewise
 
 MAX_POINTS = 20_001     # the ground truth is sampled on at most about this many times
 

@@ -30,9 +30,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..arguments import check_execute, check_sweep_file
+from ..scenario.arguments import check_execute, check_sweep_file
 from ..errors import Interrupted, MecanumError, Problem, ScenarioError
-from ..graph import Graph
+from ..scenario.graph import Graph
 from ..master.recorder import time_grid
 from ..models.catalog import find_roles
 from ..models.topology import topology

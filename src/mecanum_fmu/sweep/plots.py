@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 
-from ..graph import Graph
+from ..scenario.graph import Graph
 from ..models.catalog import find_roles
 from ..report.ground_truth import ground_truth
 from ..report.truth import Truth

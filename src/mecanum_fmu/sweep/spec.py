@@ -28,11 +28,11 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import Problem, ScenarioError
-from ..graph import Graph, check_start_values, settable_parameters
+from ..scenario.graph import Graph, check_start_values, settable_parameters
 from ..models.blocks.profile_table import INTERPOLATIONS
-from ..profiles import PROFILE_KEYS
+from ..scenario.profiles import PROFILE_KEYS
 from ..errors import did_you_mean
-from ..scenario import (Scalar, VarRef, experiment_values, override_experiment, parse_ref,
+from ..scenario.document import (Scalar, VarRef, experiment_values, override_experiment, parse_ref,
                         read_yaml)
 from ..values import is_finite, name_problem, scalar_problem, show, unknown_keys
 

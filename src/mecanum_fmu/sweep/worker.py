@@ -18,8 +18,8 @@ from distributed import WorkerPlugin
 from .. import master
 from ..runtime import RUNTIME
 from ..errors import MecanumError
-from ..graph import Graph
-from ..scenario import Scalar, VarRef
+from ..scenario.graph import Graph
+from ..scenario.document import Scalar, VarRef
 
 PATH_POINTS = 101        # points kept per path for the overlaid-paths plot
 

@@ -24,8 +24,8 @@ import stat
 from pathlib import Path
 from typing import Callable, Iterator
 
-from .errors import Problem
-from .models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS
+from ..errors import Problem
+from ..models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS
 from .recorded import TableSource
 
 BAG_KEYS = ("topic", "stamps")

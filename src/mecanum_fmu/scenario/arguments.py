@@ -8,11 +8,11 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from .errors import ArgumentError, Problem, did_you_mean
+from ..errors import ArgumentError, Problem, did_you_mean
 from .graph import Graph
-from .models.library import fmu_guid
-from .scenario import MASTERS, Experiment, check_experiment, tolerance_problem
-from .values import is_finite, is_number, show
+from ..models.library import fmu_guid
+from .document import MASTERS, Experiment, check_experiment, tolerance_problem
+from ..values import is_finite, is_number, show
 
 
 def _problem(call: str, name: str, message: str) -> Problem:
@@ -142,7 +142,8 @@ def check_simulate(graph: Any, experiment: Any, progress: Any, sink: Any,
     """master.simulate's arguments."""
     call = "master.simulate"
     problems = _graph_problems(call, graph)
-    _raise((problems or _fmu_problems(call, graph)) + experiment_problems(call, experiment)
+    wrong_experiment = experiment_problems(call, experiment)   # the checks that read no file
+    _raise((problems or _fmu_problems(call, graph)) + wrong_experiment
            + _callable_problems(call, progress=progress, sink=sink)
            + keep_rows_problems(call, keep_rows))
 

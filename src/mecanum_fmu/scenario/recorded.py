@@ -24,10 +24,10 @@ import math
 from pathlib import Path
 from typing import Any, Callable
 
-from .errors import Problem
-from .models.blocks.profile_table import TableError, parse_table
-from .storage import NotARegularFile, read_regular
-from .values import is_finite
+from ..errors import Problem
+from ..models.blocks.profile_table import TableError, parse_table
+from ..storage import NotARegularFile, read_regular
+from ..values import is_finite
 
 MAX_TABLE_BYTES = 50_000_000
 # `topic` and `stamps` name a bag's topic and its time (bags.py)

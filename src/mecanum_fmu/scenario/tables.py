@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS, TableError, \
+from ..models.blocks.profile_table import PATH_COLUMNS, TABLE_COLUMNS, TableError, \
     parse_table, path_heading
 
 # the columns of a table, per model that takes one: (required, optional)

@@ -14,10 +14,10 @@ from typing import Any, Union
 
 import yaml
 
-from .errors import Problem, ScenarioError, did_you_mean
-from .masters import ADAPTIVE, DEFAULT as DEFAULT_MASTER, MASTERS, entry as master_entry
-from .storage import NotARegularFile, read_regular
-from .values import (is_finite, is_number, name_problem, scalar_problem, show,
+from ..errors import Problem, ScenarioError, did_you_mean
+from ..masters import ADAPTIVE, DEFAULT as DEFAULT_MASTER, MASTERS, entry as master_entry
+from ..storage import NotARegularFile, read_regular
+from ..values import (is_finite, is_number, name_problem, scalar_problem, show,
                      type_name as _type_name, unknown_keys as _unknown_keys, usable_name)
 
 MAX_FILE_BYTES = 1_000_000

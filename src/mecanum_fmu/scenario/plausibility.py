@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import math
 
-from .errors import Problem
-from .masters import entry as master_entry
-from .models.catalog import SAMPLED_MODELS
+from ..errors import Problem
+from ..masters import entry as master_entry
+from ..models.catalog import SAMPLED_MODELS
 
 LENGTHS = {"R": (0.005, 1.0), "L": (0.01, 5.0), "W": (0.01, 5.0), "l": (0.05, 10.0)}
 LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2Center",

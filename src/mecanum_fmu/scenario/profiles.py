@@ -22,11 +22,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, \
+from ..models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, \
     table_sampler
-from .models.blocks.profile_table import _TABLE_MAX_ROWS as MAX_TABLE_ROWS  # the FMU's limit
-from .errors import Problem
-from .values import is_finite
+from ..models.blocks.profile_table import _TABLE_MAX_ROWS as MAX_TABLE_ROWS  # the FMU's limit
+from ..errors import Problem
+from ..values import is_finite
 from .bags import is_bag, read_bag_table
 from .recorded import TableSource, check_options, mapped_table, read_table_file, \
     report_table_error

@@ -15,12 +15,12 @@ from typing import Callable
 from fmpy.model_description import ModelDescription, ScalarVariable
 
 from . import plausibility
-from .models import library as fmu_library
-from .models.catalog import SAMPLED_MODELS, bundled_model
-from .models.pose_error import pose_error
-from .errors import Problem, ScenarioError
-from .masters import DEFAULT, entry as master_entry
-from .scenario import Scalar, Scenario, VarRef, did_you_mean, is_number, show
+from ..models import library as fmu_library
+from ..models.catalog import SAMPLED_MODELS, bundled_model
+from ..models.pose_error import pose_error
+from ..errors import Problem, ScenarioError
+from ..masters import DEFAULT, entry as master_entry
+from .document import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 from .tables import Breaks, Table, source_breaks, table_or_none
 
 VALUE_TYPES = ("Real", "Integer", "Boolean")    # what moves between FMUs and is recorded
