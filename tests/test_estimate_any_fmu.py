@@ -126,10 +126,11 @@ def test_a_tolerance_too_small_to_progress_stops_naming_the_step_and_keeps_its_r
 
 
 def test_the_estimate_of_a_run_where_the_times_quantise_gives_an_answer(tmp_path, fmus):
-    # at 1e15 s a double steps by 0.125 s: the coarser runs' rows round onto shared keys
-    # several times (it ended in a broadcasting ValueError, shapes (120,) and (41,))
+    # at 1e15 s a double steps by 0.125 s: the coarser runs' steps (3/2 h, 3 h) round, and
+    # their rows fall onto shared keys several times (it ended in a broadcasting ValueError,
+    # shapes (120,) and (41,)); a step below 0.125 s is refused (test_hostile_inputs.py)
     graph = runner.prepare(_scenario(tmp_path, fmus, "gauss-seidel"))
-    graph, exp = with_experiment(graph, start_time=1e15, stop_time=1e15 + 6.0, step_size=0.05)
+    graph, exp = with_experiment(graph, start_time=1e15, stop_time=1e15 + 6.0, step_size=0.125)
     results = master.simulate(graph, exp)
     summary = master.estimate_error(graph, results)
     assert set(summary["error_estimate"]) == {"lag.x"}

@@ -63,6 +63,23 @@ def one_line(code: int, err: str, *says: str) -> str:
     return lines[0]
 
 
+# -- times where the grid quantises -------------------------------------------------------------
+def test_a_step_finer_than_the_times_resolve_is_refused(sandbox, capsys):
+    """Near 1e15 s doubles are 0.125 s apart (math.ulp): a 0.05 s step would collapse steps
+    onto the same times. Refused at validate and prepare, naming the smallest step."""
+    late = CIRCLE.read_text().replace("start_time: 0.0", "start_time: 1.0e+15").replace(
+        "stop_time: 10.0", "stop_time: 1.000000000000006e+15")
+    path = write_scenario(sandbox, "late", late)
+    assert math.ulp(1.0e15) == 0.125 > 0.05
+    code, out, err = run_main(capsys, "validate", path)
+    one_line(code, err, "late.yaml: experiment.step_size", "doubles 0.125 s apart",
+             "a step of at least 0.125 s")
+    err = refused(prepare, path, build=False)
+    assert "finer than the times can resolve" in str(err)
+    fine = write_scenario(sandbox, "late_ok", late.replace("step_size: 0.05 ", "step_size: 0.125 "))
+    prepare(fine, build=False)          # one spacing: every step advances
+
+
 # -- tolerances ---------------------------------------------------------------------------------
 BAD_TOLERANCES = [math.nan, -1e-4, 0.0, math.inf, "1e-4", True, 10 ** 400]
 

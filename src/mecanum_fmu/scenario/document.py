@@ -375,7 +375,27 @@ def check_experiment(exp: Experiment) -> list[tuple[str, str]]:
     elif exp.step_size > 0 and (exp.stop_time - exp.start_time) / exp.step_size > 1e8:
         out.append(("experiment.step_size", f"{exp.step_size} gives more than 1e8 steps; "
                     "use a larger step"))
+    elif exp.step_size > 0 and (problem := _quantised(exp)):
+        out.append(("experiment.step_size", problem))
     return out + _tolerance_problems(exp)
+
+
+# a step must span at least this many of the times' own resolution (the spacing of doubles
+# near them): below it steps collapse onto the same times (near 1e15 s doubles are 0.125 s
+# apart: a 0.05 s step would take steps of 0 and 0.125 s); at or above it the grid may still
+# round (tests/test_run_output.py runs 1e15 s at 0.125 s), but every step advances
+RESOLVED_STEPS = 1
+
+
+def _quantised(exp: Experiment) -> str | None:
+    """Why the step is too fine for the times it steps through, or None."""
+    spacing = math.ulp(max(abs(exp.start_time), abs(exp.stop_time)))
+    if exp.step_size >= RESOLVED_STEPS * spacing:
+        return None
+    return (f"{exp.step_size:g} s is finer than the times can resolve near "
+            f"{max(abs(exp.start_time), abs(exp.stop_time)):g} s (doubles {spacing:g} s apart: "
+            "steps would collapse onto the same times); shift the run's times towards 0 (a table's start: first_row "
+            f"or offset) or use a step of at least {RESOLVED_STEPS * spacing:g} s")
 
 
 def _tolerance_problems(exp: Experiment) -> list[tuple[str, str]]:
