@@ -452,9 +452,9 @@ def test_a_recording_is_a_panel_pair_of_the_dashboard(run):
                                    for a in t.tolist())
     roles = dataclasses.replace(ROLES, recorded=(("pose", table),))
     frame = plots.build_figures(results, roles, truth, title="circle")
-    assert list(frame)[:len(PANEL_KEYS) + 2] == PANEL_KEYS[:2] + ["recorded", "recorded_error"] \
-        + PANEL_KEYS[2:]
-    path = lines_by_label(frame["recorded"].axes[0])
+    pair = ["recorded_path", "recorded_error"]
+    assert list(frame)[:len(PANEL_KEYS) + 2] == PANEL_KEYS[:2] + pair + PANEL_KEYS[2:]
+    path = lines_by_label(frame["recorded_path"].axes[0])
     assert np.allclose(path["pose: recorded"].get_ydata(), np.sin(t) + 0.1)
     err = frame["recorded_error"].axes[0]
     (line,) = err.get_lines()
@@ -465,4 +465,4 @@ def test_a_recording_is_a_panel_pair_of_the_dashboard(run):
     titles = [ax.get_title() for ax in dash.axes]
     assert "Recorded against simulated" in titles and "Simulated minus recorded" in titles
     # without a recording neither panel is drawn
-    assert "recorded" not in plots.build_figures(results, ROLES, truth, title="circle")
+    assert "recorded_path" not in plots.build_figures(results, ROLES, truth, title="circle")

@@ -469,7 +469,7 @@ PANELS: dict[str, Panel] = {
     "drift": Panel("Drift of the belief against time",
                    lambda r, ro: _has_pose(r, ro) and _has_belief(r, ro), _draw_drift),
     # only when the scenario names a recording (`recorded:`, docs/bags.md): recorded.png's two
-    "recorded": Panel("Recorded against simulated", _has_recorded, _draw_recorded),
+    "recorded_path": Panel("Recorded against simulated", _has_recorded, _draw_recorded),
     "recorded_error": Panel("Simulated minus recorded", _has_recorded, _draw_recorded_error),
     "velocities": Panel("Input velocities", _has_inputs, _draw_velocities),
     "vy": Panel("Vy(t)", lambda r, ro: bool(_col(r, ro.source, "vy")), _draw_vy),
