@@ -203,4 +203,4 @@ def find_roles(graph) -> Roles:
     return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"),
                  one.get("follower"), one.get("frame"), one.get("omni-inverse"),
                  one.get("omni-forward"), one.get("steering"), one.get("odometry"),
-                 tuple((getattr(graph.scenario, "recorded", None) or {}).items()))
+                 tuple(graph.scenario.recorded.items()))
