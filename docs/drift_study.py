@@ -1,4 +1,4 @@
-"""The drift study's table and plot (docs/odometry.md, The drift study), from the runs.csv of
+"""The drift study's table and plot (docs/robot.md, The drift study), from the runs.csv of
 
     .venv/bin/python -m mecanum_fmu sweep scenarios/sweeps/belief_drift.yaml
 

@@ -42,6 +42,8 @@ DASHBOARDS = {
     "bicycle_dashboard.png": ("chassis/bicycle_circle.yaml", "dashboard.png"),
     "showcase_dashboard.png": ("modes/showcase.yaml", "dashboard.png"),
     "belief_track_circle_dashboard.png": ("robot/belief_track_circle.yaml", "dashboard.png"),
+    "belief_drive_track_circle_dashboard.png": ("robot/belief_drive_track_circle.yaml",
+                                                "dashboard.png"),
 }
 SWEEP_FILES = ("end_points.png", "paths.png", "error_histogram.png")
 GRID = """name: wheel_tolerance_grid

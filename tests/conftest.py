@@ -56,7 +56,7 @@ except ImportError:  # package not installed: fall back to the src layout
 MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator", "PathFollower",
                # the other chassis (docs/chassis.md, tests/test_chassis.py)
                "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource",
-               # sensors and dead reckoning (docs/odometry.md, tests/test_odometry.py)
+               # sensors and dead reckoning (docs/robot.md, tests/test_odometry.py)
                "Encoder", "Gyro", "Odometry",
                # the drive train (docs/robot.md, tests/test_robot.py)
                "DCMotor", "MecanumDynamics")

@@ -459,6 +459,9 @@ def test_a_run_held_against_its_own_recorded_odometry(tmp_path, seed_bags):
     assert against["position_error_m"]["max"] < 1e-4
     assert against["heading_error_rad"]["max"] < 1e-12
     assert "recorded.png" in summary["files"] and (tmp_path / "run" / "recorded.png").stat().st_size
+    # the dashboard holds the comparison too, as its own two panels beside recorded.png
+    for name in ("recorded_path.png", "recorded_error.png"):
+        assert name in summary["files"] and (tmp_path / "run" / name).stat().st_size > 1000
 
 
 def test_a_recording_off_by_a_known_offset_shows_that_offset(tmp_path):

@@ -1,4 +1,4 @@
-"""Encoders, gyro and odometry (docs/odometry.md): each check against an independent computation.
+"""Encoders, gyro and odometry (docs/robot.md): each check against an independent computation.
 
 The references come from closed forms written out here: ros2_controllers' odometry formulas as
 docs/spec.md states them (ROS frame, fl/fr/rl/rr), the geometric sum of Euler's rotations, the

@@ -1,5 +1,6 @@
 """Tests for the plots: figure contents against a hand-made run of the seed scenario
 (docs/spec.md, Expected results)."""
+import dataclasses
 import math
 from pathlib import Path
 
@@ -440,3 +441,28 @@ def test_minor_log_ticks_are_matplotlibs_own_pixels(run, offset):
     assert np.array_equal(ours, theirs)
     if offset in (0.0, 1e-6):
         assert len(ax_theirs.yaxis.get_minorticklocs()) > 20   # there were ticks to draw
+
+
+def test_a_recording_is_a_panel_pair_of_the_dashboard(run):
+    """A scenario's `recorded:` (docs/bags.md): the dashboard holds recorded.png's two panels.
+    The recording is the closed-form circle 0.1 m ahead (+Y), so the error panel is 0.1 m."""
+    results, truth = run
+    t = np.linspace(0.0, 10.0, 41)
+    table = "time,x,y\n" + "".join(f"{a!r},{1 - math.cos(a)!r},{math.sin(a) + 0.1!r}\n"
+                                   for a in t.tolist())
+    roles = dataclasses.replace(ROLES, recorded=(("pose", table),))
+    frame = plots.build_figures(results, roles, truth, title="circle")
+    pair = ["recorded_path", "recorded_error"]
+    assert list(frame)[:len(PANEL_KEYS) + 2] == PANEL_KEYS[:2] + pair + PANEL_KEYS[2:]
+    path = lines_by_label(frame["recorded_path"].axes[0])
+    assert np.allclose(path["pose: recorded"].get_ydata(), np.sin(t) + 0.1)
+    err = frame["recorded_error"].axes[0]
+    (line,) = err.get_lines()
+    # the circle read linearly between 0.25 s rows: off by at most dt^2/8 = 7.8e-3 m
+    assert np.allclose(line.get_ydata(), 0.1, atol=7.9e-3) and err.get_yscale() == "log"
+    assert line.get_label().startswith("pose, end 1.00e-01")
+    dash = plots.build_dashboard(results, roles, truth, title="circle")
+    titles = [ax.get_title() for ax in dash.axes]
+    assert "Recorded against simulated" in titles and "Simulated minus recorded" in titles
+    # without a recording neither panel is drawn
+    assert "recorded_path" not in plots.build_figures(results, ROLES, truth, title="circle")

@@ -153,7 +153,7 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     Model("FieldToBody", "field_to_body", "frame", _no_rules),
     Model("Bicycle", "bicycle", "forward", _numbers_rule(("l", "reference"), bicycle_problem)),
     Model("SteeringSource", "steering_source", "steering", _check_expressions),
-    # what the robot knows: sensors and dead reckoning (docs/odometry.md)
+    # what the robot knows: sensors and dead reckoning (docs/robot.md)
     Model("Encoder", "encoder", "encoder", _numbers_rule(("cpr", "period", "sigma"), encoder_problem)),
     Model("Gyro", "gyro", "gyro", _numbers_rule(("period", "sigma", "bias"), gyro_problem)),
     Model("Odometry", "odometry", "odometry", _check_odometry),
@@ -164,7 +164,7 @@ MODELS: dict[str, Model] = {m.name: m for m in (
 )}
 
 
-# Blocks that sample at their own period (docs/odometry.md, Sample times): the step must
+# Blocks that sample at their own period (docs/robot.md, Sample times): the step must
 # divide it, and a run at another step samples differently (no Richardson estimate).
 SAMPLED_MODELS = ("Encoder", "Gyro", "Odometry")
 
@@ -187,7 +187,9 @@ class Roles:
     omni_inverse: str | None = None   # the omni X-drive's kinematics pair (docs/chassis.md)
     omni_forward: str | None = None
     steering: str | None = None     # a SteeringSource: the car-like chassis' (v, phi) input
-    odometry: str | None = None     # an Odometry: the robot's belief beside the pose (docs/odometry.md)
+    odometry: str | None = None     # an Odometry: the robot's belief beside the pose (docs/robot.md)
+    # the scenario's `recorded:` paths, (pose instance, checked path table) pairs (docs/bags.md)
+    recorded: tuple[tuple[str, str], ...] = ()
 
 
 def find_roles(graph) -> Roles:
@@ -200,4 +202,5 @@ def find_roles(graph) -> Roles:
     one = {role: names[0] for role, names in found.items() if len(names) == 1}
     return Roles(one.get("source"), one.get("inverse"), one.get("forward"), one.get("pose"),
                  one.get("follower"), one.get("frame"), one.get("omni-inverse"),
-                 one.get("omni-forward"), one.get("steering"), one.get("odometry"))
+                 one.get("omni-forward"), one.get("steering"), one.get("odometry"),
+                 tuple(graph.scenario.recorded.items()))

@@ -28,7 +28,7 @@ def recorded_rows(text: str) -> dict[str, np.ndarray]:
             for name, col in zip(PATH_COLUMNS, columns) if col is not None}
 
 
-def _errors(results: Results, pose: str, rec: dict[str, np.ndarray]) -> dict | None:
+def position_errors(results: Results, pose: str, rec: dict[str, np.ndarray]) -> dict | None:
     """The recording at the run's times inside it (linear, as a table is read), and the
     errors of the simulated pose there."""
     t = np.asarray(results.time, dtype=float)
@@ -55,7 +55,7 @@ def compare(results: Results, recorded: dict[str, str]) -> dict:
     for pose, text in recorded.items():
         if f"{pose}.x" not in results.names or not len(results.time):
             continue
-        errors = _errors(results, pose, recorded_rows(text))
+        errors = position_errors(results, pose, recorded_rows(text))
         if errors is None:
             out[pose] = {"samples": 0, "note": "no recorded time inside the run"}
             continue
@@ -85,7 +85,7 @@ def write_figure(results: Results, recorded: dict[str, str], path: Path) -> Path
         ax_path.plot(rec["x"], rec["y"], "--", lw=2.5, alpha=0.6, label=f"{pose}: recorded")
         ax_path.plot(results[f"{pose}.x"], results[f"{pose}.y"], lw=1.2,
                      label=f"{pose}: simulated")
-        errors = _errors(results, pose, rec)
+        errors = position_errors(results, pose, rec)
         if errors is not None:
             ax_err.plot(errors["time"], np.maximum(errors["position"], 1e-12), label=pose)
     ax_path.set(xlabel="X [m] (right)", ylabel="Y [m] (forward)", title="Paths")

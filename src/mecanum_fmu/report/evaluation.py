@@ -67,7 +67,7 @@ class Evaluation:
     topology: Topology
     poses: tuple[PoseEvaluation, ...]
     wheel_signs: str | None
-    belief: dict | None = None    # an Odometry's end drift from the pose (docs/odometry.md)
+    belief: dict | None = None    # an Odometry's end drift from the pose (docs/robot.md)
     drive_train: dict | None = None     # the motors' clamps and the contacts' slip
 
     @property

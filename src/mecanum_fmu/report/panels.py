@@ -18,6 +18,7 @@ from matplotlib.axes import Axes
 from matplotlib.artist import Artist
 from matplotlib.lines import TICKLEFT, Line2D
 
+from .against_recorded import position_errors, recorded_rows
 from .truth import Truth
 from ..models.catalog import Roles
 from ..results import Results
@@ -287,6 +288,28 @@ def _draw_belief(ax: Axes, results: Results, roles: Roles, truth: Truth | None) 
     _finish(ax, "x [m] (right)", "y [m] (forward)", equal=True)
 
 
+def _draw_recorded(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """Each recorded pose (the scenario's `recorded:`) dashed, the simulated one solid."""
+    idx = decimate_index(len(results.time))
+    for pose, text in roles.recorded:
+        rec = recorded_rows(text)
+        ax.plot(rec["x"], rec["y"], "--", lw=2.5, alpha=0.6, label=f"{pose}: recorded")
+        ax.plot(results[f"{pose}.x"][idx], results[f"{pose}.y"][idx], lw=1.2,
+                label=f"{pose}: simulated")
+    _finish(ax, "x [m] (right)", "y [m] (forward)", equal=True)
+
+
+def _draw_recorded_error(ax: Axes, results: Results, roles: Roles, truth: Truth | None) -> None:
+    """|simulated - recorded position| at the recorded times, log scale."""
+    for pose, text in roles.recorded:
+        errors = position_errors(results, pose, recorded_rows(text))
+        if errors is not None:
+            ax.plot(errors["time"], np.maximum(errors["position"], 1e-12),
+                    label=f"{pose}, end {errors['position'][-1]:.2e} m")
+    ax.set_yscale("log")
+    _finish(ax, "t [s]", "|position error| [m]")
+
+
 def belief_drift(results: Results, roles: Roles) -> tuple[np.ndarray, np.ndarray]:
     """(distance, heading difference) between the believed and the true pose at every row."""
     b, p = roles.odometry, roles.pose
@@ -417,6 +440,10 @@ def _has_belief(r: Results, ro: Roles) -> bool:
     return bool(_col(r, ro.odometry, "x") and _col(r, ro.odometry, "y"))
 
 
+def _has_recorded(r: Results, ro: Roles) -> bool:
+    return any(_col(r, pose, "x") and _col(r, pose, "y") for pose, _ in ro.recorded)
+
+
 def _has_inputs(r: Results, ro: Roles) -> bool:
     block, channels = inputs(ro)
     return any(_col(r, block, v) for v in channels)
@@ -436,11 +463,14 @@ PANELS: dict[str, Panel] = {
     "tracking_error": Panel("Tracking error",
                             lambda r, ro: bool(ro.follower) and _has_pose(r, ro), _draw_error,
                             truth=True),
-    # only with an Odometry beside the pose (docs/odometry.md): what the robot believes
+    # only with an Odometry beside the pose (docs/robot.md): what the robot believes
     "belief": Panel("True path vs believed path (odometry)",
                     lambda r, ro: _has_pose(r, ro) and _has_belief(r, ro), _draw_belief),
     "drift": Panel("Drift of the belief against time",
                    lambda r, ro: _has_pose(r, ro) and _has_belief(r, ro), _draw_drift),
+    # only when the scenario names a recording (`recorded:`, docs/bags.md): recorded.png's two
+    "recorded_path": Panel("Recorded against simulated", _has_recorded, _draw_recorded),
+    "recorded_error": Panel("Simulated minus recorded", _has_recorded, _draw_recorded_error),
     "velocities": Panel("Input velocities", _has_inputs, _draw_velocities),
     "vy": Panel("Vy(t)", lambda r, ro: bool(_col(r, ro.source, "vy")), _draw_vy),
     "wheels": Panel("Wheel speeds",

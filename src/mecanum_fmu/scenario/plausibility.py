@@ -10,7 +10,7 @@ Graph.warnings.
   through the integrator each master is stable for h k below its registry entry's loop limit
   (masters.py, docs/masters.md).
 - A sampled block (Encoder, Gyro, Odometry) whose period is not a whole number of steps:
-  its samples do not land on communication points (docs/odometry.md, Sample times).
+  its samples do not land on communication points (docs/robot.md, Sample times).
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
 .value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of

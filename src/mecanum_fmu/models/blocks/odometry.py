@@ -1,4 +1,4 @@
-"""Dead reckoning from measured wheel speeds (docs/odometry.md).
+"""Dead reckoning from measured wheel speeds (docs/robot.md).
 
 Standard library only (inlined into the Odometry FMU). The twist comes from the seed's forward
 kinematics (blocks/kinematics.py): ros2_controllers' mecanum_drive_controller uses the same

@@ -1,4 +1,4 @@
-"""Sampled sensors: sample times, reproducible noise, encoder quantisation (docs/odometry.md).
+"""Sampled sensors: sample times, reproducible noise, encoder quantisation (docs/robot.md).
 
 Standard library only (inlined into the Encoder, Gyro and Odometry FMUs).
 
