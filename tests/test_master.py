@@ -237,6 +237,40 @@ def test_instances_are_reset_and_reused_and_can_be_released(tmp_path):
     assert fresh.data.tobytes() == first.data.tobytes()
 
 
+def _same_module_other_script(built_fmus, folder):
+    """VelocitySource.fmu with another default vx_expr in its slave script, under the same
+    module name (what two third-party pythonfmu FMUs built from a `model.py` each are)."""
+    import zipfile
+    from mecanum_fmu.storage import zip_bytes
+    with zipfile.ZipFile(built_fmus["VelocitySource"]) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
+        module = zf.read("resources/slavemodule.txt").decode().strip()
+    script = f"resources/{module}.py"
+    assert members[script].count(b'"sin(t)", "cos(t)", "0"') == 1
+    members[script] = members[script].replace(b'"sin(t)", "cos(t)", "0"', b'"2.5", "cos(t)", "0"')
+    other = folder / "Other.fmu"
+    other.write_bytes(zip_bytes(members))
+    return other
+
+
+def test_two_fmus_with_one_slave_module_name_each_run_their_own_script(tmp_path, built_fmus):
+    """pythonfmu imports the slave script by its module name, and a process holds one module
+    per name: each FMU still runs its own script, fresh or reset, in any order."""
+    other = _same_module_other_script(built_fmus, tmp_path)
+    graphs = {}
+    for name, fmu in (("own", built_fmus["VelocitySource"]), ("other", other)):
+        graphs[name] = runner.prepare(write_scenario(tmp_path, name, f"""\
+name: {name}
+experiment: {{start_time: 0.0, stop_time: 1.0, step_size: 0.1, master: gauss-seidel}}
+components:
+  source: {{fmu: {fmu}}}
+"""))
+    for name in ("own", "other", "own", "other"):      # the second time: kept and reset
+        res = master.simulate(graphs[name], graphs[name].scenario.experiment)
+        expected = np.sin(res.time) if name == "own" else np.full(len(res.time), 2.5)
+        assert np.allclose(res["source.vx"], expected, atol=1e-12, rtol=0), name
+
+
 def test_an_instance_that_failed_is_not_reused(tmp_path, fmus, capsys):
     master.release_instances()
     assert run_cli(failing_scenario(tmp_path, fmus, "fails_pool", mode=0, fail_at=1.0),

@@ -9,7 +9,10 @@ to repeat is done once per process and kept here:
   of being freed: every fmi2Instantiate of a pythonfmu FMU runs its slave script again and
   leaks ~18 KB (1,000 runs of four FMUs grew by 70 MB); a reset costs ~0.4 KB;
 - every instance has its own log, reached through the callbacks' componentEnvironment, so two
-  simulations with an instance of the same name never share messages.
+  simulations with an instance of the same name never share messages;
+- a pythonfmu FMU imports its slave script by module name into this process's one
+  sys.modules: before it is instantiated, another FMU's module of that name is forgotten
+  (own_slave_module), so each FMU runs its own script.
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ import atexit
 import ctypes
 import hashlib
 import shutil
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -157,6 +161,25 @@ class Runtime:
 
     def forget_log(self, log: InstanceLog) -> None:
         self._logs.pop(log.key, None)
+
+
+def own_slave_module(unzipped: str) -> None:
+    """Before a pythonfmu FMU (resources/slavemodule.txt) is instantiated: forget a module of
+    its slave's name that another FMU's script put in sys.modules. pythonfmu imports the
+    script by that name, and the import would hand back the other FMU's module, so this FMU
+    would run the other's script (two FMUs built from a `model.py`, two versions of one
+    model). The import then finds this FMU's resources/, which pythonfmu puts first on
+    sys.path; instances of the other FMU keep the class they were made from."""
+    resources = Path(unzipped) / "resources"
+    try:
+        name = (resources / "slavemodule.txt").read_text().strip()
+    except (OSError, UnicodeDecodeError):     # not a pythonfmu FMU
+        return
+    module = sys.modules.get(name)
+    where = getattr(module, "__file__", None)
+    if module is not None and (where is None
+                               or Path(where).resolve().parent != resources.resolve()):
+        del sys.modules[name]
 
 
 RUNTIME = Runtime()
