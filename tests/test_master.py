@@ -6,6 +6,7 @@ import re
 import shutil
 import signal
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -346,6 +347,24 @@ def test_default_records_every_output(tmp_path, capsys):
     assert SPEC_OUTPUTS <= set(expected)
     assert header[0] == "time"
     assert sorted(header[1:]) == sorted(expected)
+
+
+def test_an_fmu_written_again_within_one_clock_tick_is_extracted_anew(tmp_path):
+    """Written again in place with as many bytes before the file system's clock moved on (the
+    modification time set back to the first one's stands for that): the same inode, size and
+    modification time, new content - extracted anew, not taken for the first file."""
+    from mecanum_fmu.storage import zip_bytes
+    fmu = tmp_path / "Block.fmu"
+    fmu.write_bytes(zip_bytes({"resources/a.txt": b"one"}))
+    stamp = fmu.stat().st_mtime_ns
+    first = master.RUNTIME.extracted(fmu)
+    with open(fmu, "r+b") as f:            # the same inode
+        f.write(zip_bytes({"resources/a.txt": b"two"}))
+    os.utime(fmu, ns=(stamp, stamp))
+    assert fmu.stat().st_size == len(zip_bytes({"resources/a.txt": b"one"}))
+    second = master.RUNTIME.extracted(fmu)
+    assert (Path(first) / "resources" / "a.txt").read_bytes() == b"one"
+    assert (Path(second) / "resources" / "a.txt").read_bytes() == b"two"
 
 
 def test_a_rebuilt_fmu_at_the_same_path_is_extracted_anew(tmp_path, built_fmus):

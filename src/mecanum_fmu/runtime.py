@@ -21,6 +21,7 @@ import ctypes
 import hashlib
 import shutil
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,6 +33,7 @@ from .archive import extract_all
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 POOL_MAX = 4          # instances kept per (extraction, GUID, instance name)
 LOG_KEEP = 20         # messages kept per instance
+RACY_NS = 2_000_000_000   # a file's hash is kept once it is older than this (2 s)
 
 
 @dataclass
@@ -84,13 +86,18 @@ class Runtime:
         self-contained FMU took 5 ms, four of them 20 ms, on every run."""
         st = path.stat()
         key = (str(path.resolve()), st.st_ino, st.st_size, st.st_mtime_ns)
-        if key not in self._digests:
-            sha = hashlib.sha256()
-            with open(path, "rb") as f:          # streamed: an FMU may be large
-                while chunk := f.read(1 << 20):
-                    sha.update(chunk)
+        if key in self._digests:
+            return self._digests[key]
+        sha = hashlib.sha256()
+        with open(path, "rb") as f:          # streamed: an FMU may be large
+            while chunk := f.read(1 << 20):
+                sha.update(chunk)
+        # A file modified less than RACY_NS ago is hashed again next time: written again
+        # within one tick of the file system's clock (same inode, same size), it would keep
+        # its modification time and look unchanged (git's "racy clean" entries).
+        if time.time_ns() - st.st_mtime_ns > RACY_NS:
             self._digests[key] = sha.hexdigest()
-        return self._digests[key]
+        return sha.hexdigest()
 
     def forget_extractions(self) -> None:
         """Delete the extraction folders and forget them: the next run extracts anew (its
