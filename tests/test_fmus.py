@@ -248,6 +248,36 @@ def test_slave_scripts_are_uniquely_named_and_self_contained(built_fmus, tmp_pat
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr
 
 
+def test_every_slave_script_fmi2_and_fmi3_imports_without_the_package(built_fmus, fmi3_fmus,
+                                                                     tmp_path):
+    """Every bundled FMU of both versions: no line of its script imports mecanum_fmu (the
+    Encoder's and Gyro's shared slaves/sampled.py imports blocks/sensors.py: inlined too), and
+    the script imports in a child with only its resources/ and the site packages."""
+    fmus = [*built_fmus.values(), *fmi3_fmus.values()]
+    places = []
+    for n, fmu in enumerate(fmus):
+        scripts, module, texts = slave_scripts(fmu)
+        assert scripts == [f"resources/{module}.py"], (fmu, scripts)
+        lines = re.findall(r"^[ \t]*(?:from|import)[ \t]+mecanum_fmu\b.*$", texts[scripts[0]],
+                           re.MULTILINE)
+        assert lines == [], (fmu, lines)
+        with zipfile.ZipFile(fmu) as zf:
+            zf.extract(scripts[0], tmp_path / str(n))
+        places.append((str(tmp_path / str(n) / "resources"), module, fmu.stem))
+    assert len({module for _, module, _ in places}) == len(fmus)
+    code = ("import importlib, sys\n"
+            "for folder, module, model in %r:\n"
+            "    sys.path.insert(0, folder)\n"
+            "    assert hasattr(importlib.import_module(module), model), model\n"
+            "    sys.path.remove(folder)\n"
+            "assert 'mecanum_fmu' not in sys.modules, 'imported the package'\n"
+            "print('ok')\n") % places
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    proc = subprocess.run([sys.executable, "-I", "-c", code], capture_output=True, text=True,
+                          cwd=tmp_path, env=env, timeout=120)
+    assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr[-2000:]
+
+
 def test_build_is_reproducible(built_fmus, tmp_path):
     """A second build, in a fresh process with another hash seed and an empty cache (the
     bundled Python's pieces made anew: stripped libpython, compiled stdlib), gives the same

@@ -6,6 +6,7 @@ import re
 import shutil
 import signal
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -237,6 +238,40 @@ def test_instances_are_reset_and_reused_and_can_be_released(tmp_path):
     assert fresh.data.tobytes() == first.data.tobytes()
 
 
+def _same_module_other_script(built_fmus, folder):
+    """VelocitySource.fmu with another default vx_expr in its slave script, under the same
+    module name (what two third-party pythonfmu FMUs built from a `model.py` each are)."""
+    import zipfile
+    from mecanum_fmu.storage import zip_bytes
+    with zipfile.ZipFile(built_fmus["VelocitySource"]) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
+        module = zf.read("resources/slavemodule.txt").decode().strip()
+    script = f"resources/{module}.py"
+    assert members[script].count(b'"sin(t)", "cos(t)", "0"') == 1
+    members[script] = members[script].replace(b'"sin(t)", "cos(t)", "0"', b'"2.5", "cos(t)", "0"')
+    other = folder / "Other.fmu"
+    other.write_bytes(zip_bytes(members))
+    return other
+
+
+def test_two_fmus_with_one_slave_module_name_each_run_their_own_script(tmp_path, built_fmus):
+    """pythonfmu imports the slave script by its module name, and a process holds one module
+    per name: each FMU still runs its own script, fresh or reset, in any order."""
+    other = _same_module_other_script(built_fmus, tmp_path)
+    graphs = {}
+    for name, fmu in (("own", built_fmus["VelocitySource"]), ("other", other)):
+        graphs[name] = runner.prepare(write_scenario(tmp_path, name, f"""\
+name: {name}
+experiment: {{start_time: 0.0, stop_time: 1.0, step_size: 0.1, master: gauss-seidel}}
+components:
+  source: {{fmu: {fmu}}}
+"""))
+    for name in ("own", "other", "own", "other"):      # the second time: kept and reset
+        res = master.simulate(graphs[name], graphs[name].scenario.experiment)
+        expected = np.sin(res.time) if name == "own" else np.full(len(res.time), 2.5)
+        assert np.allclose(res["source.vx"], expected, atol=1e-12, rtol=0), name
+
+
 def test_an_instance_that_failed_is_not_reused(tmp_path, fmus, capsys):
     master.release_instances()
     assert run_cli(failing_scenario(tmp_path, fmus, "fails_pool", mode=0, fail_at=1.0),
@@ -312,6 +347,24 @@ def test_default_records_every_output(tmp_path, capsys):
     assert SPEC_OUTPUTS <= set(expected)
     assert header[0] == "time"
     assert sorted(header[1:]) == sorted(expected)
+
+
+def test_an_fmu_written_again_within_one_clock_tick_is_extracted_anew(tmp_path):
+    """Written again in place with as many bytes before the file system's clock moved on (the
+    modification time set back to the first one's stands for that): the same inode, size and
+    modification time, new content - extracted anew, not taken for the first file."""
+    from mecanum_fmu.storage import zip_bytes
+    fmu = tmp_path / "Block.fmu"
+    fmu.write_bytes(zip_bytes({"resources/a.txt": b"one"}))
+    stamp = fmu.stat().st_mtime_ns
+    first = master.RUNTIME.extracted(fmu)
+    with open(fmu, "r+b") as f:            # the same inode
+        f.write(zip_bytes({"resources/a.txt": b"two"}))
+    os.utime(fmu, ns=(stamp, stamp))
+    assert fmu.stat().st_size == len(zip_bytes({"resources/a.txt": b"one"}))
+    second = master.RUNTIME.extracted(fmu)
+    assert (Path(first) / "resources" / "a.txt").read_bytes() == b"one"
+    assert (Path(second) / "resources" / "a.txt").read_bytes() == b"two"
 
 
 def test_a_rebuilt_fmu_at_the_same_path_is_extracted_anew(tmp_path, built_fmus):

@@ -1,11 +1,13 @@
 """SSP 1.0 export/import: structure, XSD validity, bit-identical round trip, a third-party
 SSP, a broken SSP, and the `doctor` command."""
+import io
 import json
 import shutil
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+import numpy as np
 import pytest
 
 from helpers import CHAIN_CONNECTIONS, child_env, run_child
@@ -152,6 +154,49 @@ def test_values_take_the_fmu_variables_type_and_baked_strings_leave_the_ssd(fmu_
     results = master.simulate(again, again.scenario.experiment)
     assert results["pose.x"][-1] == pytest.approx(10.0, abs=1e-12)
     assert results["pose.y"][-1] == pytest.approx(-1.0, abs=1e-12)
+
+
+DEFAULTS = """\
+name: defaults
+experiment: {start_time: 0.0, stop_time: 2.0, step_size: 0.1, master: gauss-seidel}
+components:
+  source: {fmu: VelocitySource}
+  pose: {fmu: PoseIntegrator}
+connections:
+  - [source.vx, pose.vx]
+  - [source.vy, pose.vy]
+  - [source.w, pose.w]
+"""
+
+
+def test_a_baked_variant_and_its_original_each_run_their_own_script_in_one_process(
+        fmu_dir, tmp_path):
+    """pythonfmu imports a slave script by its module name, once per process: the variant
+    has a module name of its own, so the original at its defaults (vx = sin t, docs/spec.md,
+    The seed scenario), then the exported SSP's variant (vx = 2.5, nothing in the SSD sets
+    it), then the original again each run their own script in this one process."""
+    from helpers import write_scenario
+    from mecanum_fmu import master
+    from mecanum_fmu.runner import prepare
+    plain = prepare(write_scenario(tmp_path, "defaults", DEFAULTS), fmu_dir=fmu_dir)
+    graph = prepare(write_scenario(tmp_path, "typed", TYPED), fmu_dir=fmu_dir)
+    path = ssp_write.export_ssp(graph, tmp_path / "typed.ssp")
+    with zipfile.ZipFile(path) as zf:
+        variant = next(n for n in zf.namelist() if n.startswith("resources/VelocitySource_"))
+        variant = io.BytesIO(zf.read(variant))
+    modules = []
+    for fmu in (fmu_dir / "VelocitySource.fmu", variant):
+        with zipfile.ZipFile(fmu) as zf:
+            modules.append(zf.read("resources/slavemodule.txt").decode().strip())
+    assert modules[1].startswith(modules[0] + "_") and len(set(modules)) == 2
+    for run in ("plain", "variant", "plain"):
+        if run == "plain":
+            results = master.simulate(plain, plain.scenario.experiment)
+            assert np.allclose(results["source.vx"], np.sin(results.time), atol=1e-12, rtol=0)
+        else:
+            again = prepare(path, fmu_dir=fmu_dir)
+            results = master.simulate(again, again.scenario.experiment)
+            assert results["pose.x"][-1] == pytest.approx(10.0, abs=1e-12)
 
 
 def test_ssp_import_types_an_integer_binding_for_a_real_as_real(exported, tmp_path):

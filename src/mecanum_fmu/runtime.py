@@ -9,7 +9,10 @@ to repeat is done once per process and kept here:
   of being freed: every fmi2Instantiate of a pythonfmu FMU runs its slave script again and
   leaks ~18 KB (1,000 runs of four FMUs grew by 70 MB); a reset costs ~0.4 KB;
 - every instance has its own log, reached through the callbacks' componentEnvironment, so two
-  simulations with an instance of the same name never share messages.
+  simulations with an instance of the same name never share messages;
+- a pythonfmu FMU imports its slave script by module name into this process's one
+  sys.modules: before it is instantiated, another FMU's module of that name is forgotten
+  (own_slave_module), so each FMU runs its own script.
 """
 from __future__ import annotations
 
@@ -17,6 +20,8 @@ import atexit
 import ctypes
 import hashlib
 import shutil
+import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,6 +33,7 @@ from .archive import extract_all
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 POOL_MAX = 4          # instances kept per (extraction, GUID, instance name)
 LOG_KEEP = 20         # messages kept per instance
+RACY_NS = 2_000_000_000   # a file's hash is kept once it is older than this (2 s)
 
 
 @dataclass
@@ -80,13 +86,18 @@ class Runtime:
         self-contained FMU took 5 ms, four of them 20 ms, on every run."""
         st = path.stat()
         key = (str(path.resolve()), st.st_ino, st.st_size, st.st_mtime_ns)
-        if key not in self._digests:
-            sha = hashlib.sha256()
-            with open(path, "rb") as f:          # streamed: an FMU may be large
-                while chunk := f.read(1 << 20):
-                    sha.update(chunk)
+        if key in self._digests:
+            return self._digests[key]
+        sha = hashlib.sha256()
+        with open(path, "rb") as f:          # streamed: an FMU may be large
+            while chunk := f.read(1 << 20):
+                sha.update(chunk)
+        # A file modified less than RACY_NS ago is hashed again next time: written again
+        # within one tick of the file system's clock (same inode, same size), it would keep
+        # its modification time and look unchanged (git's "racy clean" entries).
+        if time.time_ns() - st.st_mtime_ns > RACY_NS:
             self._digests[key] = sha.hexdigest()
-        return self._digests[key]
+        return sha.hexdigest()
 
     def forget_extractions(self) -> None:
         """Delete the extraction folders and forget them: the next run extracts anew (its
@@ -157,6 +168,25 @@ class Runtime:
 
     def forget_log(self, log: InstanceLog) -> None:
         self._logs.pop(log.key, None)
+
+
+def own_slave_module(unzipped: str) -> None:
+    """Before a pythonfmu FMU (resources/slavemodule.txt) is instantiated: forget a module of
+    its slave's name that another FMU's script put in sys.modules. pythonfmu imports the
+    script by that name, and the import would hand back the other FMU's module, so this FMU
+    would run the other's script (two FMUs built from a `model.py`, two versions of one
+    model). The import then finds this FMU's resources/, which pythonfmu puts first on
+    sys.path; instances of the other FMU keep the class they were made from."""
+    resources = Path(unzipped) / "resources"
+    try:
+        name = (resources / "slavemodule.txt").read_text().strip()
+    except (OSError, UnicodeDecodeError):     # not a pythonfmu FMU
+        return
+    module = sys.modules.get(name)
+    where = getattr(module, "__file__", None)
+    if module is not None and (where is None
+                               or Path(where).resolve().parent != resources.resolve()):
+        del sys.modules[name]
 
 
 RUNTIME = Runtime()

@@ -9,7 +9,10 @@ scenario's values:
   * modelDescription.xml: the String start values are the scenario's, and a new GUID;
   * the slave script in resources/ ends with a few lines that, after the slave's own
     __init__, set those values through the variables' setters - what fmi2SetString would do -
-    so the slave starts with them even when nobody calls fmi2SetString.
+    so the slave starts with them even when nobody calls fmi2SetString;
+  * that script has a module name of its own (`<module>_<12 hex digits>`, in
+    resources/slavemodule.txt): one process imports one module per name, so a host that
+    loads the variant and the original would otherwise run one script for both.
 
 FMI 3.0 FMUs (pythonfmu3) are baked the same way, in their own model description's terms.
 Everything else (binaries, the bundled Python, pythonfmu's runtime) is copied byte for byte. One FMU per distinct set
@@ -102,12 +105,17 @@ def bake(fmu: bytes, values: dict[str, str], reuse: Path | None = None) -> bytes
     tag = hashlib.sha256(fmu + json.dumps(values).encode()).hexdigest()
     entries["modelDescription.xml"] = _description(entries["modelDescription.xml"], values, tag)
     module = entries["resources/slavemodule.txt"].decode().strip()
-    script = f"resources/{module}.py"
+    # a module name of its own: pythonfmu imports the slave by name, and a process holds one
+    # module per name, so a variant and its original (or two variants) loaded by one host
+    # would otherwise all run whichever script was imported first
+    own = f"{module}_{tag[:12]}"
+    entries["resources/slavemodule.txt"] = entries["resources/slavemodule.txt"].replace(
+        module.encode(), own.encode())
     fmi3 = "resources/pythonfmu3/__init__.py" in entries      # an FMI 3.0 FMU (pythonfmu3)
     base = ("from pythonfmu3 import Fmi3Slave as Fmi2Slave" if fmi3 else
             "from pythonfmu import Fmi2Slave")
-    entries[script] = entries[script] + _PATCH.format(mark=_MARK, values=repr(values),
-                                                      base=base).encode()
+    entries[f"resources/{own}.py"] = entries.pop(f"resources/{module}.py") + _PATCH.format(
+        mark=_MARK, values=repr(values), base=base).encode()
     return zip_bytes(entries, compresslevel=9, reuse=reuse)
 
 

@@ -11,7 +11,7 @@ from fmpy.fmi2 import FMU2Slave
 
 from ..errors import Problem, ScenarioError
 from ..scenario.graph import Instance, Port
-from ..runtime import RUNTIME, STATUS, Kept
+from ..runtime import RUNTIME, STATUS, Kept, own_slave_module
 from . import fmi3
 
 _fmi2Terminated = 3    # fmi2StatusKind
@@ -126,6 +126,7 @@ class RunningInstance:
             self.component = None
         # loggingOn: pythonfmu drops every message otherwise, errors included; the log keeps
         # the last few so that a failure can quote the FMU's own reason.
+        own_slave_module(self.key[0])
         try:
             self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=True)
         except Exception as err:     # fmi2Instantiate returned NULL: a broken FMU

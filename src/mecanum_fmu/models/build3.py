@@ -98,8 +98,11 @@ def _fix_model_description(xml: bytes, slave_class, token: str, needs_python: bo
     structure = root.find("ModelStructure")
     structure.clear()
     outputs = [sv.get("name") for sv in variables if sv.get("causality") == "output"]
-    for tag, table in (("Output", deps), ("InitialUnknown", init_deps)):
-        for name in outputs:
+    # FMI 3.0: the calculated parameters are initial unknowns too (DCMotor's R_a, k_t, ...)
+    initial = [sv.get("name") for sv in variables
+               if sv.get("causality") in ("output", "calculatedParameter")]
+    for tag, names, table in (("Output", outputs, deps), ("InitialUnknown", initial, init_deps)):
+        for name in names:
             ET.SubElement(structure, tag, valueReference=vr[name],
                           dependencies=dependency_list(table[name]))
     ET.indent(root, space="  ")

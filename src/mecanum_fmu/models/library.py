@@ -70,15 +70,23 @@ def slave_source(model_name: str) -> SlaveSource:
     """The self-contained FMU script for a bundled model, with the block maths inlined (a
     pythonfmu script is loaded as a top-level module from the FMU's resources/)."""
     module = MODELS[model_name].module
-    text = (PACKAGE_DIR / "slaves" / f"{module}.py").read_text()
+    script = _inlined((PACKAGE_DIR / "slaves" / f"{module}.py").read_text(), set())
+    return SlaveSource(model_name, f"mecanum_fmu_{module}", script)
 
+
+def _inlined(text: str, done: set[str]) -> str:
+    """text with each `# inline` import replaced by the module's source, itself inlined the
+    same way (slaves/sampled.py imports blocks/sensors.py); a module already inlined above is
+    not repeated: the whole module is in the script, so every name it defines is there."""
     def inline(match: re.Match) -> str:
         where = f"{match.group(1)}/{match.group(2)}.py"
-        block = (PACKAGE_DIR / where).read_text()
+        if where in done:
+            return f"# (mecanum_fmu/models/{where} is inlined above)"
+        done.add(where)
+        block = _inlined((PACKAGE_DIR / where).read_text(), done)
         return f"# --- inlined from mecanum_fmu/models/{where} ---\n{block}# --- end ---"
 
-    script = _INLINE.sub(inline, text)
-    return SlaveSource(model_name, f"mecanum_fmu_{module}", script)
+    return _INLINE.sub(inline, text)
 
 
 def fmi3_slave_source(model_name: str) -> SlaveSource:
