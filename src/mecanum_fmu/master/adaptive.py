@@ -468,7 +468,8 @@ class _Loop:
                                    bool(holds.paired) or not holds.clients)
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
-        self.rows = DenseRows(recorder, tol, near, self.names())
+        self.rows = DenseRows(recorder, tol, near, self.names(),
+                              len(self.names()) - len(self.errors.names))
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
 
     def estimate(self) -> list[float]:

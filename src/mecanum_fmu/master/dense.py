@@ -15,7 +15,7 @@ row at an output time comes from the values at the communication points around i
   row (or at the row's time, when a point falls on it).
 - A row on a communication point (a stop, the stop time) is that point's values, exact.
 - The accumulated error estimate of a row: the estimates at the two points around it, linear
-  in time between them.
+  in time between them, plus the row's own interpolation error (its estimate, as above).
 A row waits until its segment has POINTS points or ends (a stop), so that it has its cubic.
 """
 from __future__ import annotations
@@ -40,19 +40,37 @@ def _weights(times: np.ndarray, at: float) -> np.ndarray:
     return weights
 
 
+def interpolate(times: np.ndarray, values: np.ndarray, at: float) -> tuple:
+    """(the value at `at`, its signed error estimate (value - better)) from the points
+    `times`, `values` (rows): with POINTS + 1 points the cubic through the last POINTS and its
+    difference from the quartic through all; with fewer, the polynomial through all and its
+    difference from the one without the point farthest from `at` (a bound)."""
+    if len(times) > POINTS:
+        value = _weights(times[1:], at) @ values[1:]
+        return value, value - _weights(times, at) @ values
+    value = _weights(times, at) @ values
+    if len(times) < 3:              # two points give no estimate of the line's error
+        return value, np.zeros_like(value)
+    keep = np.arange(len(times)) != np.argmax(np.abs(times - at))
+    return value, value - _weights(times[keep], at) @ values[keep]
+
+
 class DenseRows:
     """The communication points of the current segment (times, Real and Integer buffers,
-    estimates) and the rows still to record (`j`: the next row's index)."""
+    estimates) and the rows still to record (`j`: the next row's index). `controlled`: the
+    outputs with an estimate, in the estimate's order (adaptive._Loop.names), the first
+    `signed` of them signed (the error models'), the others sizes (the pair's)."""
 
     def __init__(self, recorder: Recorder, tol: tuple[float, float], near: float,
-                 controlled: list[str]):
-        self.recorder, self.tol, self.near = recorder, tol, near
+                 controlled: list[str], signed: int):
+        self.recorder, self.tol, self.near, self.signed = recorder, tol, near, signed
         exp = recorder.experiment
         self.row_times = grid_times(exp, np.arange(recorder.n_steps + 1), recorder.n_steps)
         self.j = 1                      # row 0 (t0) is recorded before the loop
-        self.slots = np.array([recorder.buffers.slot(p) for p in recorder.graph.recorded
-                               if p.type == "Real" and str(p.ref) in controlled],
-                              dtype=np.intp)
+        slot = {str(p.ref): recorder.buffers.slot(p) for p in recorder.graph.recorded
+                if p.type == "Real"}
+        self.of = [(i, slot[n]) for i, n in enumerate(controlled) if n in slot]
+        self.slots = np.array([s for _, s in self.of], dtype=np.intp)
         self.times: list[float] = []
         self.points: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
@@ -72,9 +90,8 @@ class DenseRows:
     def ratio(self, end: float) -> float:
         """The largest estimated interpolation error on a step to `end` (the values now are
         its end), at the quarters of the step whether or not a row falls in it (so that the
-        steps do not depend on the output interval), over SHARE of the tolerance: 0 while
-        the segment has one point (two points give no estimate of the line's error)."""
-        if len(self.times) < 2:
+        steps do not depend on the output interval), over SHARE of the tolerance."""
+        if len(self.times) < 2 or not len(self.slots):
             return 0.0
         times = np.array([*self.times[-POINTS:], end])
         values = np.array([*(p[0][self.slots] for p in self.points[-POINTS:]),
@@ -82,10 +99,8 @@ class DenseRows:
         atol, rtol = self.tol
         worst = 0.0
         for at in times[-2] + QUARTERS * (end - times[-2]):
-            whole = _weights(times, at) @ values
-            fewer = _weights(times[1:], at) @ values[1:]
-            scale = atol + rtol * np.abs(whole)
-            worst = max(worst, float(np.max(np.abs(whole - fewer) / scale, initial=0.0)))
+            value, error = interpolate(times, values, at)
+            worst = max(worst, float(np.max(np.abs(error) / (atol + rtol * np.abs(value)))))
         return worst / SHARE
 
     def emit(self, final: bool) -> list:
@@ -102,15 +117,18 @@ class DenseRows:
 
     def _row(self, at: float) -> np.ndarray:
         """Record the row at `at`; its accumulated error estimate."""
-        times, points = np.array(self.times[-POINTS:]), self.points[-POINTS:]
+        times = np.array(self.times)
         on = np.flatnonzero(np.abs(times - at) <= self.near)
         if len(on):
-            real, ints, estimate = points[on[-1]]
+            real, ints, estimate = self.points[on[-1]]
             self.recorder.record(real, ints)
             return estimate
         after = int(np.searchsorted(times, at))
-        real = _weights(times, at) @ np.array([p[0] for p in points])
-        (_, ints, before), (_, _, later) = points[after - 1], points[after]
+        real, error = interpolate(times, np.array([p[0] for p in self.points]), at)
+        (_, ints, before), (_, _, later) = self.points[after - 1], self.points[after]
         self.recorder.record(real, ints)
         share = (at - times[after - 1]) / (times[after] - times[after - 1])
-        return before + share * (later - before)
+        estimate = before + share * (later - before)
+        for i, slot in self.of:
+            estimate[i] += error[slot] if i < self.signed else abs(error[slot])
+        return estimate
