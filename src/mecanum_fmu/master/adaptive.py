@@ -24,11 +24,13 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   retried, shorter; a step the tolerance wants below the smallest one the times can carry
   ends the run (NoProgress);
 - the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
-  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval; the last
-  step is kept unless the controller wants GROW x it or less than it; steps land on the
-  output grid (every step_size seconds: results.csv's rows) and on the breakpoints of the
-  graph (Stops: a jump gets a short step before it).
-The signed sum of the accepted steps' errors is the run's error estimate.
+  [0.5, 2], [0.2, 0.9] after a rejection); the last step is kept unless the controller
+  wants GROW x it or less than it; steps are free of the output grid: they land on the stop
+  time and on the breakpoints of the graph (Stops: a jump gets a short step before it), and
+  the rows between (every step_size seconds: results.csv's) are interpolated (dense.py),
+  whose error estimate cuts a step too.
+The signed sum of the accepted steps' errors is the run's error estimate (plus a row's
+interpolation error's).
 """
 from __future__ import annotations
 
@@ -302,7 +304,7 @@ def step_errors(holds: AdaptiveHolds, errors: OutputErrors, left: float, h: floa
 
 
 class Stops:
-    """The times a step must end on besides the output grid: the graph's breakpoints
+    """The times a step must end on besides the stop time: the graph's breakpoints
     (breakpoints.py). A kink (linear) is one stop; a jump (hold) two: JUMP x the output
     interval before it (at most a third of the way back to the stop before it, so that a
     short segment keeps its own steps), then on it, so that the step that sees the new value
@@ -391,9 +393,8 @@ class Controller:
     def accept(self, ratio: float, h: float, drift: float) -> None:
         r = min(max(ratio, 1e-10), 1e30)
         factor = SAFETY * r ** -K_I * self.ratio_before ** K_P
-        # never more than GROW x the output interval (a long quiet stretch must not leave a step
-        # that takes many rejections to come down when the input turns), nor than the step
-        # the error model (ratio ~ h^3) allows: no step that is sure to be rejected
+        # never more than GROW x `longest` (the run's span), nor than the step the error
+        # model (ratio ~ h^3) allows: no step that is sure to be rejected
         self.wanted = min(self.wanted * min(2.0, max(0.5, factor)), GROW * self.longest,
                           h * r ** (-1 / 3))
         self.ratio_before, self.drift, self.last = r, drift, h
