@@ -24,11 +24,13 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   retried, shorter; a step the tolerance wants below the smallest one the times can carry
   ends the run (NoProgress);
 - the next step comes from a PI controller (exponents 0.7/3 and 0.4/3, ratio clamped to
-  [0.5, 2], [0.2, 0.9] after a rejection), never longer than the output interval; the last
-  step is kept unless the controller wants GROW x it or less than it; steps land on the
-  output grid (every step_size seconds: results.csv's rows) and on the breakpoints of the
-  graph (Stops: a jump gets a short step before it).
-The signed sum of the accepted steps' errors is the run's error estimate.
+  [0.5, 2], [0.2, 0.9] after a rejection); the last step is kept unless the controller
+  wants GROW x it or less than it; steps are free of the output grid: they land on the stop
+  time and on the breakpoints of the graph (Stops: a jump gets a short step before it), and
+  the rows between (every step_size seconds: results.csv's) are interpolated (dense.py),
+  whose error estimate cuts a step too.
+The signed sum of the accepted steps' errors is the run's error estimate (plus a row's
+interpolation error's).
 """
 from __future__ import annotations
 
@@ -44,6 +46,7 @@ from ..results import BELOW_ROUND_OFF, round_off
 from .breakpoints import graph_breaks
 from .instance import RunningInstance
 from .plan import Holds
+from .dense import DenseRows
 from .recorder import Recorder
 from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
 
@@ -57,6 +60,7 @@ SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
 FLOOR, SLOPE, LOCAL = 0.15, 0.7, 32.0
 MIN_ROOM = 0.5 * SLOPE / LOCAL
 GROW = 1.3        # a longer step only when the controller wants GROW x it (step_to)
+FIRST = 0.005     # the first step, at TOL = 1: of the span (first_step)
 _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))   # two-point Gauss, on [0, 1]
 
 
@@ -300,7 +304,7 @@ def step_errors(holds: AdaptiveHolds, errors: OutputErrors, left: float, h: floa
 
 
 class Stops:
-    """The times a step must end on besides the output grid: the graph's breakpoints
+    """The times a step must end on besides the stop time: the graph's breakpoints
     (breakpoints.py). A kink (linear) is one stop; a jump (hold) two: JUMP x the output
     interval before it (at most a third of the way back to the stop before it, so that a
     short segment keeps its own steps), then on it, so that the step that sees the new value
@@ -389,9 +393,8 @@ class Controller:
     def accept(self, ratio: float, h: float, drift: float) -> None:
         r = min(max(ratio, 1e-10), 1e30)
         factor = SAFETY * r ** -K_I * self.ratio_before ** K_P
-        # never more than GROW x the output interval (a long quiet stretch must not leave a step
-        # that takes many rejections to come down when the input turns), nor than the step
-        # the error model (ratio ~ h^3) allows: no step that is sure to be rejected
+        # never more than GROW x `longest` (the run's span), nor than the step the error
+        # model (ratio ~ h^3) allows: no step that is sure to be rejected
         self.wanted = min(self.wanted * min(2.0, max(0.5, factor)), GROW * self.longest,
                           h * r ** (-1 / 3))
         self.ratio_before, self.drift, self.last = r, drift, h
@@ -414,37 +417,39 @@ class Controller:
         return left if n == 1 else left / n
 
 
-def first_step(tolerance: float, interval: float) -> float:
+def first_step(tolerance: float, span: float) -> float:
     """The first steps have no history for the error estimate: short (the trapezoid's error
-    then is h^3 |u''| / 12 per step, below the tolerance for any smooth input of size ~1)."""
-    return interval * min(1.0, tolerance ** (1 / 3))
+    then is h^3 |u''| / 12 per step, below the tolerance for any smooth input of size ~1),
+    FIRST of the run's span times TOL^(1/3), whatever the output interval."""
+    return span * FIRST * min(1.0, tolerance ** (1 / 3))
 
 
 def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[int],
                   progress: Callable[[float], None] | None, holds: AdaptiveHolds,
                   tol: tuple[float, float], counts: dict) -> None:
-    """The adaptive loop: rows recorded on the output grid only. `tol`: (atol, rtol).
+    """The adaptive loop: steps free of the output grid, ending on the stops and the stop
+    time; the rows between from the values around them (dense.py). `tol`: (atol, rtol).
     counts gets steps_taken, steps_rejected, the passes and the accumulated error estimate
     per row. Raises StepFailure, NonFinite, NoProgress, KeyboardInterrupt."""
     exp = recorder.experiment
-    start, stop, interval = exp.start_time, exp.stop_time, exp.step_size
-    loop = _Loop(running, recorder, holds, tol, counts)
-    stops = Stops(recorder.graph, start, stop, interval)
+    start, stop = exp.start_time, exp.stop_time
+    stops = Stops(recorder.graph, start, stop, exp.step_size)
+    loop = _Loop(running, recorder, holds, tol, counts, stops.near)
     counts["names"], counts["estimates"] = loop.names(), [loop.estimate()]
-    t, j = start, 0
+    loop.rows.restart(start, loop.estimate())
+    t = start
     next_report = _time.perf_counter() + 1.0
-    while j < recorder.n_steps:
-        target = stop if j == recorder.n_steps - 1 else start + (j + 1) * interval
-        t = loop.step(t, stops.next(t, target), ctrl_c, stops.near)
-        if t == target:
-            j += 1
-            recorder.record()
-            counts["estimates"].append(loop.estimate())
-            if progress is not None and _time.perf_counter() >= next_report:
-                progress((t - start) / (stop - start))
-                next_report = _time.perf_counter() + 0.5
-        if stops.on(t):
+    while t != stop:
+        t = loop.step(t, stops.next(t, stop), ctrl_c, stops.near)
+        loop.rows.add(t, loop.estimate())
+        at_stop = stops.on(t)
+        counts["estimates"].extend(loop.rows.emit(final=at_stop or t == stop))
+        if at_stop:
             holds.at_breakpoint(stops.before_jump(t))
+            loop.rows.restart(t, loop.estimate())
+        if progress is not None and _time.perf_counter() >= next_report:
+            progress((t - start) / (stop - start))
+            next_report = _time.perf_counter() + 0.5
 
 
 class _Loop:
@@ -452,18 +457,20 @@ class _Loop:
     pair's outputs, the controller, and the values at t_k for a retry."""
 
     def __init__(self, running, recorder: Recorder, holds: AdaptiveHolds, tol: tuple,
-                 counts: dict):
+                 counts: dict, near: float):
         exp = recorder.experiment
         self.running, self.program = running, programs(running)
         self.holds, self.tol, self.counts = holds, tol, counts
         self.span, self.interval, self.stop = (exp.stop_time - exp.start_time, exp.step_size,
                                                exp.stop_time)
         self.start = exp.start_time
-        self.control = Controller(self.span, first_step(tol[0], exp.step_size), exp.step_size)
+        self.control = Controller(self.span, first_step(tol[0], self.span), self.span)
         self.errors = OutputErrors(recorder, holds.clients,
                                    bool(holds.paired) or not holds.clients)
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
+        self.rows = DenseRows(recorder, tol, near, self.names(),
+                              len(self.names()) - len(self.errors.names))
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
 
     def estimate(self) -> list[float]:
@@ -488,8 +495,8 @@ class _Loop:
             client.accept(h, update)
         self.errors.accept()
         control = self.control
-        if h >= 0.1 * min(control.wanted, self.interval):  # not cut short by a stop: a step
-            control.accept(ratio, h, drift)               # of 1e-6 h_out says nothing of the next
+        if h >= 0.1 * control.wanted:       # not cut short by a stop: a step of 1e-6 h_out
+            control.accept(ratio, h, drift)  # says nothing of the next
         else:
             control.drift = drift
         if not np.isfinite(self.real).all():
@@ -509,6 +516,8 @@ class _Loop:
                                               self.tol)
             ratio, worst = control.ratios(own, h, drift, t + h - self.start,
                                           self.holds.jump_next)
+            rows = self.rows.ratio(t + h)     # the rows in the step: their interpolation
+            ratio, worst = max(ratio, rows), max(worst, rows)
             if worst <= 1.0:
                 return h, updates, ratio, drift[0]
             self.counts["steps_rejected"] += 1

@@ -73,10 +73,12 @@ class Recorder:
     def rows(self) -> int:
         return self.flushed + self.fill
 
-    def record(self) -> None:
+    def record(self, real: np.ndarray | None = None, ints: np.ndarray | None = None) -> None:
+        """A row of the buffers now, or of the values `real`, `ints` (the adaptive master's
+        rows between its communication points, dense.py)."""
         i = self.fill
-        self.real[i] = self.buffers.real
-        self.int[i] = self.buffers.int
+        self.real[i] = self.buffers.real if real is None else real
+        self.int[i] = self.buffers.int if ints is None else ints
         self.fill = i + 1
         if i + 1 == len(self.real):
             self.flush()
