@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from mecanum_fmu import master
+from mecanum_fmu.models.topology import topology
 from mecanum_fmu.report.evaluation import evaluate
 from mecanum_fmu.runner import prepare
 
@@ -61,7 +62,8 @@ def scenarios() -> dict:
 def end_errors(scenario, master_name: str) -> list[tuple[str, float, bool]]:
     graph = prepare(scenario, master_name=master_name)
     results = master.simulate(graph, graph.scenario.experiment)
-    return [(p.pose, p.error["position"], p.match) for p in evaluate(graph, results).poses]
+    evaluation = evaluate(graph, results, topo=topology(graph))
+    return [(p.pose, p.error["position"], p.match) for p in evaluation.poses]
 
 
 def main(argv: list[str] | None = None) -> int:

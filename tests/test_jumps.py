@@ -15,6 +15,7 @@ import yaml
 
 from mecanum_fmu import master
 from mecanum_fmu.master.breakpoints import CUT, step_cuts
+from mecanum_fmu.models.topology import topology
 from mecanum_fmu.report.evaluation import evaluate
 from mecanum_fmu.runner import prepare
 
@@ -122,7 +123,7 @@ def test_recorded_path_matches_at_its_own_step(name, fmu_dir):
     graph = prepare(ROOT / "scenarios/closed_loop/recorded_path.yaml", master_name=name,
                     fmu_dir=fmu_dir)
     results = master.simulate(graph, graph.scenario.experiment)
-    (pose,) = evaluate(graph, results).poses
+    (pose,) = evaluate(graph, results, topo=topology(graph)).poses
     assert pose.match, pose.error
 
 

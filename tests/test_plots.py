@@ -349,9 +349,11 @@ def test_titles_fit_their_panel(path):
 
 
 def test_animation_legend_names_the_wheel_arrows():
+    from mecanum_fmu.models.modes import geometry_of
     from mecanum_fmu.report.animation import WHEEL_COLORS, build_scene
     results, truth = make_run()
-    fig, update, n = build_scene(results, ROLES, truth, {"L": 0.16, "W": 0.12, "R": R})
+    fig, update, n = build_scene(results, ROLES, truth,
+                                 geometry_of({"L": 0.16, "W": 0.12, "R": R}))
     legend = fig.axes[0].get_legend()
     labels = [t.get_text() for t in legend.get_texts()]
     assert labels[-4:] == WHEEL_LABELS and {"ground truth", "path"} <= set(labels)

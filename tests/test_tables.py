@@ -20,7 +20,7 @@ from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.models.blocks import profile_table
 from mecanum_fmu.models.blocks.profile_table import (MAX_LINE, MAX_REPORTED, TableError,
                                                      parse_table, table_sampler)
-from mecanum_fmu.scenario.profiles import table_twist
+from mecanum_fmu.models.commanded import table_twist
 from mecanum_fmu.scenario.tables import read_table
 from mecanum_fmu.scenario.document import load_scenario
 

@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import MecanumError, Problem, ScenarioError
-from .results import csv_writer, write_rows
+from .results import Results, csv_writer, write_rows
 from .storage import atomic_path, read_regular
 
 # as long as the longest temporary name a run writes here (".summary.json.part"; the plots'
@@ -266,3 +266,25 @@ class CsvStream:
         except OSError:     # the disk is full: what is buffered cannot be written
             pass
         self._atomic.discard()
+
+
+def summarize(graph, results: Results) -> dict:
+    """What the run was and how it went, summary.json's first part (a scenario.graph.Graph and
+    its Results; the evaluation adds its part: report.evaluation.Evaluation.summary)."""
+    scenario = graph.scenario
+    return {
+        "scenario": scenario.name,
+        "file": str(scenario.path),
+        "description": scenario.description,
+        "master": results.master,
+        "start_time": results.start_time,
+        "stop_time": results.stop_time,
+        "step_size": results.step_size,
+        "steps": results.steps,
+        "wall_time_s": round(results.wall_time, 6),
+        "complete": results.complete,
+        "end_time": float(results.time[-1]) if len(results.time) else None,
+        "recorded": list(results.names),
+        "fmus": {i.name: {"model": i.model_name, "path": str(i.fmu_path), "guid": i.model.guid}
+                 for i in graph.instances},
+    }

@@ -19,7 +19,7 @@ from .models.topology import Topology, topology
 from .report import against_recorded
 from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines
 from .report.truth import Truth
-from .output import OutputFolder
+from .output import OutputFolder, summarize
 from .report.plot_worker import PlotWorker
 from .process import sigterm_raises, signals_deferred
 from .masters import tolerance_master
@@ -139,8 +139,6 @@ def run(graph: Graph, out_dir: Path | None = None, *, plots: bool = True,
             remove_previous(out.path)       # an earlier run's bag/ is not this run's
             if bag:
                 check_room(out.path)
-            if plotter is not None:
-                plotter.expect(graph, topo.roles)
             try:
                 outcome = _run_in(graph, topo, out, plotter=plotter, progress=progress,
                                   log=log, animate=animate, keep_rows=keep_rows, bag=bag)
@@ -160,7 +158,7 @@ def _silent(line: str) -> None:
 
 def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWorker | None,
             progress, log, animate: bool, keep_rows: int | None, bag: bool) -> RunOutcome:
-    results, summary, files = _simulate_into(graph, topo, out, progress, keep_rows)
+    results, summary, files = _simulate_into(graph, topo, out, plotter, progress, keep_rows)
     if bag:
         summary["bag"] = _bag(out, topo, files)
     if plotter is not None:     # it draws what needs no truth while the truth is integrated
@@ -218,12 +216,15 @@ def _rewrite_summary(out: OutputFolder, summary: dict, files: list[Path]) -> Non
         raise
 
 
-def _simulate_into(graph: Graph, topo: Topology, out: OutputFolder, progress,
-                   keep_rows: int | None) -> tuple[Results, dict, list[Path]]:
-    """Run with results.csv streamed into `out`; write the summary (without the evaluation).
+def _simulate_into(graph: Graph, topo: Topology, out: OutputFolder, plotter: PlotWorker | None,
+                   progress, keep_rows: int | None) -> tuple[Results, dict, list[Path]]:
+    """Run with results.csv streamed into `out` (the plot worker, told first what the run
+    records, prepares its frame meanwhile); write the summary (without the evaluation).
     A failed or interrupted run still keeps its tables (with its end poses) and raises; a
     write error (output.WriteError) leaves no results.csv."""
     from . import master  # here: `validate` needs neither the FMI runtime nor matplotlib
+    if plotter is not None:
+        plotter.expect(graph, topo.roles)
     stream = None
     try:
         stream = out.csv_stream(tuple(str(p.ref) for p in graph.recorded))
@@ -233,9 +234,8 @@ def _simulate_into(graph: Graph, topo: Topology, out: OutputFolder, progress,
         except (SimulationError, Interrupted) as err:
             if err.results is not None:
                 with signals_deferred():
-                    summary = summarize(graph, err.results)
-                    summary.update(evaluate(graph, err.results, topo=topo,
-                                            with_truth=False).summary())
+                    ends = evaluate(graph, err.results, topo=topo, with_truth=False).summary()
+                    summary = summarize(graph, err.results) | ends
                     summary["error_message"] = str(err)
                     err.files.extend(out.write_tables(stream, summary))
             raise
@@ -245,27 +245,6 @@ def _simulate_into(graph: Graph, topo: Topology, out: OutputFolder, progress,
     finally:                    # a write failed (output.WriteError) or a bug: no half file
         if stream is not None and stream.temp.exists():
             stream.abort()
-
-
-def summarize(graph: Graph, results: Results) -> dict:
-    """What the run was and how it went (the evaluation adds its part: Evaluation.summary)."""
-    scenario = graph.scenario
-    return {
-        "scenario": scenario.name,
-        "file": str(scenario.path),
-        "description": scenario.description,
-        "master": results.master,
-        "start_time": results.start_time,
-        "stop_time": results.stop_time,
-        "step_size": results.step_size,
-        "steps": results.steps,
-        "wall_time_s": round(results.wall_time, 6),
-        "complete": results.complete,
-        "end_time": float(results.time[-1]) if len(results.time) else None,
-        "recorded": list(results.names),
-        "fmus": {i.name: {"model": i.model_name, "path": str(i.fmu_path), "guid": i.model.guid}
-                 for i in graph.instances},
-    }
 
 
 def report_lines(summary: dict) -> list[str]:

@@ -37,6 +37,7 @@ class Topology:
     roles: Roles                # the single instance of each bundled role (the plots' view)
     drives: tuple[Drive, ...]   # one per PoseIntegrator, in the scenario's order
     geometry: dict[str, float]  # alpha, L, W, R of the kinematics (modes.graph_geometry)
+    follower_feed: str | None = None    # the instance that drives the follower's x input
 
 
 def upstream(graph, instance: str, var: str) -> tuple[str, str] | None:
@@ -64,8 +65,11 @@ def drive_of(graph, pose: str) -> Drive:
 
 
 def topology(graph) -> Topology:
-    """The roles and, for every PoseIntegrator (in the scenario's order), what drives it."""
+    """The roles, for every PoseIntegrator (in the scenario's order) what drives it, and what
+    feeds the follower's pose input (the evaluation's belief asks)."""
     poses = [c.name for c in graph.scenario.components
              if graph.instance(c.name).model_name == "PoseIntegrator"]
     roles = find_roles(graph)
-    return Topology(roles, tuple(drive_of(graph, p) for p in poses), graph_geometry(graph, roles))
+    feed = upstream(graph, roles.follower, "x") if roles.follower is not None else None
+    return Topology(roles, tuple(drive_of(graph, p) for p in poses), graph_geometry(graph, roles),
+                    feed[0] if feed is not None else None)

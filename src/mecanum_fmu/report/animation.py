@@ -21,7 +21,6 @@ from matplotlib.patches import Polygon
 from .evaluation import Evaluation
 from .truth import Truth
 from ..models.catalog import Roles
-from ..models.modes import geometry_of
 from ..results import Results
 from .panels import WHEELS
 from .plots import new_figure
@@ -69,9 +68,9 @@ def write_animation(results: Results, evaluation: Evaluation, path: Path | str,
 
 
 def build_scene(results: Results, roles: Roles, truth: Truth | None,
-                graph_params: Mapping | None):
-    """The animation's figure, update(i) that shows row i, and the number of rows."""
-    params = geometry_of(graph_params)
+                params: Mapping[str, float]):
+    """The animation's figure, update(i) that shows row i, and the number of rows. params:
+    alpha, L, W, R of the kinematics (the Evaluation's geometry, models.modes.geometry_of)."""
     x, y, theta, rim = _track(results, roles, params["R"])
     fig = new_figure(FIG_SIZE, dpi=DPI)
     ax = fig.add_subplot()

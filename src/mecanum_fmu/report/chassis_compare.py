@@ -21,6 +21,7 @@ from ..process import exit_now
 from ..results import Results
 from ..scenario.graph import Graph, compile_graph
 from ..models.library import build_bundled
+from ..models.topology import topology
 from ..scenario.document import read_scenario
 from .evaluation import Evaluation, evaluate, report_lines
 from .plots import new_figure
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     except MecanumError as err:     # bad input (2) or a failed run (1): the message says why
         print(err, file=sys.stderr)
         return 2 if isinstance(err, ScenarioError) else 1
-    evaluation = evaluate(graph, results)
+    evaluation = evaluate(graph, results, topo=topology(graph))
     for line in report_lines(evaluation.summary()):
         print(line)
     out = Path(args.out)

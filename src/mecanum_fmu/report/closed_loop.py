@@ -16,16 +16,6 @@ from .truth import Truth
 REFERENCE = ("x_ref_expr", "y_ref_expr", "theta_ref_expr")
 
 
-def reference_pose(follower, times: np.ndarray) -> np.ndarray:
-    """The reference (x, y, theta) of a PathFollower instance at `times`, shape 3 x n."""
-    times = np.asarray(times, dtype=float)
-    if follower.table is not None:
-        rows, *columns = follower.table.path()
-        return np.array([np.interp(times, rows, c) for c in columns])
-    funcs = [compile_expression(str(follower.value(k))) for k in REFERENCE]
-    return np.array([[f(float(t)) for t in times] for f in funcs]).reshape(3, len(times))
-
-
 def _table_rates(table, times: np.ndarray) -> np.ndarray:
     """The slopes of the row interval each time lies in (a row's time: the interval after
     it), zero before the first row and from the last row on; 3 x n."""
@@ -41,15 +31,25 @@ def _table_rates(table, times: np.ndarray) -> np.ndarray:
     return rates
 
 
-def reference_truth(follower, times: np.ndarray):
-    times = np.asarray(times, dtype=float)
-    x, y, th = reference_pose(follower, times)
+def _reference(follower, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference (x, y, theta) of a PathFollower instance at `times` and its rates
+    (dx, dy, w) in the world frame, 3 x n each."""
     if follower.table is not None:
-        dx, dy, w = _table_rates(follower.table, times)
-    else:
-        d = 1e-6 * np.maximum(1.0, np.abs(times))
-        up = reference_pose(follower, times + d)
-        down = reference_pose(follower, times - d)
-        dx, dy, w = (up - down) / (2 * d)
+        rates = _table_rates(follower.table, times)
+        rows, *columns = follower.table.path()
+        return np.array([np.interp(times, rows, c) for c in columns]), rates
+    funcs = [compile_expression(str(follower.value(k))) for k in REFERENCE]
+
+    def at(ts: np.ndarray) -> np.ndarray:
+        return np.array([[f(float(t)) for t in ts] for f in funcs]).reshape(3, len(ts))
+    d = 1e-6 * np.maximum(1.0, np.abs(times))
+    return at(times), (at(times + d) - at(times - d)) / (2 * d)
+
+
+def reference_truth(follower, times: np.ndarray) -> Truth:
+    """The follower's reference as a Truth: its pose and its rates in the body frame of the
+    reference heading."""
+    times = np.asarray(times, dtype=float)
+    (x, y, th), (dx, dy, w) = _reference(follower, times)
     c, s = np.cos(th), np.sin(th)
     return Truth(times, x, y, th, c * dx + s * dy, -s * dx + c * dy, w)

@@ -1,11 +1,12 @@
 """The one place where a run is compared with its ground truth.
 
-`evaluate(graph, results)` asks the topology once which blocks drive which pose
-(models.topology), solves each pose's truth (report.ground_truth: expressions, tables,
-segments, field-oriented and car-like commands, a follower's reference, saturated wheels) and
-returns, per pose, the end pose, the truth, the error, match, wheel-speed saturation and any
-failure it caught (a truth that fails costs only itself). `run`, `sweep`, the plots, the
-animation and the chassis comparison all take its answer.
+`evaluate(graph, results, topo=topology(graph))` takes the topology (models.topology: which
+blocks drive which pose, asked once by the caller), solves each pose's truth
+(report.ground_truth: expressions, tables, segments, field-oriented and car-like commands, a
+follower's reference, saturated wheels) and returns, per pose, the end pose, the truth, the
+error, match, wheel-speed saturation and any failure it caught (a truth that fails costs only
+itself). `run`, `sweep`, the plots, the animation and the chassis comparison all take its
+answer.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.modes import constant_twist_signs
-from ..models.topology import Drive, Topology, topology, upstream
+from ..models.topology import Drive, Topology
 from ..results import Results
 from .drive_train import drive_train_limits, limit_lines
 from .ground_truth import pose_truth
@@ -45,10 +46,26 @@ class PoseEvaluation:
     drive: Drive
     end: dict[str, float] | None            # the run's end pose (None: not recorded)
     truth: Truth | None = field(default=None, repr=False)
-    error: dict[str, float] | None = None   # dx, dy, dtheta, position
-    match: bool | None = None               # the end points agree at 3 decimals
     saturation: Saturation | None = None
     failure: str | None = None              # why there is no truth, when it failed
+
+    @property
+    def error(self) -> dict[str, float] | None:
+        """dx, dy, dtheta and position of the end pose against the truth's."""
+        if self.truth is None or self.end is None:
+            return None
+        ref = dict(zip(AXES, self.truth.end))
+        error = {f"d{k}": self.end[k] - ref[k] for k in AXES}
+        error["position"] = math.hypot(error["dx"], error["dy"])
+        return error
+
+    @property
+    def match(self) -> bool | None:
+        """The end points agree at 3 decimals."""
+        if self.truth is None or self.end is None:
+            return None
+        ref, end = dict(zip(AXES, self.truth.end)), self.end
+        return round(end["x"], 3) == round(ref["x"], 3) and round(end["y"], 3) == round(ref["y"], 3)
 
     def as_dict(self) -> dict:
         out = {"end_pose": self.end}
@@ -115,29 +132,31 @@ class Evaluation:
         return out
 
 
-def evaluate(graph, results: Results, *, topo: Topology | None = None,
+def evaluate(graph, results: Results, *, topo: Topology,
              truths: dict[str, Truth | None] | None = None, with_truth: bool = True) -> Evaluation:
-    """Compare the run with its truth, pose by pose. `truths`: already solved (a sweep solves
-    one per distinct profile); `with_truth=False`: end poses only (a run that failed)."""
-    topo = topo if topo is not None else topology(graph)
-    poses = []
-    for drive in topo.drives:
-        end = _end_pose(results, drive.pose)
-        if end is None or not with_truth or not len(results.time):
-            poses.append(PoseEvaluation(drive.pose, drive, end))
-            continue
+    """Compare the run with its truth, pose by pose. `topo`: the graph's models.topology,
+    asked once by the caller; `truths`: already solved (a sweep solves one per distinct
+    profile); `with_truth=False`: end poses only (a run that failed). What is read from the
+    results comes first, the truths (through models/) last."""
+    ends = [(drive, _end_pose(results, drive.pose)) for drive in topo.drives]
+    belief, limits = _belief(results, topo), drive_train_limits(graph, results)
+    judged = [(drive, end, _saturation(results, drive)) for drive, end in ends
+              if end is not None and with_truth and len(results.time)]
+    compared = {}
+    for drive, end, saturation in judged:
         if truths is not None and drive.pose in truths:
             truth, failure = truths[drive.pose], None
         else:
             truth, failure = solve_truth(graph, drive, results.time)
-        poses.append(_compare(results, drive, end, truth, failure))
+        compared[drive.pose] = PoseEvaluation(drive.pose, drive, end, truth, saturation, failure)
+    poses = tuple(compared.get(drive.pose) or PoseEvaluation(drive.pose, drive, end)
+                  for drive, end in ends)
     signs = (constant_twist_signs(graph, results, topo.roles, topo.geometry)
              if len(results.time) else None)
-    return Evaluation(topo, tuple(poses), signs, _belief(graph, results, topo),
-                      drive_train_limits(graph, results))
+    return Evaluation(topo, poses, signs, belief, limits)
 
 
-def _belief(graph, results: Results, topo: Topology) -> dict | None:
+def _belief(results: Results, topo: Topology) -> dict | None:
     """The Odometry's end pose and its drift from the (single) true pose, and whether the
     follower is fed by it (a loop closed on belief: the tracking error is the drift)."""
     odom, drives = topo.roles.odometry, topo.drives
@@ -147,8 +166,7 @@ def _belief(graph, results: Results, topo: Topology) -> dict | None:
         return None
     drift = {f"d{k}": end[k] - true[k] for k in AXES}
     drift["position"] = math.hypot(drift["dx"], drift["dy"])
-    follower = topo.roles.follower
-    fed = follower is not None and (upstream(graph, follower, "x") or ("",))[0] == odom
+    fed = topo.roles.follower is not None and topo.follower_feed == odom
     return {"instance": odom, "end_pose": end, "drift": drift, "closes_the_loop": fed}
 
 
@@ -169,18 +187,6 @@ def _end_pose(results: Results, pose: str) -> dict[str, float] | None:
     if not len(results.time) or not all(c in results.names for c in cols):
         return None
     return {k: results.final(c) for k, c in zip(AXES, cols)}
-
-
-def _compare(results: Results, drive: Drive, end: dict, truth: Truth | None,
-             failure: str | None) -> PoseEvaluation:
-    saturation = _saturation(results, drive)
-    if truth is None:
-        return PoseEvaluation(drive.pose, drive, end, None, None, None, saturation, failure)
-    ref = dict(zip(AXES, truth.end))
-    error = {f"d{k}": end[k] - ref[k] for k in AXES}
-    error["position"] = math.hypot(error["dx"], error["dy"])
-    match = round(end["x"], 3) == round(ref["x"], 3) and round(end["y"], 3) == round(ref["y"], 3)
-    return PoseEvaluation(drive.pose, drive, end, truth, error, match, saturation)
 
 
 def _saturation(results: Results, drive: Drive) -> Saturation | None:

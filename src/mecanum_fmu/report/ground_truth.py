@@ -1,12 +1,10 @@
 """The ground truth of each pose: what the commanded twist gives when integrated directly.
 
 The original study's x_desired/y_desired, generalised: the twist that drives a pose
-(report.commanded: expressions, tables, segments, field-oriented or car-like commands) is
-integrated through the pose equations (docs/spec.md, Pose integration) with a tight-tolerance
-ODE solver, independent of the FMUs, the coupling and the step size. A Center2Wheel with a
-wheel speed limit (w_max > 0) between the command and the pose saturates the truth's wheel
-speeds as the block does (docs/closed-loop.md, Wheel-speed limits), computed here from the
-kinematics' matrix form (docs/spec.md). A closed loop's truth is the PathFollower's reference
+(models.commanded: expressions, tables, segments, field-oriented or car-like commands, saturated
+where a Center2Wheel limits the wheel speeds) is integrated through the pose equations
+(docs/spec.md, Pose integration) with a tight-tolerance ODE solver, independent of the FMUs,
+the coupling and the step size. A closed loop's truth is the PathFollower's reference
 (report.closed_loop).
 """
 from __future__ import annotations
@@ -14,27 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.blocks.pose import pose_rate
+from ..models.commanded import INPUTS, commanded_twist
 from ..models.topology import Drive, topology, upstream
 from .closed_loop import reference_truth
-from .commanded import INPUTS, commanded_twist
 from .truth import Truth, bounded_grid, integrate
-
-
-def limited(twist, alpha: float, L: float, W: float, R: float, w_max: float):
-    """The twist the chassis makes when its wheel speeds (1/R) A (vx, vy, w) are scaled down
-    together to max |wi| <= w_max, back through A's least-squares inverse (docs/spec.md)."""
-    c = 1.0 / np.tan(alpha)
-    k = L + W * c
-    A = np.array([[-c, 1.0, k], [c, 1.0, -k], [-c, 1.0, -k], [c, 1.0, k]])
-    back = R * np.linalg.pinv(A)
-
-    def saturated(t, theta):
-        wheels = A @ np.asarray(twist(t, theta), dtype=float) / R
-        peak = float(np.max(np.abs(wheels)))
-        if peak <= w_max:
-            return twist(t, theta)
-        return tuple(float(v) for v in back @ (wheels * (w_max / peak)))
-    return saturated
 
 
 def pose_truth(graph, drive: Drive, times: np.ndarray, rtol: float = 1e-10,
@@ -48,10 +29,6 @@ def pose_truth(graph, drive: Drive, times: np.ndarray, rtol: float = 1e-10,
     if found is None or len(times) == 0:
         return None
     twist, breaks = found
-    if drive.w_max > 0:
-        c2w = graph.instance(drive.limiter)
-        twist = limited(twist, *(float(c2w.value(k)) for k in ("alpha", "L", "W", "R")),
-                        drive.w_max)
     pose = graph.instance(drive.pose)
     start = tuple(float(pose.value(k)) for k in ("x0", "y0", "theta0"))
     t0 = float(times[0])

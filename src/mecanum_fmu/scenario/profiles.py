@@ -22,8 +22,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError, \
-    table_sampler
+from ..models.blocks.profile_table import INTERPOLATIONS, TABLE_COLUMNS, TableError
 from ..models.blocks.profile_table import _TABLE_MAX_ROWS as MAX_TABLE_ROWS  # the FMU's limit
 from ..errors import Problem
 from ..values import is_finite
@@ -278,38 +277,6 @@ def recorded_paths(raw: Any, poses: list[str], scenario_dir: Path, start_time: f
         if table is not None:
             out[name] = table.text
     return out
-
-
-def table_twist(table: Table, interpolation: str = "linear"):
-    """(twist function of t for arrays or scalars, breakpoints) of a twist table, with NumPy:
-    an implementation independent of the FMU's (blocks/profile_table.py samples row by row).
-    A scalar t costs one bisection (np.interp's formula, O(log n)); the last one is kept, as
-    the ground truth asks for the three channels of one t in turn."""
-    times, cols = table.times, [table.columns[c] for c in TABLE_COLUMNS[1:]]
-    if interpolation not in INTERPOLATIONS:
-        table_sampler(table.text, interpolation)      # raises the message
-    hold = interpolation == "hold"
-    rows, last = np.stack(cols, axis=1).tolist(), [None, None]
-
-    def at(t: float) -> tuple:
-        i = int(np.searchsorted(times, t, side="right")) - 1
-        if i < 0 or hold:
-            return tuple(rows[max(i, 0)])
-        if i >= len(rows) - 1:
-            return tuple(rows[-1])
-        t0, t1 = float(times[i]), float(times[i + 1])
-        return tuple((b - a) / (t1 - t0) * (t - t0) + a for a, b in zip(rows[i], rows[i + 1]))
-
-    def twist(t):
-        if isinstance(t, float) or np.ndim(t) == 0:
-            if last[0] != t:
-                last[:] = t, at(float(t))
-            return last[1]
-        if hold:
-            i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1)
-            return tuple(c[i] for c in cols)
-        return tuple(np.interp(t, times, c) for c in cols)
-    return twist, times
 
 
 MIN_MAX_STEP = 0.05    # [s] a row interval shorter than 8 of these is one solver step or a few
