@@ -6,6 +6,7 @@ other exception - and a refused call leaves TMPDIR as it was."""
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import os
 import tempfile
@@ -78,6 +79,13 @@ def test_a_mapping_with_parameters_prepares_or_raises_scenario_error(data):
     assert set(os.listdir(tempfile.gettempdir())) == before
 
 
+@functools.cache
+def circle_graph():
+    """The circle, prepared once for every example: check_simulate only reads the graph (its
+    FMU files are still checked at each call)."""
+    return prepare(ROOT / "scenarios" / "circle.yaml", fmu_dir=FMUS, build=False)
+
+
 times = scalars | st.floats(-1e3, 1e3) | st.sampled_from([0.0, -0.0, 1e-300, 5e-324, math.inf])
 
 
@@ -85,7 +93,7 @@ times = scalars | st.floats(-1e3, 1e3) | st.sampled_from([0.0, -0.0, 1e-300, 5e-
 @given(start=times, stop=times, step=times, master=st.sampled_from(
     ["quadratic", "jacobi", "Jacobi", "", None, 3]), keep_rows=scalars)
 def test_simulate_arguments_pass_or_raise_argument_error(start, stop, step, master, keep_rows):
-    graph = prepare(ROOT / "scenarios" / "circle.yaml", fmu_dir=FMUS, build=False)
+    graph = circle_graph()
     try:
         check_simulate(graph, Experiment(start, stop, step, master), None, None, keep_rows)
     except ScenarioError as err:

@@ -84,27 +84,38 @@ class Motor:
     def current(self, w: float, i: float, V: float) -> float:
         return i if self.La > 0.0 else (V - self.k_e * w) / self.R_a
 
-    def rates(self, x: list, w_ref: float, tau_load: float) -> list:
-        w, z, i = x[0], x[1], x[2]
+    def rates(self, w: float, z: float, i: float, w_ref: float, tau_load: float) -> tuple:
+        """The derivatives of x = (w, z, i, E_el, E_cu, E_visc, E_gear, E_load)."""
         V, integrate = self.voltage(w, z, w_ref)
         i = self.current(w, i, V)
         di = (V - self.R_a * i - self.k_e * w) / self.La if self.La > 0.0 else 0.0
-        return [(self.k_t * i - self.b * w - tau_load) / self.J,
+        return ((self.k_t * i - self.b * w - tau_load) / self.J,
                 self.ki * (w_ref - w) if integrate else 0.0, di,
                 V * i, self.R_a * i * i, self.b * w * w, (self.k_e - self.k_t) * i * w,
-                tau_load * w]
+                tau_load * w)
 
     def step(self, x: list, w_ref: float, tau_load: float, h: float) -> list:
-        """Advance the state by h with w_ref and tau_load held (classic RK4 substeps)."""
+        """Advance the state by h with w_ref and tau_load held (classic RK4 substeps: the stages
+        a + 0.5 dt k and a + dt/6 (k1 + 2 k2 + 2 k3 + k4) in scalars; the energies do not feed
+        back, so only (w, z, i) go into the stages)."""
         n = max(1, math.ceil(h * self.rate / RATE_STEP))
         dt = h / n
+        half, sixth, rates = 0.5 * dt, dt / 6.0, self.rates
+        w, z, i, e3, e4, e5, e6, e7 = x
         for _ in range(n):
-            k1 = self.rates(x, w_ref, tau_load)
-            k2 = self.rates([a + 0.5 * dt * b for a, b in zip(x, k1)], w_ref, tau_load)
-            k3 = self.rates([a + 0.5 * dt * b for a, b in zip(x, k2)], w_ref, tau_load)
-            k4 = self.rates([a + dt * b for a, b in zip(x, k3)], w_ref, tau_load)
-            x = [a + dt / 6.0 * (p + 2.0 * q + 2.0 * r + s)
-                 for a, p, q, r, s in zip(x, k1, k2, k3, k4)]
+            p = rates(w, z, i, w_ref, tau_load)
+            q = rates(w + half * p[0], z + half * p[1], i + half * p[2], w_ref, tau_load)
+            r = rates(w + half * q[0], z + half * q[1], i + half * q[2], w_ref, tau_load)
+            s = rates(w + dt * r[0], z + dt * r[1], i + dt * r[2], w_ref, tau_load)
+            w, z, i, e3, e4, e5, e6, e7 = (
+                w + sixth * (p[0] + 2.0 * q[0] + 2.0 * r[0] + s[0]),
+                z + sixth * (p[1] + 2.0 * q[1] + 2.0 * r[1] + s[1]),
+                i + sixth * (p[2] + 2.0 * q[2] + 2.0 * r[2] + s[2]),
+                e3 + sixth * (p[3] + 2.0 * q[3] + 2.0 * r[3] + s[3]),
+                e4 + sixth * (p[4] + 2.0 * q[4] + 2.0 * r[4] + s[4]),
+                e5 + sixth * (p[5] + 2.0 * q[5] + 2.0 * r[5] + s[5]),
+                e6 + sixth * (p[6] + 2.0 * q[6] + 2.0 * r[6] + s[6]),
+                e7 + sixth * (p[7] + 2.0 * q[7] + 2.0 * r[7] + s[7]))
         if self.La == 0.0:
-            x[2] = self.current(x[0], x[2], self.voltage(x[0], x[1], w_ref)[0])
-        return x
+            i = self.current(w, i, self.voltage(w, z, w_ref)[0])
+        return [w, z, i, e3, e4, e5, e6, e7]

@@ -66,31 +66,47 @@ class Chassis:
     def forces(self, slips, eps: float) -> list:
         return [-self.push * math.tanh(s / eps) for s in slips]
 
-    def rates(self, x: list, wheels, eps: float) -> list:
-        """(vx', vy', w', slip power, power into the contacts from the wheels)."""
-        vx, vy, w = x[0], x[1], x[2]
-        slips = self.slips(vx, vy, w, wheels)
-        forces = self.forces(slips, eps)
-        fx = sum(f * ux for f, (ux, _) in zip(forces, self.axes))
-        fy = sum(f * uy for f, (_, uy) in zip(forces, self.axes))
-        torque = sum(f * a for f, a in zip(forces, self.levers))
-        return [fx / self.m + w * vy, fy / self.m - w * vx, torque / self.Iz,
-                -sum(f * s for f, s in zip(forces, slips)),
-                sum(f * self.rim * wi for f, wi in zip(forces, wheels))]
+    def rates(self, vx, vy, w, w1, w2, w3, w4, eps) -> tuple:
+        """(vx', vy', w', slip power, power into the contacts from the wheels), written out per
+        contact: the operations of slips(), forces() and the sums over the contacts, in their
+        order (0.0 + ... as sum() adds), so the results are the same bit for bit."""
+        (x1, y1), (x2, y2), (x3, y3), (x4, y4) = self.arms
+        (ux1, uy1), (ux2, uy2), (ux3, uy3), (ux4, uy4) = self.axes
+        a1, a2, a3, a4 = self.levers
+        rim, push, tanh = self.rim, -self.push, math.tanh
+        s1 = (vx - w * y1) * ux1 + (vy + w * x1) * uy1 - rim * w1
+        s2 = (vx - w * y2) * ux2 + (vy + w * x2) * uy2 - rim * w2
+        s3 = (vx - w * y3) * ux3 + (vy + w * x3) * uy3 - rim * w3
+        s4 = (vx - w * y4) * ux4 + (vy + w * x4) * uy4 - rim * w4
+        f1, f2, f3, f4 = (push * tanh(s1 / eps), push * tanh(s2 / eps), push * tanh(s3 / eps),
+                          push * tanh(s4 / eps))
+        fx = 0.0 + f1 * ux1 + f2 * ux2 + f3 * ux3 + f4 * ux4
+        fy = 0.0 + f1 * uy1 + f2 * uy2 + f3 * uy3 + f4 * uy4
+        torque = 0.0 + f1 * a1 + f2 * a2 + f3 * a3 + f4 * a4
+        return (fx / self.m + w * vy, fy / self.m - w * vx, torque / self.Iz,
+                -(0.0 + f1 * s1 + f2 * s2 + f3 * s3 + f4 * s4),
+                0.0 + f1 * rim * w1 + f2 * rim * w2 + f3 * rim * w3 + f4 * rim * w4)
 
     def step(self, x: list, wheels, h: float) -> list:
-        """Advance (vx, vy, w, E_slip, E_drive) by h with the wheel speeds held (RK4)."""
+        """Advance (vx, vy, w, E_slip, E_drive) by h with the wheel speeds held (RK4; the
+        stages in scalars, as the list form a + 0.5 dt k, a + dt/6 (k1 + 2 k2 + 2 k3 + k4))."""
         eps = self.eps(h)
         n = max(1, math.ceil(h * self.stiffness / (eps * RATE_STEP)))
         dt = h / n
+        half, sixth, rates = 0.5 * dt, dt / 6.0, self.rates
+        w1, w2, w3, w4 = wheels
+        a, b, c, d, e = x
         for _ in range(n):
-            k1 = self.rates(x, wheels, eps)
-            k2 = self.rates([a + 0.5 * dt * b for a, b in zip(x, k1)], wheels, eps)
-            k3 = self.rates([a + 0.5 * dt * b for a, b in zip(x, k2)], wheels, eps)
-            k4 = self.rates([a + dt * b for a, b in zip(x, k3)], wheels, eps)
-            x = [a + dt / 6.0 * (p + 2.0 * q + 2.0 * r + s)
-                 for a, p, q, r, s in zip(x, k1, k2, k3, k4)]
-        return x
+            p = rates(a, b, c, w1, w2, w3, w4, eps)
+            q = rates(a + half * p[0], b + half * p[1], c + half * p[2], w1, w2, w3, w4, eps)
+            r = rates(a + half * q[0], b + half * q[1], c + half * q[2], w1, w2, w3, w4, eps)
+            s = rates(a + dt * r[0], b + dt * r[1], c + dt * r[2], w1, w2, w3, w4, eps)
+            a, b, c, d, e = (a + sixth * (p[0] + 2.0 * q[0] + 2.0 * r[0] + s[0]),
+                             b + sixth * (p[1] + 2.0 * q[1] + 2.0 * r[1] + s[1]),
+                             c + sixth * (p[2] + 2.0 * q[2] + 2.0 * r[2] + s[2]),
+                             d + sixth * (p[3] + 2.0 * q[3] + 2.0 * r[3] + s[3]),
+                             e + sixth * (p[4] + 2.0 * q[4] + 2.0 * r[4] + s[4]))
+        return [a, b, c, d, e]
 
     def kinetic(self, vx: float, vy: float, w: float) -> float:
         return 0.5 * self.m * (vx * vx + vy * vy) + 0.5 * self.Iz * w * w
