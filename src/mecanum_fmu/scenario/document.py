@@ -329,16 +329,25 @@ def tolerance_problem(value: Any, master: Any) -> str | None:
 
 
 def _relative_tolerance(raw: dict, values: dict, bad) -> None:
-    """experiment.relative_tolerance: a number >= 0, beside a tolerance (masters.py)."""
+    """experiment.relative_tolerance in a file (relative_tolerance_problem)."""
     value = raw["relative_tolerance"]
-    if not is_number(value) or not is_finite(value) or not value >= 0:
-        bad("experiment.relative_tolerance", f"expected a number >= 0 (e.g. 1e-3), got "
-            f"{show(value)}")
-    elif "tolerance" not in values:
-        bad("experiment.relative_tolerance", "it weighs the adaptive master's error: add "
-            "`tolerance:` (the absolute one) beside it, or drop it")
+    problem = relative_tolerance_problem(value, values.get("tolerance"))
+    if problem:
+        bad("experiment.relative_tolerance", problem)
     else:
         values["relative_tolerance"] = float(value)
+
+
+def relative_tolerance_problem(value: Any, tolerance: Any) -> str | None:
+    """Why `value` cannot be the relative tolerance beside `tolerance` (None: none given), or
+    None: a finite number >= 0, and only beside an absolute tolerance (the one rule of a
+    file and of an experiment made in code)."""
+    if not is_number(value) or not is_finite(value) or not value >= 0:
+        return f"expected a number >= 0 (e.g. 1e-3), got {show(value)}"
+    if tolerance is None:
+        return ("it weighs the adaptive master's error: give a tolerance (the absolute one) "
+                "beside it, or drop it")
+    return None
 
 
 def override_experiment(scenario: "Scenario", changes: dict[str, Any], label: str,
@@ -380,22 +389,19 @@ def check_experiment(exp: Experiment) -> list[tuple[str, str]]:
     return out + _tolerance_problems(exp)
 
 
-# a step must span at least this many of the times' own resolution (the spacing of doubles
-# near them): below it steps collapse onto the same times (near 1e15 s doubles are 0.125 s
-# apart: a 0.05 s step would take steps of 0 and 0.125 s); at or above it the grid may still
-# round (tests/test_run_output.py runs 1e15 s at 0.125 s), but every step advances
-RESOLVED_STEPS = 1
-
-
 def _quantised(exp: Experiment) -> str | None:
-    """Why the step is too fine for the times it steps through, or None."""
+    """Why the step is too fine for the times it steps through, or None: a step must span at
+    least the spacing of doubles near them, else steps collapse onto the same times (near
+    1e15 s doubles are 0.125 s apart: a 0.05 s step would take steps of 0 and 0.125 s); at or
+    above it the grid may still round (tests/test_run_output.py runs 1e15 s at 0.125 s), but
+    every step advances."""
     spacing = math.ulp(max(abs(exp.start_time), abs(exp.stop_time)))
-    if exp.step_size >= RESOLVED_STEPS * spacing:
+    if exp.step_size >= spacing:
         return None
     return (f"{exp.step_size:g} s is finer than the times can resolve near "
             f"{max(abs(exp.start_time), abs(exp.stop_time)):g} s (doubles {spacing:g} s apart: "
-            "steps would collapse onto the same times); shift the run's times towards 0 (a table's start: first_row "
-            f"or offset) or use a step of at least {RESOLVED_STEPS * spacing:g} s")
+            "steps would collapse onto the same times); shift the run's times towards 0 (a "
+            f"table's start: first_row or offset) or use a step of at least {spacing:g} s")
 
 
 def _tolerance_problems(exp: Experiment) -> list[tuple[str, str]]:
@@ -405,13 +411,9 @@ def _tolerance_problems(exp: Experiment) -> list[tuple[str, str]]:
     out = []
     if exp.tolerance is not None and (problem := tolerance_problem(exp.tolerance, exp.master)):
         out.append(("experiment.tolerance", problem))
-    rel = exp.relative_tolerance
-    if rel is not None and not (is_number(rel) and is_finite(rel) and rel >= 0):
-        out.append(("experiment.relative_tolerance", f"expected a number >= 0 (e.g. 1e-3), "
-                    f"got {show(rel)}"))
-    elif rel is not None and exp.tolerance is None:
-        out.append(("experiment.relative_tolerance", "it weighs the adaptive master's error: "
-                    "give a tolerance (the absolute one) beside it, or drop it"))
+    if exp.relative_tolerance is not None and (
+            problem := relative_tolerance_problem(exp.relative_tolerance, exp.tolerance)):
+        out.append(("experiment.relative_tolerance", problem))
     return out
 
 

@@ -23,6 +23,7 @@ import math
 from ..errors import Problem
 from ..masters import entry as master_entry
 from ..models.catalog import SAMPLED_MODELS
+from ..values import is_finite
 
 LENGTHS = {"R": (0.005, 1.0), "L": (0.01, 5.0), "W": (0.01, 5.0), "l": (0.05, 10.0)}
 LENGTH_MODELS = ("Center2Wheel", "Wheel2Center", "OmniCenter2Wheel", "OmniWheel2Center",
@@ -116,8 +117,7 @@ def _sampling(scenario, inst) -> list[tuple[str, str]]:
     if inst.model_name not in SAMPLED_MODELS:
         return []
     period, exp = inst.value("period"), scenario.experiment
-    if not isinstance(period, (int, float)) or isinstance(period, bool) \
-            or not (math.isfinite(period) and period > 0):
+    if not (is_finite(period) and period > 0):
         return []
     if master_entry(exp.master).adaptive:
         return [(_place(scenario, inst, "period"),
