@@ -98,6 +98,23 @@ connections:
   - [w2c.vy, pose.vy]
   - [w2c.w,  pose.w]
 """
+# the closed loop pose -> follower -> c2w -> w2c -> pose (a PathFollower's scenarios)
+LOOP_CONNECTIONS = """\
+connections:
+  - [pose.x, follower.x]
+  - [pose.y, follower.y]
+  - [pose.theta, follower.theta]
+  - [follower.vx, c2w.vx]
+  - [follower.vy, c2w.vy]
+  - [follower.w,  c2w.w]
+  - [c2w.w1, w2c.w1]
+  - [c2w.w2, w2c.w2]
+  - [c2w.w3, w2c.w3]
+  - [c2w.w4, w2c.w4]
+  - [w2c.vx, pose.vx]
+  - [w2c.vy, pose.vy]
+  - [w2c.w,  pose.w]
+"""
 
 
 def chain_scenario(folder: Path, name: str, *, master: str = "gauss-seidel",

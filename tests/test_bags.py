@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import CHAIN_CONNECTIONS, run_main, write_scenario
+from helpers import CHAIN_CONNECTIONS, LOOP_CONNECTIONS, run_main, write_scenario
 from mecanum_fmu import cli, master
 from mecanum_fmu.report.against_recorded import compare
 from mecanum_fmu.runner import prepare
@@ -295,21 +295,7 @@ components:
   c2w: {{fmu: Center2Wheel}}
   w2c: {{fmu: Wheel2Center}}
   pose: {{fmu: PoseIntegrator, parameters: {{x0: 0.2, y0: -0.15, theta0: 0.3}}}}
-connections:
-  - [pose.x, follower.x]
-  - [pose.y, follower.y]
-  - [pose.theta, follower.theta]
-  - [follower.vx, c2w.vx]
-  - [follower.vy, c2w.vy]
-  - [follower.w,  c2w.w]
-  - [c2w.w1, w2c.w1]
-  - [c2w.w2, w2c.w2]
-  - [c2w.w3, w2c.w3]
-  - [c2w.w4, w2c.w4]
-  - [w2c.vx, pose.vx]
-  - [w2c.vy, pose.vy]
-  - [w2c.w,  pose.w]
-"""
+""" + LOOP_CONNECTIONS
 
 
 @pytest.mark.parametrize("kind", FORMATS)

@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
-from helpers import CHAIN_CONNECTIONS, ROOT, run_main, write_scenario
+from helpers import CHAIN_CONNECTIONS, LOOP_CONNECTIONS, ROOT, run_main, write_scenario
 
 from mecanum_fmu import master
 from mecanum_fmu.errors import ArgumentError, MecanumError, ScenarioError
@@ -132,21 +132,7 @@ components:
   c2w: {{fmu: Center2Wheel}}
   w2c: {{fmu: Wheel2Center}}
   pose: {{fmu: PoseIntegrator}}
-connections:
-  - [pose.x, follower.x]
-  - [pose.y, follower.y]
-  - [pose.theta, follower.theta]
-  - [follower.vx, c2w.vx]
-  - [follower.vy, c2w.vy]
-  - [follower.w, c2w.w]
-  - [c2w.w1, w2c.w1]
-  - [c2w.w2, w2c.w2]
-  - [c2w.w3, w2c.w3]
-  - [c2w.w4, w2c.w4]
-  - [w2c.vx, pose.vx]
-  - [w2c.vy, pose.vy]
-  - [w2c.w, pose.w]
-"""
+""" + LOOP_CONNECTIONS
 LOG = "t,px,py\n0,0,0\n1,0.5,0\n2,1,0.2\n"
 
 
