@@ -104,9 +104,10 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
             return _none(f"the same run at {factor}x the step failed ({err})")
     order = master_entry(exp.master).order
     orders = (order, min(order, ACROSS_ORDER) if steps_across(marks, exp) else order)
-    fine = (results.time, {n: np.asarray(results[n], dtype=float) for n in names})
-    estimate = {n: _richardson(exp, results.steps, factors, fine, coarse[0][1:],
-                               coarse[1][1:], n, orders) for n in names}
+    rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
+    estimate = {n: _richardson(exp, results.steps, factors, (np.asarray(
+        results[n], dtype=float), coarse[0][2][n], coarse[1][2][n]), rows, orders)
+        for n in names}
     cost = sum(c[0] for c in coarse) / max(results.wall_time, 1e-12)
     return {"error_estimate": estimate,
             "error_estimate_method": METHOD.format(r1=str(factors[0]), r2=str(factors[1]),
@@ -182,18 +183,18 @@ def _keys(exp, times: np.ndarray, every: float) -> np.ndarray:
     return keys
 
 
-def _common(exp, every: float, *runs: tuple) -> list[np.ndarray]:
-    """The values of each (times, values) run on the times they all share, in time order:
-    one row per shared key (where the times quantise, at 1e15 s, several rows may round to
-    one key: the first is taken)."""
-    keys = [_keys(exp, t, every) for t, _ in runs]
+def _common(exp, every: float, *times: np.ndarray) -> list[np.ndarray]:
+    """Per run (its times), the indices of the rows at the times they all share, in time
+    order: one row per shared key (where the times quantise, at 1e15 s, several rows may
+    round to one key: the first is taken). Found once per estimate, for every output."""
+    keys = [_keys(exp, t, every) for t in times]
     shared = keys[0][keys[0] >= 0]
     for k in keys[1:]:
         shared = np.intersect1d(shared, k[k >= 0])
     picked = []
-    for (_, v), k in zip(runs, keys):
+    for k in keys:
         unique, first = np.unique(k, return_index=True)
-        picked.append(v[first[np.isin(unique, shared)]])
+        picked.append(first[np.isin(unique, shared)])
     return picked
 
 
@@ -203,22 +204,31 @@ def _shared(*factors: Fraction) -> Fraction:
     return Fraction(num, math.gcd(*(f.denominator for f in factors)))
 
 
-def _richardson(exp, steps: int, factors: tuple, fine: tuple, mid: tuple, coarse: tuple,
-                name: str, orders: tuple[int, int]) -> dict:
-    """{"max", "end"} of one output; `orders`: the master's order (the h^p range) and the
+def _pairs(exp, factors: tuple, fine: np.ndarray, mid: np.ndarray, coarse: np.ndarray
+           ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The rows of (fine, mid) on the times the run and the r1 h run share, and of (fine,
+    mid, coarse) on the times all three share (`fine` ... : each run's times)."""
+    r1, r2 = factors
+    h = exp.step_size
+    return (_common(exp, float(_shared(ONE, r1)) * h, fine, mid),
+            _common(exp, float(_shared(ONE, r1, r2)) * h, fine, mid, coarse))
+
+
+def _richardson(exp, steps: int, factors: tuple, values: tuple, rows: tuple,
+                orders: tuple[int, int]) -> dict:
+    """{"max", "end"} of one output from its values in the three runs (fine, mid, coarse)
+    and the rows they share (_pairs); `orders`: the master's order (the h^p range) and the
     highest the error can have here (2 where the run steps across a breakpoint)."""
     order, top = orders
-    h, (r1, r2) = exp.step_size, factors
-    pick = lambda run: (run[0], run[1][name])      # noqa: E731
-    f2, m2 = _common(exp, float(_shared(ONE, r1)) * h, pick(fine), pick(mid))
-    f4, m4, c4 = _common(exp, float(_shared(ONE, r1, r2)) * h, pick(fine), pick(mid),
-                         pick(coarse))
+    fine, mid, coarse = values
+    (i_f2, i_m2), (i_f4, i_m4, i_c4) = rows
+    f2, m2, f4, m4, c4 = fine[i_f2], mid[i_m2], fine[i_f4], mid[i_m4], coarse[i_c4]
     d1, d1_4, d2 = f2 - m2, f4 - m4, m4 - c4
     big1, big1_4, big2 = (float(np.max(np.abs(d))) for d in (d1, d1_4, d2))
     floor = round_off(f2, steps)
     if big1 <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
-    r1, r2 = float(r1), float(r2)
+    r1, r2 = (float(r) for r in factors)
     if big2 > OUT_OF_RANGE * _grows(r1, r2, order) * big1_4:
         return {"max": UNRESOLVED, "end": UNRESOLVED}
     p = _order(big2, big1_4, floor, (r1, r2), top)
