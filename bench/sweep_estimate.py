@@ -1,13 +1,15 @@
 """A sweep's runs against the same runs by master.simulate alone, in one process: what the
 sweep worker adds per run (the error estimate above all, docs/masters.md) as a ratio of
 medians. The runs are the first N variants of scenarios/sweeps/wheel_tolerance.yaml, made by
-the worker's own run_batch; interleaved rounds, the first run of each kind not timed.
+the worker's own run_batch; interleaved rounds, the first run of each kind not timed. Twice:
+with the default estimate (auto: Richardson) and with `experiment: {estimate: none}`.
 
 Run: .venv/bin/python bench/sweep_estimate.py [--runs N] [--rounds R]
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import time
 from pathlib import Path
@@ -27,11 +29,20 @@ def main(argv=None) -> float:
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args(argv)
     graph, batch, path_names = _study(args.runs)
+    ratio = _compare(graph, batch, path_names, args.rounds, "auto")
+    scenario = graph.scenario
+    off = dataclasses.replace(scenario, experiment=dataclasses.replace(scenario.experiment,
+                                                                       estimate="none"))
+    _compare(dataclasses.replace(graph, scenario=off), batch, path_names, args.rounds, "none")
+    return ratio
+
+
+def _compare(graph, batch, path_names, rounds: int, estimate: str) -> float:
     exp = graph.scenario.experiment
     run_batch(graph, batch[:1], path_names)                    # warm: unpack, instantiate
     master.simulate(with_values(graph, batch[0][1]), exp)
     alone, sweep = [], []
-    for _ in range(args.rounds):
+    for _ in range(rounds):
         tick = time.perf_counter()
         for _, values in batch:
             master.simulate(with_values(graph, values), exp)
@@ -40,8 +51,8 @@ def main(argv=None) -> float:
         run_batch(graph, batch, path_names)
         sweep.append((time.perf_counter() - tick) / len(batch))
     a, s = statistics.median(alone), statistics.median(sweep)
-    print(f"{len(batch)} runs x {args.rounds} rounds: master.simulate alone {a * 1e3:.1f} ms a "
-          f"run, the sweep worker's run (estimate included) {s * 1e3:.1f} ms: ratio {s / a:.2f}")
+    print(f"estimate {estimate}: {len(batch)} runs x {rounds} rounds: master.simulate alone "
+          f"{a * 1e3:.1f} ms a run, the sweep worker's run {s * 1e3:.1f} ms: ratio {s / a:.2f}")
     return s / a
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 from . import __version__
 from .scenario import plausibility
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
-from .masters import DEFAULT as DEFAULT_MASTER, MASTERS
+from .masters import DEFAULT as DEFAULT_MASTER, DEFAULT_ESTIMATE, ESTIMATES, MASTERS
 
 
 def _number(text: str) -> float:
@@ -65,6 +65,10 @@ def _add_run(sub) -> None:
     run.add_argument("--relative-tolerance", type=_non_negative, metavar="RTOL",
                      help="with --tolerance: an output y may err TOL + RTOL |y| (default 0; "
                      "docs/masters.md)")
+    run.add_argument("--estimate", choices=tuple(ESTIMATES),
+                     help="how the run's error is estimated: " + "; ".join(
+                         f"{k}: {v}" for k, v in ESTIMATES.items())
+                     + f" (default {DEFAULT_ESTIMATE}; docs/masters.md)")
     run.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     run.add_argument("--animate", action="store_true", help="also write animation.gif")
     run.add_argument("--bag", action="store_true",
@@ -242,7 +246,7 @@ def cmd_run(args) -> int:
     try:
         graph = prepare(args.scenario, step_size=args.step_size, stop_time=args.stop_time,
                         master_name=args.master, fmu_dir=args.fmu_dir, tolerance=args.tolerance,
-                        relative_tolerance=args.relative_tolerance)
+                        relative_tolerance=args.relative_tolerance, estimate=args.estimate)
     except BaseException:
         if plotter is not None:
             plotter.cancel()

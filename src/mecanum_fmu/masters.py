@@ -59,6 +59,14 @@ DEFAULT_TOLERANCE = 1e-4  # the adaptive master's, when neither --tolerance nor 
 # tolerance alone, in each output's own unit, as before there was a relative one
 DEFAULT_RELATIVE_TOLERANCE = 0.0
 ZOH_HOST = "jacobi"     # the master that steps as a plain fixed-step host does (cross-check)
+# How a run's error is estimated (--estimate, experiment.estimate; docs/masters.md, "The error
+# estimate"): "auto" is the master's own way (Richardson for a fixed step, the adaptive
+# master's per-step errors), "richardson" asks for Richardson by name (a fixed step only),
+# "none" turns the estimate off (a sweep that needs only its end points runs faster)
+ESTIMATES = {"auto": "the fixed-step masters: Richardson; the adaptive master: its own",
+             "richardson": "the run repeated at two coarser steps (fixed-step masters)",
+             "none": "no estimate (summary.json says why)"}
+DEFAULT_ESTIMATE = "auto"
 
 
 def entry(name: str) -> Master:

@@ -55,21 +55,24 @@ def prepare(path: str | Path | dict, *, step_size: float | None = None,
             stop_time: float | None = None, master_name: str | None = None,
             fmu_dir: Path | None = None, build: bool = True,
             parameters: dict | None = None, tolerance: float | None = None,
-            relative_tolerance: float | None = None) -> Graph:
+            relative_tolerance: float | None = None, estimate: str | None = None) -> Graph:
     """Load and check a scenario (a file, or a mapping of a file's keys whose relative paths
     are taken from the working folder) with command-line overrides and `parameters`
     ({"w2c.R": 0.061}, or a shared {"R": 0.061}) and `tolerance` (the adaptive master; with
-    `relative_tolerance`, an output y may err tolerance + relative_tolerance |y|), and
+    `relative_tolerance`, an output y may err tolerance + relative_tolerance |y|), `estimate`
+    (how the run's error is estimated: masters.ESTIMATES), and
     compile its graph. Every problem is
     raised at once (ScenarioError; errors.ArgumentError for an argument of the wrong kind),
     the file's own together with the graph's. With build (the default), the bundled FMUs it
     uses are built first when missing or stale; without (validate), such an FMU is reported
     as a problem with the command that builds it."""
-    check_prepare(path, step_size, stop_time, master_name, fmu_dir, parameters, tolerance)
+    check_prepare(path, step_size, stop_time, master_name, fmu_dir, parameters, tolerance,
+                  estimate)
     scenario, problems = _read(path, parameters)
     changes = {k: v for k, v in (("step_size", step_size), ("stop_time", stop_time),
                                  ("master", master_name), ("tolerance", tolerance),
-                                 ("relative_tolerance", relative_tolerance))
+                                 ("relative_tolerance", relative_tolerance),
+                                 ("estimate", estimate))
                if v is not None}
     if scenario is not None and changes:
         try:

@@ -77,6 +77,8 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     master.simulate (passed in: this module sits below it)."""
     names = recorded_outputs(graph, results)
     exp = graph.scenario.experiment
+    if exp.estimate == "none":
+        return _none("turned off (estimate: none; --estimate auto or richardson gives one)")
     if not names or not results.complete:
         return {}
     if results.steps_taken is not None:         # the adaptive master: its own estimate

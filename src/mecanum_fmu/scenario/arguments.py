@@ -11,7 +11,7 @@ from typing import Any
 from ..errors import ArgumentError, Problem, did_you_mean
 from .graph import Graph
 from ..models.library import fmu_guid
-from .document import MASTERS, Experiment, check_experiment, tolerance_problem
+from .document import MASTERS, Experiment, check_experiment, estimate_problem, tolerance_problem
 from ..values import is_finite, is_number, show
 
 
@@ -115,7 +115,8 @@ def experiment_problems(call: str, experiment: Any) -> list[Problem]:
 
 
 def check_prepare(path: Any, step_size: Any, stop_time: Any, master_name: Any,
-                  fmu_dir: Any, parameters: Any, tolerance: Any = None) -> None:
+                  fmu_dir: Any, parameters: Any, tolerance: Any = None,
+                  estimate: Any = None) -> None:
     """runner.prepare's arguments (the values themselves are checked with the scenario's
     rules afterwards, placed as command-line options)."""
     call = "runner.prepare"
@@ -127,6 +128,8 @@ def check_prepare(path: Any, step_size: Any, stop_time: Any, master_name: Any,
                                       "stop_time (--stop-time)": stop_time})
     if tolerance is not None and (problem := tolerance_problem(tolerance, None)):
         problems.append(_problem(call, "tolerance (--tolerance)", problem))
+    if estimate is not None and (problem := estimate_problem(estimate, None)):
+        problems.append(_problem(call, "estimate (--estimate)", problem))
     if master_name is not None:
         problems += master_problems(call, "master_name (--master)", master_name)
     if fmu_dir is not None and not isinstance(fmu_dir, (str, os.PathLike)):

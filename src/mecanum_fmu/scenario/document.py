@@ -15,14 +15,16 @@ from typing import Any, Union
 import yaml
 
 from ..errors import Problem, ScenarioError, did_you_mean
-from ..masters import ADAPTIVE, DEFAULT as DEFAULT_MASTER, MASTERS, entry as master_entry
+from ..masters import (ADAPTIVE, DEFAULT as DEFAULT_MASTER, DEFAULT_ESTIMATE, ESTIMATES,
+                       MASTERS, entry as master_entry)
 from ..storage import NotARegularFile, read_regular
 from ..values import (is_finite, is_number, name_problem, scalar_problem, show,
                      type_name as _type_name, unknown_keys as _unknown_keys, usable_name)
 
 MAX_FILE_BYTES = 1_000_000
 DEFAULT_EXPERIMENT = {"start_time": 0.0, "stop_time": 10.0, "step_size": 0.01,
-                      "master": DEFAULT_MASTER, "tolerance": None, "relative_tolerance": None}
+                      "master": DEFAULT_MASTER, "tolerance": None, "relative_tolerance": None,
+                      "estimate": DEFAULT_ESTIMATE}
 
 Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -49,6 +51,7 @@ class Experiment:
     master: str
     tolerance: float | None = None    # the adaptive master's error bound (masters.py)
     relative_tolerance: float | None = None   # its relative one (None: the registry's default)
+    estimate: str = DEFAULT_ESTIMATE    # how the run's error is estimated (masters.ESTIMATES)
 
 
 @dataclass(frozen=True)
@@ -302,7 +305,25 @@ def experiment_values(raw: Any, bad) -> tuple[dict[str, Any], bool]:
         _tolerance(raw, values, bad)
     if "relative_tolerance" in raw:
         _relative_tolerance(raw, values, bad)
+    if "estimate" in raw:
+        if problem := estimate_problem(raw["estimate"], values.get("master")):
+            bad("experiment.estimate", problem)
+        else:
+            values["estimate"] = raw["estimate"]
     return values, ok
+
+
+def estimate_problem(value: Any, master: Any) -> str | None:
+    """Why `value` cannot be the estimate of a run with `master` (None: none chosen), or None
+    (the one rule of a file, a sweep, the command line and the Python API)."""
+    if not isinstance(value, str) or value not in ESTIMATES:
+        return (f"unknown estimate {show(value)}{did_you_mean(value, tuple(ESTIMATES))} "
+                f"(choose one of {', '.join(ESTIMATES)})")
+    if value == "richardson" and master in MASTERS and master_entry(master).adaptive:
+        return ("the adaptive master estimates its error itself, step by step (Richardson "
+                "needs a fixed step): drop the estimate richardson (`estimate:` or --estimate)"
+                " or the tolerance")
+    return None
 
 
 def _tolerance(raw: dict, values: dict, bad) -> None:
@@ -414,6 +435,8 @@ def _tolerance_problems(exp: Experiment) -> list[tuple[str, str]]:
     if exp.relative_tolerance is not None and (
             problem := relative_tolerance_problem(exp.relative_tolerance, exp.tolerance)):
         out.append(("experiment.relative_tolerance", problem))
+    if problem := estimate_problem(exp.estimate, exp.master):
+        out.append(("experiment.estimate", problem))
     return out
 
 
