@@ -217,6 +217,11 @@ def fresh_copy(tmp_path_factory, fmu_dir):
     (copy / "fmus").mkdir(exist_ok=True)
     for fmu in fmu_dir.glob("*.fmu"):
         shutil.copy2(fmu, copy / "fmus" / fmu.name)
+    # the FMI 3.0 twins too: a documented command that uses one must not depend on an earlier
+    # one (`mecanum_fmu fmus`) having run in the same worker
+    (copy / "fmus" / "fmi3").mkdir()
+    for fmu in (fmu_dir / "fmi3").glob("*.fmu"):
+        shutil.copy2(fmu, copy / "fmus" / "fmi3" / fmu.name)
     step = ".venv/bin/python -m mecanum_fmu run scenarios/circle.yaml"       # make run's last line
     tmp = tmp_path_factory.mktemp("fresh_clone_tmp")
     proc = subprocess.run(["bash", "-c", step], cwd=copy, env=command_env(copy, tmp),
