@@ -233,7 +233,7 @@ def _simulate_into(graph: Graph, topo: Topology, out: OutputFolder, plotter: Plo
         stream = out.csv_stream(tuple(str(p.ref) for p in graph.recorded))
         try:
             results = master.simulate(graph, graph.scenario.experiment, progress=progress,
-                                      sink=stream, keep_rows=keep_rows)
+                                      sink=stream, keep_rows=keep_rows, with_estimate=True)
         except (SimulationError, Interrupted) as err:
             if err.results is not None:
                 with signals_deferred():

@@ -23,7 +23,8 @@ from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario.document import Experiment
 from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
-from .estimate import error_estimate
+from .coarse import Start, coarse_runs
+from .estimate import error_estimate, planned_factors
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
 from .recorder import Recorder, step_count
@@ -35,7 +36,7 @@ __all__ = ["simulate", "estimate_error", "release_instances", "RUNTIME"]
 def simulate(graph: Graph, experiment: Experiment,
              progress: Callable[[float], None] | None = None, *,
              sink: Callable[[np.ndarray], None] | None = None,
-             keep_rows: int | None = None) -> Results:
+             keep_rows: int | None = None, with_estimate: bool = False) -> Results:
     """Run the graph. Raises SimulationError (with the partial Results) when an FMU fails or
     a Real value stops being finite, Interrupted on Ctrl-C or SIGTERM; every instance is
     terminated and freed in all cases.
@@ -44,6 +45,9 @@ def simulate(graph: Graph, experiment: Experiment,
     reached it when simulate returns or raises, except when the sink itself raises, which
     ends the run with that exception). `keep_rows`: the returned Results hold every row
     (None, the default) or about that many evenly spaced rows plus the exact last one.
+    `with_estimate`: a complete run also steps the error estimate's coarser runs on its own
+    instances, restored to t0 (coarse.py), for estimate_error; without, or where an FMU
+    cannot save its state, estimate_error makes them afresh.
     Wrong arguments raise errors.ArgumentError before anything is extracted."""
     check_simulate(graph, experiment, progress, sink, keep_rows)
     how = master_entry(experiment.master)
@@ -64,11 +68,16 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
+        start = _start(graph, experiment, running, buffers, stack) if with_estimate else None
         recorder.record()
         holds.prime()
         stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
         _run_loop(recorder, ctrl_c, buffers, stepper)
         results = recorder.results(True)
+        if start is not None:
+            results.extra["coarse"] = coarse_runs(
+                graph, results, start, holds,
+                lambda rec: _stepper(how, running, rec, ctrl_c, None, holds)[0], ctrl_c)
         if counts:
             results.steps_taken, results.steps_rejected = (counts["steps_taken"],
                                                            counts["steps_rejected"])
@@ -99,6 +108,21 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
            else exp.relative_tolerance)
     return (lambda: step_adaptive(running, recorder, ctrl_c, progress, holds, tol, counts)
             ), counts
+
+
+def _start(graph: Graph, exp: Experiment, running: list[RunningInstance], buffers: Buffers,
+           stack: ExitStack) -> Start | None:
+    """The t0 the estimate's coarser runs start from (coarse.Start, freed with the run), or
+    None where it makes none or an FMU cannot save its state."""
+    factors = planned_factors(graph, exp)
+    if factors is None or not all(r.can_roll_back for r in running):
+        return None
+    try:
+        start = Start(running, buffers, exp.start_time, factors)
+    except StepFailure:         # an FMU that says it can and cannot: the estimate runs afresh
+        return None
+    stack.callback(start.free)
+    return start
 
 
 def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:

@@ -70,11 +70,22 @@ def recorded_outputs(graph: Graph, results: Results) -> list[str]:
             results.names]
 
 
+def planned_factors(graph: Graph, exp) -> tuple[Fraction, Fraction] | None:
+    """The coarser steps the estimate will step (coarse_factors), or None where it needs no
+    coarser run: turned off, the adaptive master (its own), no recorded Real output, sampled
+    sensors, fewer than 4 steps. master.simulate steps them on the run's own instances."""
+    if exp.estimate == "none" or master_entry(exp.master).adaptive or graph.sampled or not any(
+            p.type == "Real" for p in graph.recorded):
+        return None
+    return coarse_factors(graph, exp)
+
+
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     """summary.json's `error_estimate` (per recorded Real output {"max", "end"}, in its unit,
     or None)
-    and `error_estimate_method` (how it was made, or why there is none). `simulate` is
-    master.simulate (passed in: this module sits below it)."""
+    and `error_estimate_method` (how it was made, or why there is none). The coarser runs
+    are those master.simulate stepped after the run (results.extra["coarse"], by factor),
+    else made here with `simulate` (master.simulate, passed in: this module sits below it)."""
     names = recorded_outputs(graph, results)
     exp = graph.scenario.experiment
     if exp.estimate == "none":
@@ -96,14 +107,14 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     factors = coarse_factors(graph, exp, marks)
     if factors is None:
         return _none("the run has fewer than 4 steps: no coarser runs to compare with")
-    coarse = []
+    coarse, stepped = [], results.extra.get("coarse", {})
+    stepped = stepped.get("runs", {}) if stepped.get("graph") is graph else {}
     for factor in factors:
-        factor = float(factor)
-        try:
-            coarse.append(_coarse_run(graph, dataclasses.replace(
-                exp, step_size=factor * exp.step_size), names, simulate, results.time))
-        except SimulationError as err:
-            return _none(f"the same run at {factor}x the step failed ({err})")
+        run = stepped.get(factor) or _coarse_run(graph, coarse_experiment(exp, factor), names,
+                                                 simulate, results.time)
+        if isinstance(run, str):
+            return _none(f"the same run at {float(factor)}x the step failed ({run})")
+        coarse.append(run)
     order = master_entry(exp.master).order
     orders = (order, min(order, ACROSS_ORDER) if steps_across(marks, exp) else order)
     rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
@@ -155,10 +166,15 @@ def _none(reason: str) -> dict:
     return {"error_estimate": None, "error_estimate_method": f"no estimate: {reason}"}
 
 
-def _coarse_run(graph: Graph, exp, names: list[str], simulate, fine: np.ndarray) -> tuple:
-    """(stepping seconds, times, {name: values}) of the run at exp's step: only the estimated
-    columns, and only the rows at times the run kept (`fine`: the run's Results may hold a
-    few evenly spaced rows of a long run), are kept (a sink): memory stays flat."""
+def coarse_experiment(exp, factor: Fraction):
+    """The experiment of the coarser run at factor x the step."""
+    return dataclasses.replace(exp, step_size=float(factor) * exp.step_size)
+
+
+def coarse_sink(exp, names: list[str], fine: np.ndarray) -> tuple:
+    """(a sink for the coarser run at exp's step, what it kept: a list of row chunks): only
+    the estimated columns, and only the rows at times the run kept (`fine`: the run's
+    Results may hold a few evenly spaced rows of a long run): memory stays flat."""
     parts: list[np.ndarray] = []
     def quarters(t: np.ndarray) -> np.ndarray:      # the times in quarters of exp's step
         return np.round((t - exp.start_time) / exp.step_size * 4).astype(np.int64)
@@ -170,10 +186,24 @@ def _coarse_run(graph: Graph, exp, names: list[str], simulate, fine: np.ndarray)
         t = chunk["time"]
         on = np.isin(quarters(t), wanted) | np.isin(t, ends)
         parts.append(chunk[["time"] + names][on])
+    return keep, parts
 
-    results = simulate(graph, exp, sink=keep, keep_rows=2)
+
+def coarse_rows(wall: float, parts: list[np.ndarray], names: list[str]) -> tuple:
+    """(stepping seconds, times, {name: values}) of a coarser run from its sink's chunks."""
     rows = np.concatenate(parts)
-    return results.wall_time, rows["time"], {n: np.asarray(rows[n], dtype=float) for n in names}
+    return wall, rows["time"], {n: np.asarray(rows[n], dtype=float) for n in names}
+
+
+def _coarse_run(graph: Graph, exp, names: list[str], simulate, fine: np.ndarray
+                ) -> tuple | str:
+    """The coarser run at exp's step made afresh (coarse_rows), or why it failed."""
+    keep, parts = coarse_sink(exp, names, fine)
+    try:
+        results = simulate(graph, exp, sink=keep, keep_rows=2)
+    except SimulationError as err:
+        return str(err)
+    return coarse_rows(results.wall_time, parts, names)
 
 
 def _keys(exp, times: np.ndarray, every: float) -> np.ndarray:

@@ -1,6 +1,7 @@
 """Initialisation and the stepping loop over prepared instances."""
 from __future__ import annotations
 
+import ctypes
 import time as _time
 from typing import Callable
 
@@ -165,22 +166,26 @@ def one_pass(program: list, t: float, h_k: float) -> None:
                 raise StepFailure(r, "get", st, t + h_k, t + h_k)
 
 
-def save_states(running: list[RunningInstance], t: float) -> None:
-    """fmi2GetFMUstate of every instance (its one saved state: RunningInstance.state)."""
-    for r in running:
-        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, r.state_ref), t)
+def save_states(running: list[RunningInstance], t: float, states: list | None = None) -> None:
+    """fmi2GetFMUstate of every instance, into its one saved state (RunningInstance.state)
+    or into `states` (a ctypes.c_void_p per instance)."""
+    refs = [r.state_ref for r in running] if states is None else map(ctypes.byref, states)
+    for r, ref in zip(running, refs):
+        _state_call(r, "fmi2GetFMUstate", r.c_get_state(r.component, ref), t)
 
 
-def restore_states(running: list[RunningInstance], t: float) -> None:
+def restore_states(running: list[RunningInstance], t: float, states: list | None = None
+                   ) -> None:
     """fmi2SetFMUstate of every instance: back to the state save_states saved at t."""
-    for r in running:
-        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, r.state), t)
+    for r, s in zip(running, [r.state for r in running] if states is None else states):
+        _state_call(r, "fmi2SetFMUstate", r.c_set_state(r.component, s), t)
 
 
-def free_states(running: list[RunningInstance], t: float) -> None:
+def free_states(running: list[RunningInstance], t: float, states: list | None = None) -> None:
     """fmi2FreeFMUstate of every instance's saved state."""
-    for r in running:
-        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, r.state_ref), t)
+    refs = [r.state_ref for r in running] if states is None else map(ctypes.byref, states)
+    for r, ref in zip(running, refs):
+        _state_call(r, "fmi2FreeFMUstate", r.c_free_state(r.component, ref), t)
 
 
 def _predict(running: list[RunningInstance], program: list, holds: Holds, t: float,

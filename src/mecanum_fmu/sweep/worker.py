@@ -56,7 +56,7 @@ def _run_one(graph, index, values, path_names) -> RunResult:
     tick = time.perf_counter()
     variant = with_values(graph, values)
     try:
-        results = master.simulate(variant, variant.scenario.experiment)
+        results = master.simulate(variant, variant.scenario.experiment, with_estimate=True)
         status, message = "ok", ""
     except MecanumError as err:        # SimulationError: keep what was reached
         results = getattr(err, "results", None)
