@@ -156,3 +156,22 @@ def test_no_end_where_the_coarser_runs_are_far_off():
     and x, y stay within 3x."""
     _within_3x_of_the_truth(ROOT / "scenarios" / "profiles" / "quiet_then_busy.yaml",
                             "jacobi", 2, withheld={("theta", "end")})
+
+
+# the coarser runs stepped on the run's own instances (master/coarse.py: t0 states restored)
+# are the runs made afresh (reset, start values, initialisation): the same estimate, bit for
+# bit, with tables (a cursor), a rolled-back loop and Jacobi's frozen inputs
+@pytest.mark.parametrize("scenario,name", [("circle.yaml", "quadratic"),
+                                           ("profiles/joystick.yaml", "jacobi"),
+                                           ("closed_loop/track_circle.yaml", "quadratic"),
+                                           ("modes/showcase.yaml", "trapezoidal")])
+def test_coarser_runs_on_the_runs_own_instances_equal_fresh_ones(scenario, name):
+    graph = runner.prepare(ROOT / "scenarios" / scenario, master_name=name)
+    exp = graph.scenario.experiment
+    fresh = master.estimate_error(graph, master.simulate(graph, exp))
+    results = master.simulate(graph, exp, with_estimate=True)
+    assert len(results.extra["coarse"]["runs"]) == 2
+    own = master.estimate_error(graph, results)
+    fresh.pop("error_estimate_cost"), own.pop("error_estimate_cost")
+    assert own == fresh
+    assert isinstance(own["error_estimate"], dict) and own["error_estimate"]
