@@ -131,16 +131,18 @@ def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, tupl
 def cost(scenario: str, reps: int = 5) -> tuple[float, float, float, float]:
     """Medians over `reps` interleaved repetitions, at the scenario's own step and master:
     (the run's stepping loop, the estimate's stepping loops, the run's whole simulate, the
-    whole estimate), in seconds. Whole = with each run's set-up (reset, start values)."""
+    whole estimate), in seconds. Whole = with each run's set-up (reset, start values); the
+    estimate as `run` makes it: its coarser runs on the run's own instances
+    (simulate(with_estimate=True) less a plain simulate), then estimate_error."""
     graph = prepare(ROOT / "scenarios" / scenario)
-    times = []
+    exp, times = graph.scenario.experiment, []
     for _ in range(reps):
         tick = time.perf_counter()
-        results = master.simulate(graph, graph.scenario.experiment)
+        results = master.simulate(graph, exp)
         whole = time.perf_counter() - tick
         tick = time.perf_counter()
-        found = master.estimate_error(graph, results)
-        estimate = time.perf_counter() - tick
+        found = master.estimate_error(graph, master.simulate(graph, exp, with_estimate=True))
+        estimate = time.perf_counter() - tick - whole
         times.append((results.wall_time, found.get("error_estimate_cost", math.nan)
                       * results.wall_time, whole, estimate))
     return tuple(float(v) for v in np.median(np.array(times), axis=0))
