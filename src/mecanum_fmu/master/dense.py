@@ -40,19 +40,29 @@ def _weights(times: np.ndarray, at: float) -> np.ndarray:
     return weights
 
 
+def _combine(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """weights . values (rows), summed row after row: the same bits on every CPU (a matrix
+    product goes to the BLAS, whose kernel, chosen by the CPU, orders and fuses the sums)."""
+    terms = weights[:, None] * values
+    total = terms[0].copy()
+    for row in terms[1:]:
+        total += row
+    return total
+
+
 def interpolate(times: np.ndarray, values: np.ndarray, at: float) -> tuple:
     """(the value at `at`, its signed error estimate (value - better)) from the points
     `times`, `values` (rows): with POINTS + 1 points the cubic through the last POINTS and its
     difference from the quartic through all; with fewer, the polynomial through all and its
     difference from the one without the point farthest from `at` (a bound)."""
     if len(times) > POINTS:
-        value = _weights(times[1:], at) @ values[1:]
-        return value, value - _weights(times, at) @ values
-    value = _weights(times, at) @ values
+        value = _combine(_weights(times[1:], at), values[1:])
+        return value, value - _combine(_weights(times, at), values)
+    value = _combine(_weights(times, at), values)
     if len(times) < 3:              # two points give no estimate of the line's error
         return value, np.zeros_like(value)
     keep = np.arange(len(times)) != np.argmax(np.abs(times - at))
-    return value, value - _weights(times[keep], at) @ values[keep]
+    return value, value - _combine(_weights(times[keep], at), values[keep])
 
 
 class DenseRows:

@@ -288,8 +288,9 @@ def _two_terms(d1: float, d2: float, r1: float, r2: float, p: float) -> float:
     error, e(r h) = a r^p + b r^(p+1): the end point, where the leading term may cancel (a
     path that closes, an error that turns) and the next one decides."""
     q = p + 1.0
-    m = np.array([[r1 ** p - 1.0, r1 ** q - 1.0], [r2 ** p - r1 ** p, r2 ** q - r1 ** q]])
-    a, b = np.linalg.solve(m, np.array([d1, d2]))
+    m11, m12, m21, m22 = r1 ** p - 1.0, r1 ** q - 1.0, r2 ** p - r1 ** p, r2 ** q - r1 ** q
+    det = m11 * m22 - m12 * m21     # Cramer's rule: the same bits on every CPU (no LAPACK)
+    a, b = (d1 * m22 - m12 * d2) / det, (m11 * d2 - m21 * d1) / det
     return abs(float(a + b))
 
 

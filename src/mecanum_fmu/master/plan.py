@@ -205,7 +205,9 @@ class Holds:
 
 class _Blend:
     """Inputs set to weights . (values now | u_k | u_k-1), minus the limited parabola
-    correction where the rule says so: a handful of NumPy calls per fill, no allocation."""
+    correction where the rule says so: a handful of NumPy calls per fill, no allocation, and
+    elementwise only, so the same bits on every CPU (a matrix product goes to the BLAS,
+    whose kernel, chosen by the CPU, orders and fuses the sums)."""
 
     def __init__(self, holds: Holds, buffer: np.ndarray, src: np.ndarray, rules: list):
         m = len(src)
@@ -214,30 +216,38 @@ class _Blend:
         self.history = np.zeros(4 * m)     # [values now | u_k | u_k-1 | u_k-2]
         self.now, self.u_k = self.history[:m], self.history[m:2 * m]
         self.older, self.old = self.history[2 * m:], self.history[m:3 * m]   # for the shift
-        self.matrices = [np.zeros((m, 4 * m)) for _ in range(2)]
-        # Per mode: rows 0..m-1 give (now - 2 u_k + u_k-1)/12, rows m..2m-1 the difference
-        # before it, (u_k - 2 u_k-1 + u_k-2)/12, for the inputs the rule corrects (else 0).
-        self.second = [np.zeros((2 * m, 4 * m)) for _ in range(2)]
+        # Per mode: the weights of (now | u_k | u_k-1), and 1/12 (or 0) per input for the
+        # second differences (now - 2 u_k + u_k-1)/12 and, before it, (u_k - 2 u_k-1 +
+        # u_k-2)/12 of the inputs the rule corrects.
+        self.weights = [np.zeros(3 * m) for _ in range(2)]
+        self.second = [np.zeros(2 * m) for _ in range(2)]
         for i, per_mode in enumerate(rules):
             for mode, ((w_now, w_k, w_km1), parabola) in enumerate(per_mode):
-                self.matrices[mode][i, [i, m + i, 2 * m + i]] = w_now, w_k, w_km1
+                self.weights[mode][[i, m + i, 2 * m + i]] = w_now, w_k, w_km1
                 if parabola:
-                    self.second[mode][i, [i, m + i, 2 * m + i]] = np.array([1, -2, 1]) / 12
-                    self.second[mode][m + i, [m + i, 2 * m + i, 3 * m + i]] = (
-                        np.array([1, -2, 1]) / 12)
+                    self.second[mode][[i, m + i]] = 1 / 12
         self.limited = [bool(d.any()) for d in self.second]
+        self.terms = np.zeros(3 * m)
+        self.parts = self.terms[:m], self.terms[m:2 * m], self.terms[2 * m:]
         self.d = np.zeros(2 * m)
         self.a, self.b = self.d[:m], self.d[m:]
         self.low, self.high = np.zeros(m), np.zeros(m)
 
     def fill(self) -> None:
         np.take(self.buffer, self.src, out=self.now)
-        mode = self.holds.mode
-        np.dot(self.matrices[mode], self.history, out=self.staging)
+        mode, h, m = self.holds.mode, self.history, len(self.now)
+        np.multiply(self.weights[mode], h[:3 * m], out=self.terms)
+        now, u_k, u_km1 = self.parts
+        np.add(now, u_k, out=self.staging)
+        self.staging += u_km1
         if self.limited[mode] and self.holds.steps >= 2:
+            # the second differences of (now, u_k, u_k-1) and of (u_k, u_k-1, u_k-2) at once
+            np.subtract(h[:2 * m], h[m:3 * m], out=self.d)
+            self.d -= h[m:3 * m]
+            self.d += h[2 * m:]
+            self.d *= self.second[mode]
             # minmod(a, b) = b clipped to [min(a, 0), max(a, 0)]: the one nearer zero when
             # both have the same sign, else 0
-            np.dot(self.second[mode], self.history, out=self.d)
             np.minimum(self.a, 0.0, out=self.low)
             np.maximum(self.a, 0.0, out=self.high)
             np.maximum(self.b, self.low, out=self.low)
