@@ -118,6 +118,21 @@ def built_fmus(fmu_dir):
     return {name: fmu_dir / f"{name}.fmu" for name in MODEL_NAMES}
 
 
+def pytest_configure(config):
+    config.addinivalue_line("markers", "heavy(seconds): a test that takes about `seconds` on a "
+                            "quiet machine; the heavy ones run first, longest first")
+
+
+def pytest_collection_modifyitems(items):
+    """The heavy tests first, longest first; the rest in their order. With two workers a
+    40 s test that starts last adds 40 s to the suite: started first, the other worker does
+    the many short tests meanwhile (`make test`: --dist worksteal, Makefile)."""
+    def seconds(item) -> float:
+        mark = item.get_closest_marker("heavy")
+        return mark.args[0] if mark else 0.0
+    items.sort(key=lambda item: -seconds(item))       # stable: equal weights keep their order
+
+
 def pytest_sessionfinish(session, exitstatus):
     session.config._mecanum_exitstatus = int(exitstatus)
 

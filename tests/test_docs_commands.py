@@ -3,7 +3,8 @@
 The commands are the lines of the shell code blocks (```sh, bash, shell, console; with `$ `
 prompts only the prompted lines) and the inline code spans that call the venv's Python or the
 package (`.venv/bin/python -m mecanum_fmu info Center2Wheel`). They run one after another, in
-the order a reader meets them (README.md, then docs/*.md by name), in bash, from one fresh copy
+the order a reader meets them (README.md, then docs/*.md by name; the long ones, HEAVY, first
+and the tests split between pytest-xdist's workers), in bash, from one fresh copy
 of the checkout as `make run` leaves it (the FMUs built, results/circle/ written), outside the
 venv (its bin/ is not on PATH). Each must exit 0, or the code its trailing comment names
 (`# exit 2`). A command that is known to be long is skipped by an entry of SKIPS with its
@@ -160,14 +161,26 @@ def inline_commands(rel: str, prose: list[str]) -> list[DocCommand]:
 COMMANDS = [command for doc in DOCS for command in extract(doc)]
 
 
+# (pattern, seconds on a quiet machine): the long commands that run here, started first
+# (@pytest.mark.heavy, tests/conftest.py) so that none is left alone at the end of the suite
+HEAVY = [(r"run scenarios/robot/belief_drive_", 15), (r"run scenarios/chassis/\*", 7)]
+
+
+def marks(command: DocCommand) -> list:
+    """A known broken command's strict xfail; a long one's heavy mark."""
+    found = [pytest.mark.heavy(seconds) for pattern, seconds in HEAVY
+             if re.search(pattern, command.text)][:1]
+    if command.text in KNOWN_BROKEN:
+        found.append(pytest.mark.xfail(strict=True, reason=f"{KNOWN_BROKEN[command.text]}; once "
+                     "it runs, delete its entry in KNOWN_BROKEN (tests/test_docs_commands.py)"))
+    return found
+
+
 def params() -> list:
     """The commands that run here (the long ones, SKIPS, are checked without running them by
     test_long_commands_are_written_for_the_venv: no test is skipped)."""
-    return [pytest.param(command, id=command.where(), marks=[
-        pytest.mark.xfail(strict=True, reason=f"{KNOWN_BROKEN[command.text]}; once it runs, "
-                          "delete its entry in KNOWN_BROKEN (tests/test_docs_commands.py)")]
-        if command.text in KNOWN_BROKEN else []) for command in COMMANDS
-        if skip_reason(command.text) is None]
+    return [pytest.param(command, id=command.where(), marks=marks(command))
+            for command in COMMANDS if skip_reason(command.text) is None]
 
 
 def venv() -> Path:
