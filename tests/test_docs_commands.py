@@ -221,15 +221,17 @@ def command_env(copy: Path, tmp: Path, venv_active: bool = False) -> dict[str, s
 
 @pytest.fixture(scope="module")
 def fresh_copy(tmp_path_factory, fmu_dir):
-    """A copy of the checkout as `make run` leaves it: the venv, fmus/*.fmu, results/circle/."""
+    """A copy of the checkout as `make run` leaves it: the venv, fmus/*.fmu and
+    fmus/fmi3/*.fmu (its `fmus` step builds both), results/circle/."""
     copy = tmp_path_factory.mktemp("fresh_clone")
     for name in checkout_files():
         (copy / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(ROOT / name, copy / name)
     (copy / ".venv").symlink_to(venv(), target_is_directory=True)
-    (copy / "fmus").mkdir(exist_ok=True)
-    for fmu in fmu_dir.glob("*.fmu"):
-        shutil.copy2(fmu, copy / "fmus" / fmu.name)
+    for folder in ("fmus", "fmus/fmi3"):
+        (copy / folder).mkdir(exist_ok=True)
+        for fmu in (fmu_dir / folder.removeprefix("fmus").lstrip("/")).glob("*.fmu"):
+            shutil.copy2(fmu, copy / folder / fmu.name)
     step = ".venv/bin/python -m mecanum_fmu run scenarios/circle.yaml"       # make run's last line
     tmp = tmp_path_factory.mktemp("fresh_clone_tmp")
     proc = subprocess.run(["bash", "-c", step], cwd=copy, env=command_env(copy, tmp),
