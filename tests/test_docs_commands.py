@@ -6,7 +6,7 @@ package (`.venv/bin/python -m mecanum_fmu info Center2Wheel`). They run one afte
 the order a reader meets them (README.md, then docs/*.md by name; the long ones, HEAVY, first
 and the tests split between pytest-xdist's workers), in bash, from one fresh copy
 of the checkout as `make run` leaves it (the FMUs built, results/circle/ written), outside the
-venv (its bin/ is not on PATH). Each must exit 0, or the code its trailing comment names
+venv (its bin/ is not on PATH); a command written in several places runs once per copy. Each must exit 0, or the code its trailing comment names
 (`# exit 2`). A command that is known to be long is skipped by an entry of SKIPS with its
 reason; anything else that does not run cleanly fails, naming the file, the line, the command
 and the end of its stderr.
@@ -281,6 +281,22 @@ def test_long_commands_are_written_for_the_venv():
     assert not problems, "\n".join(problems)
 
 
+# (fresh copy, command as run, venv active) -> its finished process, in this test process
+RAN: dict[tuple[Path, str, bool], subprocess.CompletedProcess] = {}
+
+
+def run_in_copy(command: DocCommand, copy: Path, tmp: Path) -> subprocess.CompletedProcess:
+    """The command's process in the copy. A command written in two places (README.md and a
+    doc: `fmus`, `doctor`, a 10,000-step run) runs once per copy and both places are held to
+    that one outcome (a TimeoutExpired is not kept: the next place runs it again)."""
+    key = (copy, runnable(command.text), command.venv_active)
+    if key not in RAN:
+        RAN[key] = subprocess.run(["bash", "-c", key[1]], cwd=copy,
+                                  env=command_env(copy, tmp, command.venv_active),
+                                  capture_output=True, text=True, timeout=TIMEOUT)
+    return RAN[key]
+
+
 @pytest.mark.parametrize("command", params())
 def test_documented_command_runs(command, fresh_copy, tmp_path):
     where = f"{command.where()}: `{command.text}`"
@@ -288,9 +304,7 @@ def test_documented_command_runs(command, fresh_copy, tmp_path):
         pytest.fail(why)
     expected = expected_code(command.comment)
     try:
-        proc = subprocess.run(["bash", "-c", runnable(command.text)], cwd=fresh_copy,
-                              env=command_env(fresh_copy, tmp_path, command.venv_active),
-                              capture_output=True, text=True, timeout=TIMEOUT)
+        proc = run_in_copy(command, fresh_copy, tmp_path)
     except subprocess.TimeoutExpired:
         pytest.fail(f"{where}\n  still running after {TIMEOUT} s: make it quicker, or add it to "
                     f"SKIPS with the reason")
