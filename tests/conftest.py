@@ -53,6 +53,13 @@ try:
 except ImportError:  # package not installed: fall back to the src layout
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+# The installed pythonfmu and pythonfmu3 before any FMU runs here: an FMU that FMPy runs in this
+# process (simulate_fmu) imports them from its own extracted resources when nothing has yet, and
+# FMPy deletes that folder afterwards; a later FmuBuilder (helpers.test_fmus) then found no
+# binaries to pack, and its FMUs failed in whichever tests came after on that worker.
+import pythonfmu.builder  # noqa: E402,F401
+import pythonfmu3.builder  # noqa: E402,F401
+
 MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator", "PathFollower",
                # the other chassis (docs/chassis.md, tests/test_chassis.py)
                "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource",
