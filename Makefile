@@ -12,10 +12,11 @@ run: $(STAMP)
 	$(PY) -m mecanum_fmu run scenarios/circle.yaml
 
 # the tests on every core (pytest-xdist), each process with a TMPDIR of its own (tests/conftest.py);
-# the 15 slowest are listed at the end
+# the heavy tests start first and an idle worker takes queued tests from a busy one (worksteal),
+# so no long test is left alone at the end; the 15 slowest are listed at the end
 test: $(STAMP)
 	$(PY) -m mecanum_fmu fmus
-	$(PY) -m pytest -n auto --durations=15
+	$(PY) -m pytest -n auto --dist worksteal --durations=15
 
 fmus: $(STAMP)
 	$(PY) -m mecanum_fmu fmus

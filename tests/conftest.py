@@ -53,6 +53,13 @@ try:
 except ImportError:  # package not installed: fall back to the src layout
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+# The installed pythonfmu and pythonfmu3 before any FMU runs here: an FMU that FMPy runs in this
+# process (simulate_fmu) imports them from its own extracted resources when nothing has yet, and
+# FMPy deletes that folder afterwards; a later FmuBuilder (helpers.test_fmus) then found no
+# binaries to pack, and its FMUs failed in whichever tests came after on that worker.
+import pythonfmu.builder  # noqa: E402,F401
+import pythonfmu3.builder  # noqa: E402,F401
+
 MODEL_NAMES = ("VelocitySource", "Center2Wheel", "Wheel2Center", "PoseIntegrator", "PathFollower",
                # the other chassis (docs/chassis.md, tests/test_chassis.py)
                "OmniCenter2Wheel", "OmniWheel2Center", "FieldToBody", "Bicycle", "SteeringSource",
@@ -116,6 +123,21 @@ def fmi3_fmus(fmu_dir):
 def built_fmus(fmu_dir):
     """modelName -> Path of the freshly built FMU."""
     return {name: fmu_dir / f"{name}.fmu" for name in MODEL_NAMES}
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "heavy(seconds): a test that takes about `seconds` on a "
+                            "quiet machine; the heavy ones run first, longest first")
+
+
+def pytest_collection_modifyitems(items):
+    """The heavy tests first, longest first; the rest in their order. With two workers a
+    40 s test that starts last adds 40 s to the suite: started first, the other worker does
+    the many short tests meanwhile (`make test`: --dist worksteal, Makefile)."""
+    def seconds(item) -> float:
+        mark = item.get_closest_marker("heavy")
+        return mark.args[0] if mark else 0.0
+    items.sort(key=lambda item: -seconds(item))       # stable: equal weights keep their order
 
 
 def pytest_sessionfinish(session, exitstatus):

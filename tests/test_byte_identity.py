@@ -7,6 +7,7 @@ import hashlib
 import json
 import sys
 from pathlib import Path
+from unittest import mock
 
 import pytest
 
@@ -28,6 +29,9 @@ NO_ADAPTIVE = tuple(f"scenarios/robot/{name}.yaml" for name in (
 
 
 def _digest(key: str, out: Path) -> str:
+    """results.csv's hash. The run's error estimate (the graph stepped again at two coarser
+    steps, for summary.json) comes after results.csv is written and is not part of it: it is
+    left out here, where it was half of each run's time (tests/test_estimate.py checks it)."""
     from mecanum_fmu.runner import prepare, run
     scenario, master_name = key.split("::")
     graph = prepare(ROOT / scenario, master_name=master_name)
@@ -35,7 +39,8 @@ def _digest(key: str, out: Path) -> str:
     if (exp.stop_time - exp.start_time) / exp.step_size > MAX_STEPS:
         graph = prepare(ROOT / scenario, master_name=master_name,
                         stop_time=exp.start_time + MAX_STEPS * exp.step_size)
-    run(graph, out, plots=False, log=lambda line: None)
+    with mock.patch("mecanum_fmu.master.estimate_error", return_value={}):
+        run(graph, out, plots=False, log=lambda line: None)
     return hashlib.sha256((out / "results.csv").read_bytes()).hexdigest()
 
 

@@ -3,9 +3,10 @@
 The commands are the lines of the shell code blocks (```sh, bash, shell, console; with `$ `
 prompts only the prompted lines) and the inline code spans that call the venv's Python or the
 package (`.venv/bin/python -m mecanum_fmu info Center2Wheel`). They run one after another, in
-the order a reader meets them (README.md, then docs/*.md by name), in bash, from one fresh copy
+the order a reader meets them (README.md, then docs/*.md by name; the long ones, HEAVY, first
+and the tests split between pytest-xdist's workers), in bash, from one fresh copy
 of the checkout as `make run` leaves it (the FMUs built, results/circle/ written), outside the
-venv (its bin/ is not on PATH). Each must exit 0, or the code its trailing comment names
+venv (its bin/ is not on PATH); a command written in several places runs once per copy. Each must exit 0, or the code its trailing comment names
 (`# exit 2`). A command that is known to be long is skipped by an entry of SKIPS with its
 reason; anything else that does not run cleanly fails, naming the file, the line, the command
 and the end of its stderr.
@@ -160,14 +161,26 @@ def inline_commands(rel: str, prose: list[str]) -> list[DocCommand]:
 COMMANDS = [command for doc in DOCS for command in extract(doc)]
 
 
+# (pattern, seconds on a quiet machine): the long commands that run here, started first
+# (@pytest.mark.heavy, tests/conftest.py) so that none is left alone at the end of the suite
+HEAVY = [(r"run scenarios/robot/belief_drive_", 15), (r"run scenarios/chassis/\*", 7)]
+
+
+def marks(command: DocCommand) -> list:
+    """A known broken command's strict xfail; a long one's heavy mark."""
+    found = [pytest.mark.heavy(seconds) for pattern, seconds in HEAVY
+             if re.search(pattern, command.text)][:1]
+    if command.text in KNOWN_BROKEN:
+        found.append(pytest.mark.xfail(strict=True, reason=f"{KNOWN_BROKEN[command.text]}; once "
+                     "it runs, delete its entry in KNOWN_BROKEN (tests/test_docs_commands.py)"))
+    return found
+
+
 def params() -> list:
     """The commands that run here (the long ones, SKIPS, are checked without running them by
     test_long_commands_are_written_for_the_venv: no test is skipped)."""
-    return [pytest.param(command, id=command.where(), marks=[
-        pytest.mark.xfail(strict=True, reason=f"{KNOWN_BROKEN[command.text]}; once it runs, "
-                          "delete its entry in KNOWN_BROKEN (tests/test_docs_commands.py)")]
-        if command.text in KNOWN_BROKEN else []) for command in COMMANDS
-        if skip_reason(command.text) is None]
+    return [pytest.param(command, id=command.where(), marks=marks(command))
+            for command in COMMANDS if skip_reason(command.text) is None]
 
 
 def venv() -> Path:
@@ -208,20 +221,17 @@ def command_env(copy: Path, tmp: Path, venv_active: bool = False) -> dict[str, s
 
 @pytest.fixture(scope="module")
 def fresh_copy(tmp_path_factory, fmu_dir):
-    """A copy of the checkout as `make run` leaves it: the venv, fmus/*.fmu, results/circle/."""
+    """A copy of the checkout as `make run` leaves it: the venv, fmus/*.fmu and
+    fmus/fmi3/*.fmu (its `fmus` step builds both), results/circle/."""
     copy = tmp_path_factory.mktemp("fresh_clone")
     for name in checkout_files():
         (copy / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(ROOT / name, copy / name)
     (copy / ".venv").symlink_to(venv(), target_is_directory=True)
-    (copy / "fmus").mkdir(exist_ok=True)
-    for fmu in fmu_dir.glob("*.fmu"):
-        shutil.copy2(fmu, copy / "fmus" / fmu.name)
-    # the FMI 3.0 twins too: a documented command that uses one must not depend on an earlier
-    # one (`mecanum_fmu fmus`) having run in the same worker
-    (copy / "fmus" / "fmi3").mkdir()
-    for fmu in (fmu_dir / "fmi3").glob("*.fmu"):
-        shutil.copy2(fmu, copy / "fmus" / "fmi3" / fmu.name)
+    for folder in ("fmus", "fmus/fmi3"):
+        (copy / folder).mkdir(exist_ok=True)
+        for fmu in (fmu_dir / folder.removeprefix("fmus").lstrip("/")).glob("*.fmu"):
+            shutil.copy2(fmu, copy / folder / fmu.name)
     step = ".venv/bin/python -m mecanum_fmu run scenarios/circle.yaml"       # make run's last line
     tmp = tmp_path_factory.mktemp("fresh_clone_tmp")
     proc = subprocess.run(["bash", "-c", step], cwd=copy, env=command_env(copy, tmp),
@@ -271,6 +281,22 @@ def test_long_commands_are_written_for_the_venv():
     assert not problems, "\n".join(problems)
 
 
+# (fresh copy, command as run, venv active) -> its finished process, in this test process
+RAN: dict[tuple[Path, str, bool], subprocess.CompletedProcess] = {}
+
+
+def run_in_copy(command: DocCommand, copy: Path, tmp: Path) -> subprocess.CompletedProcess:
+    """The command's process in the copy. A command written in two places (README.md and a
+    doc: `fmus`, `doctor`, a 10,000-step run) runs once per copy and both places are held to
+    that one outcome (a TimeoutExpired is not kept: the next place runs it again)."""
+    key = (copy, runnable(command.text), command.venv_active)
+    if key not in RAN:
+        RAN[key] = subprocess.run(["bash", "-c", key[1]], cwd=copy,
+                                  env=command_env(copy, tmp, command.venv_active),
+                                  capture_output=True, text=True, timeout=TIMEOUT)
+    return RAN[key]
+
+
 @pytest.mark.parametrize("command", params())
 def test_documented_command_runs(command, fresh_copy, tmp_path):
     where = f"{command.where()}: `{command.text}`"
@@ -278,9 +304,7 @@ def test_documented_command_runs(command, fresh_copy, tmp_path):
         pytest.fail(why)
     expected = expected_code(command.comment)
     try:
-        proc = subprocess.run(["bash", "-c", runnable(command.text)], cwd=fresh_copy,
-                              env=command_env(fresh_copy, tmp_path, command.venv_active),
-                              capture_output=True, text=True, timeout=TIMEOUT)
+        proc = run_in_copy(command, fresh_copy, tmp_path)
     except subprocess.TimeoutExpired:
         pytest.fail(f"{where}\n  still running after {TIMEOUT} s: make it quicker, or add it to "
                     f"SKIPS with the reason")

@@ -115,6 +115,7 @@ def _host_command(host, fmi3_fmus, tmp_path) -> list[str]:
             str(folder / "resources") + "/", str(vrs["vx"]), "0.5", str(vrs["x"])]
 
 
+@pytest.mark.heavy(6)
 def test_a_plain_c_fmi3_host_runs_it_under_valgrind(fmi3_fmus, tmp_path):
     """Nothing set (PATH only), the FMU's own Python; no invalid read or write from loading
     the FMU to the host's exit (main returns without dlclose)."""

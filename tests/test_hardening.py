@@ -382,6 +382,7 @@ SETTINGS = settings(max_examples=25, deadline=None,
                     suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
+@pytest.mark.heavy(6)
 @SETTINGS
 @given(damage=DAMAGE)
 def test_damaged_fmu_never_crashes(damage, built_fmus, sandbox, capsys):

@@ -207,12 +207,20 @@ def test_modes_doc_is_generated():
     assert "python -m mecanum_fmu.models.modes" in text
 
 
+@pytest.fixture(scope="module")
+def circle_run(fmu_dir, tmp_path_factory):
+    """The seed circle's run, drawn by both test_animation cases."""
+    return run_scenario(ROOT / "scenarios" / "circle.yaml", tmp_path_factory.mktemp("circle"),
+                        fmu_dir)
+
+
+@pytest.mark.heavy(12)
 @pytest.mark.parametrize("max_frames", [100, 17])
-def test_animation(max_frames, fmu_dir, tmp_path):
+def test_animation(max_frames, circle_run, tmp_path):
     from PIL import Image
 
     from mecanum_fmu.report.animation import write_animation
-    outcome = run_scenario(ROOT / "scenarios" / "circle.yaml", tmp_path, fmu_dir)
+    outcome = circle_run
     geometry = outcome.evaluation.geometry
     assert (geometry["L"], geometry["W"]) == (0.16, 0.12)
     path = write_animation(outcome.results, outcome.evaluation, tmp_path / "a.gif",

@@ -254,6 +254,7 @@ def test_a_python_host_runs_the_fmu_or_refuses_it_clearly(built_fmus, tmp_path, 
             in proc.stdout, proc.stdout
 
 
+@pytest.mark.heavy(6)
 def test_a_plain_c_host_runs_and_exits_without_a_memory_error(built_fmus, tmp_path):
     """A C host that frees its instance and returns from main without dlclose, as most do, under
     valgrind: no invalid read or write anywhere, from loading the FMU to the process's exit.
@@ -351,6 +352,7 @@ def _with_member(archive: Path, member: str, data: bytes, dest: Path) -> Path:
     return dest
 
 
+@pytest.mark.heavy(13)
 def test_ecos_program_refuses_each_damaged_bundled_file_without_a_crash(ssps, tmp_path):
     """The circle SSP with PoseIntegrator's bundled files damaged in turn: Ecos' `ecos` logs the
     loader's one message naming the file and exits without a signal. (Ecos goes on after

@@ -147,6 +147,7 @@ def circle_error(fmu_dir, **parameters) -> float:
                       results.final("pose.y") - KINEMATIC_END[1])
 
 
+@pytest.mark.heavy(32)
 def test_seed_circle_with_large_mu_ends_within_1_cm_and_nearer_with_higher_gains(fmu_dir):
     default = circle_error(fmu_dir, **{"body.mu": 5.0})
     stiffer = circle_error(fmu_dir, **{"body.mu": 5.0, "kp": 2 * KP, "ki": 4 * KI})
@@ -162,6 +163,7 @@ def test_robot_scenarios_pass_strict_validation(name):
     assert ": ok - 8 components" in proc.stdout
 
 
+@pytest.mark.heavy(8)
 def test_follower_with_motors_and_floor_reaches_the_reference(fmu_dir):
     graph = prepare(ROBOT / "track_circle.yaml", fmu_dir=fmu_dir)
     results = master.simulate(graph, graph.scenario.experiment, keep_rows=2)

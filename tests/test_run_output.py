@@ -232,6 +232,7 @@ os._exit(0)
 """
 
 
+@pytest.mark.heavy(7)
 def test_a_long_run_streams_its_rows_to_disk(tmp_path):
     """50,000 steps. Recording them in memory as before this change (the buffers, the
     structured copy, the CSV rows) grew the peak by 95 MiB for 120,000 steps (measured on the
