@@ -199,6 +199,8 @@ def test_sweep_over_mu_and_the_four_motors_kp_plans_one_run_per_pair(fmu_dir):
         pairs.append((next(v for r, v in run_.values.items() if r.variable == "mu"), *gains))
     assert pairs == [(mu, kp) for mu in (1.0, 0.3, 0.2, 0.1) for kp in (0.5, 4.0)]
     assert graph.scenario.experiment.stop_time == 4.0
+    # the sweep's step_size (0.002, its `experiment:`) is the regularisation's reference step
+    assert graph.instance("body").value("h_ref") == graph.scenario.experiment.step_size == 0.002
 
 
 def test_a_fine_step_reference_run_confirms_the_error_estimate(fmu_dir):

@@ -6,6 +6,7 @@ drivers, parameters, and algebraic loops found from the FMUs' ModelStructure dep
 """
 from __future__ import annotations
 
+import dataclasses
 import graphlib
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -329,6 +330,23 @@ def _step_value(model, own: dict, merged: dict, step_size) -> dict[str, Scalar]:
         return {}
     usable = is_finite(step_size) and step_size > 0
     return {name: float(step_size)} if usable else {}
+
+
+def with_scenario(graph: Graph, scenario: Scenario) -> Graph:
+    """The graph under the scenario's experiment as changed after compiling (a sweep's
+    `experiment:`): each bundled model's step_parameter that the scenario leaves unset
+    follows the new step_size, as compiling would have set it."""
+    instances = []
+    for inst in graph.instances:
+        comp = next(c for c in scenario.components if c.name == inst.name)
+        own = {v.name: v for v in inst.model.modelVariables}
+        merged = {k: v for k, v in scenario.parameters.items() if _settable(own.get(k))}
+        merged.update(comp.parameters)
+        step = _step_value(bundled_model(inst.model), own, merged,
+                           scenario.experiment.step_size)
+        instances.append(dataclasses.replace(inst, start_values={**inst.start_values, **step})
+                         if step else inst)
+    return dataclasses.replace(graph, scenario=scenario, instances=tuple(instances))
 
 
 def _clip(text: str, limit: int = 80) -> str:
