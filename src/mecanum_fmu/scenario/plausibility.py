@@ -11,7 +11,7 @@ Graph.warnings.
   (masters.py, docs/masters.md).
 - A sampled block (Encoder, Gyro, Odometry) whose period is not a whole number of steps:
   its samples do not land on communication points (docs/robot.md, Sample times).
-- A drive train (MecanumDynamics) under the adaptive master: its first-order wheel-floor
+- A drive train (MecanumDynamics) under the adaptive master: its first-order
   coupling and the PI's anti-windup at the voltage clamp drive the steps to ~1e-5 s and below,
   and its estimate is not the error there (docs/robot.md, Stability).
 
@@ -142,8 +142,8 @@ def _drive_train(scenario, inst) -> list[tuple[str, str]]:
     if inst.model_name != "MecanumDynamics" or not master_entry(
             scenario.experiment.master).adaptive:
         return []
-    return [(inst.declared_at, "the adaptive master does not finish a drive train yet: the "
-             "wheel-floor coupling is first order and the motors' anti-windup slides along the "
+    return [(inst.declared_at, "the adaptive master does not finish a drive train yet: its "
+             "coupling is first order and the motors' anti-windup slides along the "
              "voltage clamp, so its steps fall to ~1e-5 s and below (or stop), and its error "
              "estimate is not the error here (docs/robot.md, Stability); use a fixed-step "
              "master (quadratic) and drop the tolerance: its error estimate holds")]
