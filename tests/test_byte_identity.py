@@ -19,8 +19,9 @@ RECORDED = json.loads(HASHES.read_text())
 # A scenario's first MAX_STEPS steps are hashed (the drive train's 10 s at 1e-3 s would cost
 # the suite minutes; any change of behaviour shows in its first 2 s as well)
 MAX_STEPS = 2000
-# Not recorded under the adaptive master: the drive train, whose stiff wheel-floor loop drives
-# its steps to ~1e-6 s on every recorded output (it does not finish), and the sampled sensors
+# Not recorded under the adaptive master: the drive train, whose first-order
+# coupling and the PI's anti-windup sliding at the voltage clamp drive its steps to ~1e-5 s
+# and below (it does not finish; docs/robot.md, Stability), and the sampled sensors
 # (Encoder, Gyro, Odometry), whose samples must land on communication points while the
 # adaptive steps do not (the run stops: "the tolerance needs a step of ..."; docs/robot.md)
 NO_ADAPTIVE = tuple(f"scenarios/robot/{name}.yaml" for name in (

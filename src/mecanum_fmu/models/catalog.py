@@ -32,6 +32,10 @@ class Model:
     role: str            # its part in the original diagram (see Roles)
     # (values, start time) -> [(parameter, message)]: the model's own rules on its values
     check: Callable[[Mapping[str, object], float], list[tuple[str, str]]]
+    # a parameter that the scenario layer sets to the experiment's step_size unless the
+    # scenario sets it: a property of the run the model's numerics are tied to, fixed for all
+    # its steps (an adaptive master's trial and half steps step the same model)
+    step_parameter: str | None = None
 
 
 def _numbers_rule(names: tuple[str, ...], problem: Callable):
@@ -160,7 +164,8 @@ MODELS: dict[str, Model] = {m.name: m for m in (
     # the drive train and the floor (docs/robot.md)
     Model("DCMotor", "dc_motor", "motor", _numbers_rule(tuple(DEFAULT_MOTOR), motor_problem)),
     # the forward map with physics: wheel speeds in, the twist the floor allows out
-    Model("MecanumDynamics", "mecanum_dynamics", "forward", _check_dynamics),
+    # (its friction's regularisation eps = max(eps_min, eps_rate h_ref): docs/robot.md)
+    Model("MecanumDynamics", "mecanum_dynamics", "forward", _check_dynamics, "h_ref"),
 )}
 
 

@@ -6,6 +6,7 @@ drivers, parameters, and algebraic loops found from the FMUs' ModelStructure dep
 """
 from __future__ import annotations
 
+import dataclasses
 import graphlib
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -20,6 +21,7 @@ from ..models.catalog import SAMPLED_MODELS, bundled_model
 from ..models.pose_error import pose_error
 from ..errors import Problem, ScenarioError
 from ..masters import DEFAULT, entry as master_entry
+from ..values import is_finite
 from .document import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 from .tables import Breaks, Table, source_breaks, table_or_none
 
@@ -253,6 +255,8 @@ class _Checker:
         own, md = self.variables[comp.name], self.models[comp.name][1]
         merged = {k: v for k, v in self.scenario.parameters.items() if _settable(own.get(k))}
         merged.update(comp.parameters)
+        model = bundled_model(md)
+        merged.update(_step_value(model, own, merged, self.scenario.experiment.step_size))
         for key in comp.parameters:
             var = own.get(key)
             if var is None:
@@ -268,7 +272,6 @@ class _Checker:
                 message = _type_problem(var, value)
                 if message:
                     self.bad(self._place(comp, key), message)
-        model = bundled_model(md)
         if model is not None:
             values = {name: merged.get(name, start_value(var)) for name, var in own.items()}
             for key, message in model.check(values, self.scenario.experiment.start_time):
@@ -316,6 +319,34 @@ class _Checker:
 
 _ARRAY_HINT = ("; this master moves scalars: use the array's scalar variables (e.g. "
                "w1..w4 for wheel_speeds)")
+
+
+def _step_value(model, own: dict, merged: dict, step_size) -> dict[str, Scalar]:
+    """The bundled model's step_parameter (catalog.Model: MecanumDynamics' h_ref) at the
+    experiment's step_size, unless the scenario sets it; nothing for a step that is no
+    positive finite number (the experiment's check reports it)."""
+    name = model.step_parameter if model is not None else None
+    if name is None or name in merged or not _settable(own.get(name)):
+        return {}
+    usable = is_finite(step_size) and step_size > 0
+    return {name: float(step_size)} if usable else {}
+
+
+def with_scenario(graph: Graph, scenario: Scenario) -> Graph:
+    """The graph under the scenario's experiment as changed after compiling (a sweep's
+    `experiment:`): each bundled model's step_parameter that the scenario leaves unset
+    follows the new step_size, as compiling would have set it."""
+    instances = []
+    for inst in graph.instances:
+        comp = next(c for c in scenario.components if c.name == inst.name)
+        own = {v.name: v for v in inst.model.modelVariables}
+        merged = {k: v for k, v in scenario.parameters.items() if _settable(own.get(k))}
+        merged.update(comp.parameters)
+        step = _step_value(bundled_model(inst.model), own, merged,
+                           scenario.experiment.step_size)
+        instances.append(dataclasses.replace(inst, start_values={**inst.start_values, **step})
+                         if step else inst)
+    return dataclasses.replace(graph, scenario=scenario, instances=tuple(instances))
 
 
 def _clip(text: str, limit: int = 80) -> str:

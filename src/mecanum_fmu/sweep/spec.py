@@ -28,7 +28,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import Problem, ScenarioError
-from ..scenario.graph import Graph, check_start_values, settable_parameters
+from ..scenario.graph import Graph, check_start_values, settable_parameters, with_scenario
 from ..models.blocks.profile_table import INTERPOLATIONS
 from ..scenario.profiles import PROFILE_KEYS
 from ..errors import did_you_mean
@@ -229,7 +229,7 @@ def apply_experiment(sweep: Sweep, graph: Graph) -> Graph:
     if not sweep.experiment:
         return graph
     scenario = override_experiment(graph.scenario, sweep.experiment, str(sweep.path))
-    return dataclasses.replace(graph, scenario=scenario)
+    return with_scenario(graph, scenario)     # MecanumDynamics' h_ref follows the step
 
 
 def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:

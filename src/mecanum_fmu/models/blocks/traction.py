@@ -14,23 +14,27 @@ wheel feels tau_load_i = R sin(alpha) F_i, and the slip loses F_i slip_i... with
 -F_i slip_i = mu N_i slip_i tanh(slip_i / eps) >= 0, exactly force times sliding speed. The
 tanh has no memory, so a rollback (fmi2SetFMUstate) needs only the twist.
 
-eps is tied to the communication step h, eps = max(eps_min, eps_rate h): the wheel-floor loop
-runs across two FMUs at the rate (R sin alpha)^2 mu N / (eps J), so its product with h is
-(R sin alpha)^2 mu N / (eps_rate J), the same at every step size (docs/robot.md, Stability).
+eps is tied to a reference step h_ref, once for the run: eps = max(eps_min, eps_rate h_ref)
+(the scenario layer sets h_ref to the experiment's step_size, models/catalog.py). The
+wheel-floor loop runs across two FMUs at the rate (R sin alpha)^2 mu N / (eps J), so a run at
+h = h_ref has (R sin alpha)^2 mu N / (eps_rate J) for its product with h, whatever step the
+scenario chose; an adaptive master's trial steps and half steps step this same model
+(docs/robot.md, Stability). The body's RK4 substeps follow the step: the contact rate times
+the substep stays at or below RATE_STEP for any h.
 """
 import math
 
 POSITIONS = ((1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0))   # (x/L, y/W) per wheel
 ROLLER_SIGNS = (-1.0, 1.0, -1.0, 1.0)
-BODY = ("m", "Iz", "mu", "g", "eps_rate", "eps_min")
+BODY = ("m", "Iz", "mu", "g", "eps_rate", "eps_min", "h_ref")
 DEFAULT_BODY = {"m": 4.0, "Iz": 0.053, "mu": 1.0, "g": 9.81, "eps_rate": 40.0,
-                "eps_min": 1.0e-3}
+                "eps_min": 1.0e-3, "h_ref": 1.0e-3}
 RATE_STEP = 0.25    # RK4 substeps keep the body's contact rate x substep at or below this
 
 
-def body_problem(m, Iz, mu, g, eps_rate, eps_min):
+def body_problem(m, Iz, mu, g, eps_rate, eps_min, h_ref):
     """(parameter, message) for the first value outside its range, else None."""
-    values = dict(zip(BODY, (m, Iz, mu, g, eps_rate, eps_min)))
+    values = dict(zip(BODY, (m, Iz, mu, g, eps_rate, eps_min, h_ref)))
     for name, value in values.items():
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             return name, f"parameter {name} = {value!r} is not a finite number"
@@ -44,8 +48,9 @@ def body_problem(m, Iz, mu, g, eps_rate, eps_min):
 class Chassis:
     """A mecanum body with its contacts: the maths of one MecanumDynamics instance."""
 
-    def __init__(self, alpha, L, W, R, m, Iz, mu, g, eps_rate, eps_min):
-        self.m, self.Iz, self.eps_rate, self.eps_min = m, Iz, eps_rate, eps_min
+    def __init__(self, alpha, L, W, R, m, Iz, mu, g, eps_rate, eps_min, h_ref):
+        self.m, self.Iz = m, Iz
+        self.eps = max(eps_min, eps_rate * h_ref)       # the regularisation speed of the run
         self.push = mu * m * g / 4.0                    # mu N_i, the most a contact passes
         c, s = math.cos(alpha), math.sin(alpha)
         self.rim = R * s                                # the wheel's speed along u_i per rad/s
@@ -55,9 +60,6 @@ class Chassis:
         self.levers = [x * uy - y * ux for (x, y), (ux, uy) in zip(self.arms, self.axes)]
         self.stiffness = 4.0 * self.push * max(max(c * c, s * s) / m,
                                                max(a * a for a in self.levers) / Iz)
-
-    def eps(self, h: float) -> float:
-        return max(self.eps_min, self.eps_rate * h)
 
     def slips(self, vx: float, vy: float, w: float, wheels) -> list:
         return [(vx - w * y) * ux + (vy + w * x) * uy - self.rim * wi
@@ -90,7 +92,7 @@ class Chassis:
     def step(self, x: list, wheels, h: float) -> list:
         """Advance (vx, vy, w, E_slip, E_drive) by h with the wheel speeds held (RK4; the
         stages in scalars, as the list form a + 0.5 dt k, a + dt/6 (k1 + 2 k2 + 2 k3 + k4))."""
-        eps = self.eps(h)
+        eps = self.eps
         n = max(1, math.ceil(h * self.stiffness / (eps * RATE_STEP)))
         dt = h / n
         half, sixth, rates = 0.5 * dt, dt / 6.0, self.rates

@@ -23,8 +23,9 @@ _DOCS = {
     "Iz": "yaw inertia of the whole robot about its centre",
     "mu": "floor friction coefficient along the roller axis (the rollers roll freely across it)",
     "g": "gravity; each contact carries the static load m g / 4",
-    "eps_rate": "friction regularisation: eps = max(eps_min, eps_rate h), h the step",
+    "eps_rate": "friction regularisation: eps = max(eps_min, eps_rate h_ref), fixed for the run",
     "eps_min": "smallest regularisation speed eps of the friction's tanh",
+    "h_ref": "the regularisation's reference step (mecanum_fmu: the scenario's step_size)",
     "vx0": "body velocity along +X at the start", "vy0": "body velocity along +Y at the start",
     "w0": "yaw rate at the start",
     "vx": "chassis velocity along body +X (right)", "vy": "chassis velocity along body +Y (forward)",
@@ -32,7 +33,7 @@ _DOCS = {
     "E_slip": "energy lost to sliding since the start, integral of friction force x slip speed",
     "E_drive": "work the wheels did on the contacts since the start, integral of tau_load_i w_i",
     "E_kinetic": "kinetic energy of the body, m (vx^2 + vy^2) / 2 + Iz w^2 / 2",
-    "eps": "the friction's regularisation speed in use (set by the last step)",
+    "eps": "the friction's regularisation speed max(eps_min, eps_rate h_ref), fixed for the run",
 }
 for _i, _where in enumerate(_WHERE):
     _DOCS[_WHEELS[_i]] = f"{_where} wheel speed, positive rolls the car forward"
@@ -50,14 +51,15 @@ class MecanumDynamics(Fmi2Slave):
                    "and each contact's slip (direct feedthrough from that wheel's speed).")
     UNITS = {**{n: "rad/s" for n in _WHEELS}, "alpha": "rad", "L": "m", "W": "m", "R": "m",
              "m": "kg", "Iz": "kg.m2", "mu": "1", "g": "m/s2", "eps_rate": "m/s2",
-             "eps_min": "m/s", "eps": "m/s", "vx0": "m/s", "vy0": "m/s", "w0": "rad/s", "vx": "m/s",
-             "vy": "m/s", "w": "rad/s", **{n: "N.m" for n in _LOADS},
+             "eps_min": "m/s", "h_ref": "s", "eps": "m/s", "vx0": "m/s", "vy0": "m/s",
+             "w0": "rad/s", "vx": "m/s", "vy": "m/s", "w": "rad/s", **{n: "N.m" for n in _LOADS},
              **{n: "m/s" for n in _SLIPS}, **{n: "J" for n in _ENERGIES}}
     DEPENDENCIES = {**{n: () for n in _TWIST + _ENERGIES + ("eps",)},
                     **{n: (w,) for n, w in zip(_LOADS + _SLIPS, _WHEELS * 2)}}
     INITIAL_DEPENDENCIES = {**{n: (s,) for n, s in zip(_TWIST, _START)},
                             **{n: () for n in _ENERGIES[:2]},
-                            "E_kinetic": _START + ("m", "Iz"), "eps": ("eps_min",),
+                            "E_kinetic": _START + ("m", "Iz"),
+                            "eps": ("eps_rate", "eps_min", "h_ref"),
                             **{n: (w,) + _START + _GEOMETRY + BODY
                                for n, w in zip(_LOADS + _SLIPS, _WHEELS * 2)}}
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=10.0, step_size=0.001)
@@ -88,7 +90,7 @@ class MecanumDynamics(Fmi2Slave):
             self.log(f"MecanumDynamics: {problem[1]}", Fmi2Status.error)
             raise ValueError(problem[1])
         self._chassis = Chassis(*geometry, *body)
-        self.eps = self.eps_min
+        self.eps = self._chassis.eps
         self.vx, self.vy, self.w = self.vx0, self.vy0, self.w0
         self.E_slip = self.E_drive = 0.0
         self._outputs()
@@ -119,6 +121,5 @@ class MecanumDynamics(Fmi2Slave):
         x = c.step([self.vx, self.vy, self.w, self.E_slip, self.E_drive],
                    [getattr(self, n) for n in _WHEELS], step_size)
         self.vx, self.vy, self.w, self.E_slip, self.E_drive = x
-        self.eps = c.eps(step_size)
         self._outputs()
         return True
