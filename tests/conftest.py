@@ -82,9 +82,11 @@ print(json.dumps([str(p) for p in paths]))
 
 @pytest.fixture(scope="session")
 def fmu_dir():
-    """The folder of the bundled FMUs (a scenario's --fmu-dir), built once per session into a
+    """The folder of the bundled FMUs (a scenario's --fmu-dir), made once per session in a
     fresh temporary folder that the session's xdist workers share: the first to need it
-    builds under a lock, the others wait for it and check what it holds.
+    makes it under a lock, the others wait for it and check what it holds. Where the
+    checkout's fmus/ were built from the current sources (`make test` builds them first),
+    they are copied; else they are built.
 
     The build runs in a child process: it imports each slave script under its FMU module
     name and must not meet a copy that this process has already loaded.
@@ -96,6 +98,9 @@ def fmu_dir():
         if not dest.is_dir():
             partial = session / "built_fmus.partial"
             shutil.rmtree(partial, ignore_errors=True)
+            if _copy_current_checkout_fmus(partial):
+                partial.rename(dest)
+        if not dest.is_dir():
             src = str(Path(__file__).resolve().parents[1] / "src")
             env = {**os.environ, "PYTHONPATH": os.pathsep.join(
                 [src] + [p for p in [os.environ.get("PYTHONPATH")] if p])}
@@ -108,6 +113,22 @@ def fmu_dir():
             partial.rename(dest)
     assert sorted(p.stem for p in dest.glob("*.fmu")) == sorted(MODEL_NAMES)
     return dest
+
+
+def _copy_current_checkout_fmus(dest: Path) -> bool:
+    """Copy the checkout's fmus/ (and fmus/fmi3/) into dest when every bundled FMU there was
+    built from the current sources (its GUID is the sources' digest: models/library.py), as
+    `make test`'s own `fmus` step leaves them; else copy nothing and say so (False: build)."""
+    from mecanum_fmu.models.library import is_current, is_current3
+    checkout = Path(__file__).resolve().parents[1] / "fmus"
+    if not all(is_current(name, checkout / f"{name}.fmu") and
+               is_current3(name, checkout / "fmi3" / f"{name}.fmu") for name in MODEL_NAMES):
+        return False
+    (dest / "fmi3").mkdir(parents=True)
+    for name in MODEL_NAMES:
+        shutil.copy2(checkout / f"{name}.fmu", dest / f"{name}.fmu")
+        shutil.copy2(checkout / "fmi3" / f"{name}.fmu", dest / "fmi3" / f"{name}.fmu")
+    return True
 
 
 @pytest.fixture(scope="session")
