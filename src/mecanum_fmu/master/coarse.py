@@ -54,8 +54,8 @@ class Start:
             pass
 
 
-def coarse_runs(graph: Graph, results: Results, start: Start, holds: Holds, stepper: Callable[[Recorder], Callable[[], None]],
-                ctrl_c: list) -> dict:
+def coarse_runs(graph: Graph, results: Results, start: Start, holds: Holds,
+                stepper: Callable[[Recorder], Callable[[], None]], ctrl_c: list) -> dict:
     """results.extra["coarse"]: per factor, the coarser run's (stepping seconds, times,
     {name: values}) or why it failed (a failure ends the coarser runs: the FMU that failed
     is not stepped again). `stepper(recorder)`: the master's stepping loop for a recorder.

@@ -253,8 +253,7 @@ class _Checker:
 
     def _component_values(self, comp) -> dict[str, Scalar]:
         own, md = self.variables[comp.name], self.models[comp.name][1]
-        merged = {k: v for k, v in self.scenario.parameters.items() if _settable(own.get(k))}
-        merged.update(comp.parameters)
+        merged = _merged_parameters(self.scenario, comp, own)
         model = bundled_model(md)
         merged.update(_step_value(model, own, merged, self.scenario.experiment.step_size))
         for key in comp.parameters:
@@ -321,6 +320,14 @@ _ARRAY_HINT = ("; this master moves scalars: use the array's scalar variables (e
                "w1..w4 for wheel_speeds)")
 
 
+def _merged_parameters(scenario: Scenario, comp, own: dict) -> dict[str, Scalar]:
+    """A component's parameters: the scenario's shared ones that it has (and can set), then
+    its own, which win."""
+    merged = {k: v for k, v in scenario.parameters.items() if _settable(own.get(k))}
+    merged.update(comp.parameters)
+    return merged
+
+
 def _step_value(model, own: dict, merged: dict, step_size) -> dict[str, Scalar]:
     """The bundled model's step_parameter (catalog.Model: MecanumDynamics' h_ref) at the
     experiment's step_size, unless the scenario sets it; nothing for a step that is no
@@ -340,8 +347,7 @@ def with_scenario(graph: Graph, scenario: Scenario) -> Graph:
     for inst in graph.instances:
         comp = next(c for c in scenario.components if c.name == inst.name)
         own = {v.name: v for v in inst.model.modelVariables}
-        merged = {k: v for k, v in scenario.parameters.items() if _settable(own.get(k))}
-        merged.update(comp.parameters)
+        merged = _merged_parameters(scenario, comp, own)
         step = _step_value(bundled_model(inst.model), own, merged,
                            scenario.experiment.step_size)
         instances.append(dataclasses.replace(inst, start_values={**inst.start_values, **step})
