@@ -38,16 +38,15 @@ def _digest(key: str, out: Path) -> str:
     were half and a third of each run's time (tests/test_estimate.py and test_evaluation.py
     check them)."""
     from mecanum_fmu import runner
-    from mecanum_fmu.runner import prepare, run
     scenario, master_name = key.split("::")
-    graph = prepare(ROOT / scenario, master_name=master_name, estimate="none")
+    graph = runner.prepare(ROOT / scenario, master_name=master_name, estimate="none")
     exp = graph.scenario.experiment
     if (exp.stop_time - exp.start_time) / exp.step_size > MAX_STEPS:
-        graph = prepare(ROOT / scenario, master_name=master_name, estimate="none",
-                        stop_time=exp.start_time + MAX_STEPS * exp.step_size)
+        graph = runner.prepare(ROOT / scenario, master_name=master_name, estimate="none",
+                               stop_time=exp.start_time + MAX_STEPS * exp.step_size)
     ends_only = functools.partial(runner.evaluate, with_truth=False)
     with mock.patch.object(runner, "evaluate", ends_only):
-        run(graph, out, plots=False, log=lambda line: None)
+        runner.run(graph, out, plots=False, log=lambda line: None)
     return hashlib.sha256((out / "results.csv").read_bytes()).hexdigest()
 
 
@@ -69,22 +68,6 @@ def test_every_scenario_is_covered():
     assert {k.split("::")[0] for k in RECORDED} == on_disk
 
 
-if __name__ == "__main__" and sys.argv[1:] == ["--record"]:
-    import tempfile
-    from mecanum_fmu.masters import MASTERS
-    from mecanum_fmu.process import exit_now
-    hashes = dict(RECORDED)       # recorded hashes stay: only new scenarios are added
-    for path in scenario_files():
-        for name in MASTERS:
-            key = f"{path.relative_to(ROOT).as_posix()}::{name}"
-            if key in hashes or (name == "adaptive" and key.split("::")[0] in NO_ADAPTIVE):
-                continue
-            with tempfile.TemporaryDirectory() as out:
-                hashes[key] = _digest(key, Path(out))
-    HASHES.write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
-    exit_now(0)
-
-
 # The numbers may not depend on the CPU. NumPy's OpenBLAS picks its kernels by CPU (FMA,
 # AVX-512 or neither) and each orders and fuses a matrix product's sums its own way: the
 # masters' holds and the adaptive master's rows use elementwise arithmetic only. Prescott's
@@ -104,3 +87,19 @@ def test_results_do_not_depend_on_the_blas_kernel(scenario, name, tmp_path, fmu_
         assert proc.returncode == 0, proc.stderr
         outputs.append((out / "results.csv").read_bytes())
     assert outputs[0] == outputs[1]
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--record"]:
+    import tempfile
+    from mecanum_fmu.masters import MASTERS
+    from mecanum_fmu.process import exit_now
+    hashes = dict(RECORDED)       # recorded hashes stay: only new scenarios are added
+    for path in scenario_files():
+        for name in MASTERS:
+            key = f"{path.relative_to(ROOT).as_posix()}::{name}"
+            if key in hashes or (name == "adaptive" and key.split("::")[0] in NO_ADAPTIVE):
+                continue
+            with tempfile.TemporaryDirectory() as out:
+                hashes[key] = _digest(key, Path(out))
+    HASHES.write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
+    exit_now(0)
