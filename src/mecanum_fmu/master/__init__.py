@@ -24,7 +24,7 @@ from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario.document import Experiment
 from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .coarse import Start, coarse_runs
-from .estimate import error_estimate, planned_factors
+from .estimate import coarse_plan, error_estimate
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
 from .recorder import Recorder, step_count
@@ -114,8 +114,8 @@ def _start(graph: Graph, exp: Experiment, running: list[RunningInstance], buffer
            stack: ExitStack) -> Start | None:
     """The t0 the estimate's coarser runs start from (coarse.Start, freed with the run), or
     None where it makes none or an FMU cannot save its state."""
-    factors = planned_factors(graph, exp)
-    if factors is None or not all(r.can_roll_back for r in running):
+    factors = coarse_plan(graph, exp)
+    if not isinstance(factors, tuple) or not all(r.can_roll_back for r in running):
         return None
     try:
         start = Start(running, buffers, exp.start_time, factors)

@@ -31,7 +31,7 @@ from .stepping import NonFinite, StepFailure, free_states, restore_states, save_
 class Start:
     """The run's t0: every FMU's state and the buffers' values after initialisation, in
     states of their own (the quadratic master's rollback uses each instance's one saved
-    state every step), and the coarser steps to take from it (estimate.planned_factors)."""
+    state every step), and the coarser steps to take from it (estimate.coarse_plan)."""
 
     def __init__(self, running: list[RunningInstance], buffers: Buffers, t0: float,
                  factors: tuple[Fraction, ...]):

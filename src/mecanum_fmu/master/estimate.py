@@ -70,14 +70,24 @@ def recorded_outputs(graph: Graph, results: Results) -> list[str]:
             results.names]
 
 
-def planned_factors(graph: Graph, exp) -> tuple[Fraction, Fraction] | None:
-    """The coarser steps the estimate will step (coarse_factors), or None where it needs no
-    coarser run: turned off, the adaptive master (its own), no recorded Real output, sampled
-    sensors, fewer than 4 steps. master.simulate steps them on the run's own instances."""
-    if exp.estimate == "none" or master_entry(exp.master).adaptive or graph.sampled or not any(
-            p.type == "Real" for p in graph.recorded):
+TURNED_OFF = "turned off (estimate: none; --estimate auto or richardson gives one)"
+
+
+def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
+                ) -> tuple[Fraction, Fraction] | str | None:
+    """The coarser steps the estimate steps (coarse_factors), or why it steps none (the
+    reason its method gives), or None where a coarser run has nothing to do: the adaptive
+    master (its own estimate) or no recorded Real output. master.simulate steps the factors
+    on the run's own instances; error_estimate words the reason."""
+    if exp.estimate == "none":
+        return TURNED_OFF
+    if master_entry(exp.master).adaptive or not any(p.type == "Real" for p in graph.recorded):
         return None
-    return coarse_factors(graph, exp)
+    if graph.sampled:
+        return (f"{', '.join(graph.sampled)} sample at their own period: a coarser step moves "
+                "their samples (a different model, not a coarser run of this one)")
+    return coarse_factors(graph, exp, marks) or (
+        "the run has fewer than 4 steps: no coarser runs to compare with")
 
 
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:
@@ -89,7 +99,7 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     names = recorded_outputs(graph, results)
     exp = graph.scenario.experiment
     if exp.estimate == "none":
-        return _none("turned off (estimate: none; --estimate auto or richardson gives one)")
+        return _none(TURNED_OFF)
     if not names or not results.complete:
         return {}
     if results.steps_taken is not None:         # the adaptive master: its own estimate
@@ -99,14 +109,10 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "relative_tolerance": (DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance
                                        is None else exp.relative_tolerance),
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
-    sampled = graph.sampled
-    if sampled:
-        return _none(f"{', '.join(sampled)} sample at their own period: a coarser step moves "
-                     "their samples (a different model, not a coarser run of this one)")
     marks = graph_breaks(graph).times()
-    factors = coarse_factors(graph, exp, marks)
-    if factors is None:
-        return _none("the run has fewer than 4 steps: no coarser runs to compare with")
+    factors = coarse_plan(graph, exp, marks)
+    if isinstance(factors, str):
+        return _none(factors)
     coarse, stepped = [], results.extra.get("coarse", {})
     stepped = stepped.get("runs", {}) if stepped.get("graph") is graph else {}
     for factor in factors:
