@@ -4,6 +4,8 @@ The seed circle (gauss-seidel, no plots) over 0-10 s with 10^5, 10^6 and 10^7 st
 fresh child process (`python -m mecanum_fmu run ...`); the peak RSS of each child is read with
 resource.getrusage(RUSAGE_CHILDREN) in a wrapper process of its own. 10^7 steps take a few
 minutes. results.csv of 10^7 rows is about 2.5 GB: written into a temporary folder, removed.
+The longest is run once more with --estimate none: the error estimate's coarser runs keep only
+the rows they compare, so the peak with the estimate stays within 1.2x of the peak without.
 Run: make bench   (or: .venv/bin/python bench/memory.py [steps ...])
 """
 from __future__ import annotations
@@ -26,12 +28,12 @@ print(json.dumps({"code": code,
 """
 
 
-def peak_rss(steps: int) -> tuple[float, float]:
+def peak_rss(steps: int, estimate: str = "auto") -> tuple[float, float]:
     """(peak RSS in MiB, wall seconds) of one CLI run of `steps` steps."""
     with tempfile.TemporaryDirectory() as out:
         cmd = [sys.executable, "-m", "mecanum_fmu", "run", str(ROOT / "scenarios" / "circle.yaml"),
                "--master", "gauss-seidel", "--step-size", repr(10.0 / steps), "--no-plots",
-               "-q", "--out", out]
+               "--estimate", estimate, "-q", "--out", out]
         tick = time.perf_counter()
         proc = subprocess.run([sys.executable, "-c", WRAPPER, *cmd], capture_output=True,
                               text=True, check=True)
@@ -56,6 +58,9 @@ def main(steps_list=STEPS) -> dict:
     first = peaks[min(peaks)]
     print(f"  largest / smallest peak: {max(peaks.values()) / first:.2f}x "
           f"for {max(peaks) // min(peaks)}x the steps")
+    bare, wall = peak_rss(max(peaks), "none")
+    print(f"  {max(peaks):>10,} steps  peak RSS {bare:7.1f} MiB  ({wall:6.1f} s), --estimate none")
+    print(f"  with the estimate / without: {peaks[max(peaks)] / bare:.2f}x")
     return peaks
 
 
