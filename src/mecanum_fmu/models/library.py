@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
 import re
 import uuid
 import zipfile
@@ -205,7 +206,16 @@ def resolve_fmu(spec: str, scenario_dir: Path, fmu_dir: Path) -> Path:
 
 def read_description(path: Path) -> ModelDescription:
     """Read and check that the FMU is FMI 2.0 or 3.0 co-simulation. Raises ValueError with the
-    reason."""
+    reason. Read once per file (storage.FileMemo): every prepare reads each FMU it names, and
+    the description is only read afterwards, never changed."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return _read_description(path)          # says why it is no FMU
+    return _DESCRIPTIONS(path, st)
+
+
+def _read_description(path: Path) -> ModelDescription:
     if not zipfile.is_zipfile(path):
         raise ValueError(f"{path.name} is not an FMU (an FMU is a zip archive)")
     try:
@@ -240,6 +250,9 @@ def read_description(path: Path) -> ModelDescription:
                          "a co-simulation FMU (export it for co-simulation)")
     _check_numbers(path, md)
     return md
+
+
+_DESCRIPTIONS = FileMemo(_read_description)
 
 
 def _check_numbers(path: Path, md: ModelDescription) -> None:
