@@ -313,6 +313,21 @@ from mecanum_fmu import cli
 from mecanum_fmu.sweep import cluster
 
 WAIT = os.environ.get("STAGE_WAIT", "")
+PAUSE = float(os.environ.get("CLOSE_PAUSE", "0"))   # s before the cluster closes
+
+
+def group():
+    """The ids of this process group's processes (from /proc), sorted."""
+    found = []
+    for entry in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()
+        except OSError:                  # gone meanwhile
+            continue
+        if int(fields[2]) == os.getpgrp():
+            found.append(entry)
+    return " ".join(sorted(found, key=int))
 
 
 def wait_for_the_signal():
@@ -336,9 +351,20 @@ def main():
     real_run_sweep = cluster.run_sweep
 
     def run_sweep(*args, progress=None, **kwargs):
-        show = lambda done, total: print(f"done {done}", file=sys.stderr, flush=True)
+        def show(done, total):
+            if PAUSE:
+                print(f"group {group()}", file=sys.stderr, flush=True)
+            print(f"done {done}", file=sys.stderr, flush=True)
         return real_run_sweep(*args, progress=show, **kwargs)
     cluster.run_sweep = run_sweep
+    if PAUSE:                  # a client slow to close its cluster, as on a loaded machine
+        real_exit = cluster.cluster.__exit__
+
+        def paused_exit(self, *exc):
+            time.sleep(PAUSE)
+            print(f"group at close {group()}", file=sys.stderr, flush=True)
+            return real_exit(self, *exc)
+        cluster.cluster.__exit__ = paused_exit
     cluster.cluster._start_local = marked("start", cluster.cluster._start_local)
     cluster.end_errors = marked("evaluation", cluster.end_errors)
     cluster.write_runs_csv = marked("writing", cluster.write_runs_csv)
@@ -351,16 +377,18 @@ if __name__ == "__main__":      # the fork server imports this file again: no se
 
 
 def signalled_sweep(tmp_path: Path, fmu_dir: Path, marker: str, signum: int, group: bool,
-                    wait: str = "", samples: int = 200) -> dict:
+                    wait: str = "", samples: int = 200, pause: float = 0.0) -> dict:
     """Run a sweep in a new session; on the first stderr line starting with `marker`, send
-    signum (to the process group, or to the sweep alone). Returns what it left."""
+    signum (to the process group, or to the sweep alone). Returns what it left. With a pause,
+    the client waits that long before it closes the cluster, and the process group's members
+    are listed before the signal (`before`) and as the cluster closes (`at_close`)."""
     child = tmp_path / "child.py"
     child.write_text(CHILD)
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     path = write_sweep(tmp_path, DRAWS.format(n=samples))
     out = tmp_path / "out"
-    env = child_env(scratch, STAGE_WAIT=wait)
+    env = child_env(scratch, STAGE_WAIT=wait, CLOSE_PAUSE=str(pause))
     proc = subprocess.Popen([sys.executable, str(child), "sweep", str(path), "--out", str(out),
                              "--workers", "2", "--no-plots", "--fmu-dir", str(fmu_dir)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
@@ -382,11 +410,14 @@ def signalled_sweep(tmp_path: Path, fmu_dir: Path, marker: str, signum: int, gro
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
     done = [int(line.split()[1]) for line in seen if line.startswith("done ")]
+    before = [line.split()[1:] for line in seen if line.startswith("group ")]
+    at_close = [line.split()[3:] for line in err.splitlines() if line.startswith("group at close")]
     rows = list(csv.DictReader(open(out / "runs.csv"))) if (out / "runs.csv").exists() else None
     summary = json.loads((out / "summary.json").read_text())
     return dict(code=proc.returncode, err=err, stdout=stdout, seconds=seconds, rows=rows,
                 summary=summary, done_before=done[-1] if done else 0, samples=samples,
-                tmp=sorted(os.listdir(scratch)), out=sorted(os.listdir(out)))
+                tmp=sorted(os.listdir(scratch)), out=sorted(os.listdir(out)),
+                before=before[-1] if before else None, at_close=at_close[0] if at_close else None)
 
 
 def assert_stopped(r: dict, signum: int, *, all_ran: bool = False) -> None:
@@ -421,6 +452,18 @@ def test_sigterm_mid_runs_exits_143_and_keeps_every_finished_run(tmp_path, fmu_d
     r = signalled_sweep(tmp_path, fmu_dir, "done 50", signal.SIGTERM, group=group)
     assert_stopped(r, signal.SIGTERM)
     assert "terminated (SIGTERM)" in r["err"]
+
+
+def test_sigterm_to_the_group_kills_no_worker_so_none_is_restarted(tmp_path, fmu_dir):
+    """The cause of a traceback seen once at load 7: the group's SIGTERM killed the workers
+    and the fork server; each nanny restarted its worker through a new fork server while the
+    client closed the cluster, and a restart still under way when the client left wrote the
+    traceback. Here the client waits 2 s before it closes (the restarts took about 1 s): the
+    same processes are there as before the signal, none died, none was started."""
+    r = signalled_sweep(tmp_path, fmu_dir, "done 50", signal.SIGTERM, group=True, pause=2.0)
+    assert_stopped(r, signal.SIGTERM)
+    assert r["before"] and len(r["before"]) >= 4, r["before"]   # sweep, tracker, server, 2 workers
+    assert r["at_close"] == r["before"], (r["before"], r["at_close"])
 
 
 def test_ctrl_c_during_the_evaluation_keeps_the_runs(tmp_path, fmu_dir):

@@ -21,7 +21,6 @@ import ctypes
 import hashlib
 import shutil
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,11 +28,11 @@ from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCall
 from fmpy.fmi3 import fmi3LogMessageCallback
 
 from .archive import extract_all
+from .storage import FileMemo
 
 STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 POOL_MAX = 4          # instances kept per (extraction, GUID, instance name)
 LOG_KEEP = 20         # messages kept per instance
-RACY_NS = 2_000_000_000   # a file's hash is kept once it is older than this (2 s)
 
 
 @dataclass
@@ -60,7 +59,7 @@ class Runtime:
 
     def __init__(self) -> None:
         self._extracted: dict[str, str] = {}
-        self._digests: dict[tuple, str] = {}
+        self._digest = FileMemo(self._hash)
         self._pool: dict[tuple, list[Kept]] = {}
         self._logs: dict[int, InstanceLog] = {}
         self._next_key = 1
@@ -80,23 +79,14 @@ class Runtime:
             self._extracted[digest] = extract_all(path, f"mecanum_{Path(path).stem[:40]}_")
         return self._extracted[digest]
 
-    def _digest(self, path: Path) -> str:
-        """The sha256 of the FMU file, hashed again only when the file changed (another
-        inode, size or modification time: a rebuilt FMU is a new file). Hashing a
-        self-contained FMU took 5 ms, four of them 20 ms, on every run."""
-        st = path.stat()
-        key = (str(path.resolve()), st.st_ino, st.st_size, st.st_mtime_ns)
-        if key in self._digests:
-            return self._digests[key]
+    @staticmethod
+    def _hash(path: Path) -> str:
+        """The sha256 of the FMU file (kept per file by self._digest, a storage.FileMemo:
+        hashing a self-contained FMU took 5 ms, four of them 20 ms, on every run)."""
         sha = hashlib.sha256()
         with open(path, "rb") as f:          # streamed: an FMU may be large
             while chunk := f.read(1 << 20):
                 sha.update(chunk)
-        # A file modified less than RACY_NS ago is hashed again next time: written again
-        # within one tick of the file system's clock (same inode, same size), it would keep
-        # its modification time and look unchanged (git's "racy clean" entries).
-        if time.time_ns() - st.st_mtime_ns > RACY_NS:
-            self._digests[key] = sha.hexdigest()
         return sha.hexdigest()
 
     def forget_extractions(self) -> None:
@@ -106,7 +96,7 @@ class Runtime:
         self.release_instances()
         self.remove_extractions()
         self._extracted.clear()
-        self._digests.clear()
+        self._digest.clear()
 
     def remove_extractions(self) -> None:
         """Delete the extraction folders. Only for a process about to leave (libraries stay

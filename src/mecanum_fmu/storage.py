@@ -10,6 +10,8 @@
   is `.<name>.part` beside the target (or `.<name>.<random>.part` when several processes may
   write the same target at once), renamed over the target only when the block ends cleanly,
   removed on any error or signal, so a reader never sees a half-written file.
+- FileMemo: the one memory of what a file's content gave (an FMU's hash, its GUID), kept
+  while the file is the same one (inode, size, modification time) and older than RACY_NS.
 - write_zip(): the one deterministic archive writer (FMUs and SSPs): sorted members, a fixed
   date, fixed permissions, deflated; written atomically, so two writes of the same content are
   byte-identical. Members already deflated in another archive (an FMU's bundled Python) can
@@ -26,6 +28,7 @@ import os
 import stat
 import struct
 import tempfile
+import time
 import zipfile
 import zlib
 from contextlib import contextmanager
@@ -38,6 +41,35 @@ FIXED_DATE = (1980, 1, 1, 0, 0, 0)
 def cache_root() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "mecanum_fmu"
+
+
+RACY_NS = 2_000_000_000   # a file's value is kept once the file is older than this (2 s)
+
+
+class FileMemo:
+    """compute(path)'s value per file, computed again only when the file changed (another
+    inode, size or modification time: a rebuilt FMU is a new file). A file modified less than
+    RACY_NS ago is computed again next time: written again within one tick of the file
+    system's clock (same inode, same size), it would keep its modification time and look
+    unchanged (git's "racy clean" entries)."""
+
+    def __init__(self, compute):
+        self.compute = compute
+        self.values: dict[tuple, object] = {}
+
+    def __call__(self, path: Path, st: os.stat_result | None = None):
+        """The value for path (st: its stat, if already taken). Raises OSError."""
+        st = os.stat(path) if st is None else st
+        key = (str(Path(path).resolve()), st.st_ino, st.st_size, st.st_mtime_ns)
+        if key in self.values:
+            return self.values[key]
+        value = self.compute(path)
+        if time.time_ns() - st.st_mtime_ns > RACY_NS:
+            self.values[key] = value
+        return value
+
+    def clear(self) -> None:
+        self.values.clear()
 
 
 class NotARegularFile(ValueError):

@@ -232,19 +232,23 @@ class _Blend:
         self.d = np.zeros(2 * m)
         self.a, self.b = self.d[:m], self.d[m:]
         self.low, self.high = np.zeros(m), np.zeros(m)
+        # the views of the history that fill reads, made once (a slice per call cost as much
+        # as the arithmetic on these few values)
+        self.first3, self.first2 = self.history[:3 * m], self.history[:2 * m]
+        self.middle2, self.last2 = self.history[m:3 * m], self.history[2 * m:]
 
     def fill(self) -> None:
-        np.take(self.buffer, self.src, out=self.now)
-        mode, h, m = self.holds.mode, self.history, len(self.now)
-        np.multiply(self.weights[mode], h[:3 * m], out=self.terms)
+        self.buffer.take(self.src, out=self.now)     # np.take without its Python wrapper
+        mode = self.holds.mode
+        np.multiply(self.weights[mode], self.first3, out=self.terms)
         now, u_k, u_km1 = self.parts
         np.add(now, u_k, out=self.staging)
         self.staging += u_km1
         if self.limited[mode] and self.holds.steps >= 2:
             # the second differences of (now, u_k, u_k-1) and of (u_k, u_k-1, u_k-2) at once
-            np.subtract(h[:2 * m], h[m:3 * m], out=self.d)
-            self.d -= h[m:3 * m]
-            self.d += h[2 * m:]
+            np.subtract(self.first2, self.middle2, out=self.d)
+            self.d -= self.middle2
+            self.d += self.last2
             self.d *= self.second[mode]
             # minmod(a, b) = b clipped to [min(a, 0), max(a, 0)]: the one nearer zero when
             # both have the same sign, else 0
@@ -256,7 +260,7 @@ class _Blend:
 
     def commit(self) -> None:
         self.older[:] = self.old            # u_k-1 -> u_k-2, u_k -> u_k-1 (numpy copies
-        np.take(self.buffer, self.src, out=self.u_k)     # overlapping views safely)
+        self.buffer.take(self.src, out=self.u_k)         # overlapping views safely)
 
 
 def _vr_array(vrs: list[int]) -> ctypes.Array:

@@ -54,6 +54,7 @@ PRELOAD = "mecanum_fmu.sweep.forkserver_preload"
 UNIX_PATH_ROOM = 70           # TMPDIR bytes that leave room for "/pymp-*/listener-*"
 POLL_S = 0.05                 # how often the client looks for results and signals
 SIGNAL_NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
+GROUP_SIGNALS = {signal.SIGINT, signal.SIGTERM}   # the fork server and the workers ignore them
 
 
 @dataclass
@@ -228,23 +229,24 @@ class cluster:
 def _forkserver_ignoring_ctrl_c() -> None:
     """Local workers are forked by multiprocessing's fork server, started here (once per
     process) with sweep.forkserver_preload first in its preload list: the server ignores
-    SIGINT, and so does every worker it forks. The Ctrl-C that a terminal sends to the whole
-    process group reaches only the client, which stops the sweep and cancels what is left.
-    This thread blocks SIGINT while the server is spawned (the mask is inherited: a Ctrl-C
-    before the preload runs waits, then is dropped); the client's own disposition never
-    changes, so a Ctrl-C meanwhile is taken by another thread of the client (OpenBLAS's) and
-    handled as usual: none is lost."""
+    SIGINT and SIGTERM, and so does every worker it forks. The Ctrl-C that a terminal sends to
+    the whole process group, or a SIGTERM to the group, reaches only the client, which stops
+    the sweep, cancels what is left and closes the workers (none dies of it, so no nanny
+    restarts one while the cluster closes). This thread blocks both while the server is
+    spawned (the mask is inherited: a signal before the preload runs waits, then is dropped);
+    the client's own dispositions never change, so a signal meanwhile is taken by another
+    thread of the client (OpenBLAS's) and handled as usual: none is lost."""
     from distributed.utils import get_mp_context
     get_mp_context()                      # sets Dask's preload list for the server
     server = multiprocessing.forkserver._forkserver
     if PRELOAD not in server._preload_modules:
         server.set_forkserver_preload([PRELOAD, *server._preload_modules])
     _socket_folder()
-    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    signal.pthread_sigmask(signal.SIG_BLOCK, GROUP_SIGNALS)
     try:
         server.ensure_running()
     finally:
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, GROUP_SIGNALS)
 
 
 def _socket_folder() -> None:

@@ -3,6 +3,7 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Intege
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.bicycle import bicycle_twist, check_bicycle  # inline
 from mecanum_fmu.models.blocks.kinematics import instantaneous_center  # inline
 
@@ -11,7 +12,7 @@ _TWIST = ("vx", "vy", "w")
 _ICR = ("icr_x", "icr_y", "has_icr")
 
 
-class Bicycle(Fmi2Slave):
+class Bicycle(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Car-like robot as a kinematic bicycle: rear-axle speed v and steering angle "
                    "phi (positive turns left, counter-clockwise) -> body twist (vx right, vy "

@@ -3,6 +3,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.motor import DEFAULT_MOTOR, Motor, motor_problem  # inline
 
 _PARAMETERS = tuple(DEFAULT_MOTOR) + ("w0",)
@@ -43,7 +44,7 @@ _DOCS = {
 }
 
 
-class DCMotor(Fmi2Slave):
+class DCMotor(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("DC gear motor driving one wheel, with a PI speed loop (anti-windup, current "
                    "limit i_max, voltage clamp +-V_supply); resistance, torque and back-EMF "

@@ -3,8 +3,10 @@
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 
-class FeedthroughSlave(Fmi2Slave):
+
+class FeedthroughSlave(QuickState, Fmi2Slave):
     """A block whose outputs follow its inputs at once: recomputed on every set of an input and
     at initialization (after checking the parameters), so a master that sets the inputs reads
     consistent outputs without a step; a step has nothing left to do."""

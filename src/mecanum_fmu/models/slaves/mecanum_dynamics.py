@@ -3,6 +3,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.kinematics import DEFAULT_GEOMETRY, geometry_problem  # inline
 from mecanum_fmu.models.blocks.traction import BODY, DEFAULT_BODY, Chassis, body_problem  # inline
 
@@ -42,7 +43,7 @@ for _i, _where in enumerate(_WHERE):
                          "(0: rolling as the kinematics say)")
 
 
-class MecanumDynamics(Fmi2Slave):
+class MecanumDynamics(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Planar rigid-body dynamics of a four-wheel O-layout mecanum chassis: each "
                    "wheel pushes the body along its roller axis, limited by Coulomb friction "

@@ -3,6 +3,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.kinematics import DEFAULT_GEOMETRY, check_geometry, wheel_to_center  # inline
 from mecanum_fmu.models.blocks.pose import pose_step  # inline
 from mecanum_fmu.models.blocks.odometry import check_odometry, euler_step  # inline
@@ -16,7 +17,7 @@ _GEOMETRY = ("alpha", "L", "W", "R")
 _STATE = ("_t0", "_next_k")
 
 
-class Odometry(Fmi2Slave):
+class Odometry(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Wheel odometry as ros2_controllers' mecanum_drive_controller computes it: "
                    "at every start_time + k*period, the twist from the measured wheel speeds "

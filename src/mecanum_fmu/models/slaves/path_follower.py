@@ -5,6 +5,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.expression import ExpressionError, compile_expression  # inline
 from mecanum_fmu.models.blocks.follower import expression_reference, follow  # inline
 from mecanum_fmu.models.blocks.profile_table import path_sampler  # inline
@@ -15,7 +16,7 @@ _REFS = ("x_ref_expr", "y_ref_expr", "theta_ref_expr")
 _GAINS = ("k_pos", "k_theta")
 
 
-class PathFollower(Fmi2Slave):
+class PathFollower(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Path-following controller for a holonomic chassis: body twist = the "
                    "reference velocity fed forward + k_pos (position error) + k_theta (heading "

@@ -2,6 +2,7 @@
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.default_experiment import DefaultExperiment
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.pose import pose_step  # inline
 
 _TWIST = ("vx", "vy", "w")
@@ -9,7 +10,7 @@ _POSE = ("x", "y", "theta")
 _START = ("x0", "y0", "theta0")
 
 
-class PoseIntegrator(Fmi2Slave):
+class PoseIntegrator(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Integrates a body-frame chassis twist (vx right, vy forward, w) into the "
                    "world-frame pose (x, y, theta). Exact (SE(2) exponential) for inputs held "

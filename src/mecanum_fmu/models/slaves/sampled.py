@@ -3,6 +3,7 @@ maths (the line that imports it ends in `# inline`)."""
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.sensors import check_sensor, measured_speed, samples_until, sample_time, standard_normal  # inline
 
 # Not model variables, but the sensor's state: fmi2GetFMUstate carries them (a rollback
@@ -10,7 +11,7 @@ from mecanum_fmu.models.blocks.sensors import check_sensor, measured_speed, samp
 _STATE = ("_t0", "_integral", "_count", "_next_k")
 
 
-class SampledSensor(Fmi2Slave):
+class SampledSensor(QuickState, Fmi2Slave):
     """A sensor that integrates its input `w` as a state and, at each sample time t0 + k*period,
     outputs the mean of `w` over the period ending there (from two counts of the integral),
     plus `bias`, plus `sigma` times the k-th normal draw of the stream (seed, SALT); the output

@@ -3,13 +3,14 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.expression import ExpressionError, compile_expression  # inline
 
 _OUTPUTS = ("v", "phi")
 _EXPRESSIONS = ("v_expr", "phi_expr")
 
 
-class SteeringSource(Fmi2Slave):
+class SteeringSource(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Commanded speed v and steering angle phi (positive turns left) of a car-like "
                    "robot as expressions of t, evaluated safely like VelocitySource's (numbers, t, "

@@ -3,6 +3,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real, String
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
+from mecanum_fmu.models.slaves.state import QuickState  # inline
 from mecanum_fmu.models.blocks.expression import ExpressionError, compile_expression  # inline
 from mecanum_fmu.models.blocks.profile_table import TableError, table_sampler  # inline
 
@@ -10,7 +11,7 @@ _OUTPUTS = ("vx", "vy", "w")
 _EXPRESSIONS = ("vx_expr", "vy_expr", "w_expr")
 
 
-class VelocitySource(Fmi2Slave):
+class VelocitySource(QuickState, Fmi2Slave):
     author = "mecanum_fmu"
     description = ("Commanded body-frame chassis twist (vx right, vy forward, w counter-clockwise) "
                    "as expressions of t, evaluated safely (numbers, t, arithmetic, comparisons, "
