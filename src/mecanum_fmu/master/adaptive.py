@@ -72,7 +72,9 @@ class AdaptiveHolds(Holds):
     """Holds over unequal steps: h (this step), g and f (the two before). `hold`: the
     registry's (masters.py) for the adaptive master, whose fixed weights the blends replace;
     `models`: Graph.error_models (per instance name, a factory of an error model for its
-    held inputs)."""
+    held inputs). A "through" input (plan._blend_roles) is held as a "state" one, and set to
+    its end value after the doStep."""
+    through = True
 
     def __init__(self, hold: str, models: tuple = ()):
         super().__init__(hold)
@@ -98,7 +100,7 @@ class AdaptiveHolds(Holds):
     def add(self, buffer, src, roles, targets: list[Port], inst: Instance) -> "_VarBlend":
         blend = _VarBlend(self, buffer, src, roles)
         self.blends.append(blend)
-        self.ahead = self.ahead or any(role != "state" for role in roles)
+        self.ahead = self.ahead or any(role not in ("state", "through") for role in roles)
         factory = self.models.get(inst.name)
         client = factory(blend, [t.ref.variable for t in targets], inst) if factory else None
         (self.paired if client is None else self.clients).append(blend if client is None
