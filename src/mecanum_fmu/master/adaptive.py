@@ -257,6 +257,14 @@ class OutputErrors:
         self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
         self.whole, self.step, self.sum, self.scaled, self.weighted = (
             np.zeros(len(self.slots)) for _ in range(5))
+        self.position = {int(slot): i for i, slot in enumerate(self.slots)}
+
+    def upstream(self, slots) -> np.ndarray:
+        """Per slot (an error model's inputs' sources), the signed accumulated error of that
+        output at the middle of this step (the sum so far and half this step's), 0 where the
+        pair does not cover it: the error the model's FMU is fed from upstream."""
+        at = [self.position.get(int(slot)) for slot in slots]
+        return np.array([0.0 if i is None else self.sum[i] + 0.5 * self.step[i] for i in at])
 
     def size(self, i: int) -> float:
         """The largest |y| of the i-th error model's recorded outputs."""
@@ -296,7 +304,7 @@ def step_errors(holds: AdaptiveHolds, errors: OutputErrors, left: float, h: floa
     updates = []
     for i, client in enumerate(holds.clients):
         scale = atol + rtol * errors.size(i)
-        error, update = client.step(holds.h, left)
+        error, update = client.step(holds.h, left, errors.upstream(client.sources))
         own, drift = max(own, error / scale), max(drift, client.after(h, update) / scale)
         before = max(before, max(client.now()) / scale)
         updates.append(update)
