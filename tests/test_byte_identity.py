@@ -21,8 +21,8 @@ RECORDED = json.loads(HASHES.read_text())
 # the suite minutes; any change of behaviour shows in its first 2 s as well)
 MAX_STEPS = 2000
 # Not recorded under the adaptive master: the drive train's circles, whose fast motors
-# (~220/s) under held inputs keep its steps near 3e-4 s at the default tolerance (the 2 s
-# hashed would cost the suite ~15 s each; the hard start, 1 s in ~300 steps, is recorded;
+# (~220/s) under held inputs keep its steps near 1.6e-4 s at the default tolerance 1e-4 (the
+# 2 s hashed would cost the suite ~30 s each; the hard start, 1 s in ~300 steps, is recorded;
 # docs/robot.md, Stability), and the sampled sensors (Encoder, Gyro, Odometry), whose
 # samples must land on communication points while the adaptive steps do not (the run
 # stops: "the tolerance needs a step of ..."; docs/robot.md)
