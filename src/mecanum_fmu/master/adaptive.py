@@ -29,8 +29,10 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   time and on the breakpoints of the graph (Stops: a jump gets a short step before it), and
   the rows between (every step_size seconds: results.csv's) are interpolated (dense.py),
   whose error estimate cuts a step too.
-The signed sum of the accepted steps' errors is the run's error estimate (plus a row's
-interpolation error's).
+The controller holds the signed sum of the accepted steps' errors; the run's error estimate
+is the error models' and, for the pair's outputs, the difference of the run and the run
+stepped whole beside it over 3 (trajectory.py: the errors carried through the dynamics,
+damped where the states relax), plus a row's interpolation error's.
 """
 from __future__ import annotations
 
@@ -48,6 +50,7 @@ from .instance import RunningInstance
 from .plan import Holds
 from .dense import DenseRows
 from .recorder import Recorder
+from .trajectory import WholeSteps
 from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
 
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
@@ -138,6 +141,7 @@ class _VarBlend:
         # the held polynomial's terms beyond the line through u_k, u_k+1 (fill): a s (s - h)
         # (the limited parabola's or the cubic's) and b s (s - h) (s + g) (the cubic's)
         self.a, self.b = np.zeros(m), np.zeros(m)
+        self.shift = None   # added to the values now (the whole-step trajectory's, trajectory.py)
 
     def fill(self) -> None:
         hs = self.holds
@@ -145,6 +149,8 @@ class _VarBlend:
             self._fill_half(hs.half)
             return
         np.take(self.buffer, self.src, out=self.rows[0])
+        if self.shift is not None:
+            self.rows[0] += self.shift
         now, u, u1, _ = self.rows
         h, g = hs.h, hs.g
         mean = 0.5 * (now + u)
@@ -482,11 +488,13 @@ class _Loop:
         self.rows = DenseRows(recorder, tol, near, self.names(),
                               len(self.names()) - len(self.errors.names))
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
+        self.whole = WholeSteps(running, self.program, holds.blends, self.real, self.ints,
+                                self.errors.slots) if len(self.errors.slots) else None
 
     def estimate(self) -> list[float]:
         """The accumulated error now, per covered output: the models' then the pair's."""
         return [*(e for c in self.holds.clients for e in c.now(signed=True)),
-                *np.abs(self.errors.sum)]
+                *(np.abs(self.errors.sum) if self.whole is None else self.whole.error())]
 
     def names(self) -> list[str]:
         return [*(f"{c.name}.{o}" for c in self.holds.clients for o in c.outputs),
@@ -498,6 +506,9 @@ class _Loop:
         save_states(self.running, t)
         self.saved[0][:], self.saved[1][:] = self.real, self.ints
         h, updates, ratio, drift = self._take(t, goal, ctrl_c)
+        if self.whole is not None:
+            self.counts["passes"] += 1
+            self.whole.step(t, h)
         free_states(self.running, t)
         self.holds.commit()
         self.counts["steps_taken"] += 1
