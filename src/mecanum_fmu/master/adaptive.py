@@ -301,16 +301,22 @@ class OutputErrors:
 
 
 def step_errors(holds: AdaptiveHolds, errors: OutputErrors, left: float, h: float,
-                tol: tuple[float, float]) -> tuple[float, tuple[float, float], list]:
+                tol: tuple[float, float], signed: Callable = lambda slots: None
+                ) -> tuple[float, tuple[float, float], list]:
     """(the step's own error, (the accumulated error with it, without it)), in units of the
     tolerance, the worst over the error models and the pair's outputs, and the models'
-    updates."""
+    updates. Each model is fed its inputs' sources' accumulated errors: the pair's sum (for
+    its bound, the controller's) and `signed` of the slots (for its estimate: the whole-step
+    trajectory's, or None: the same sum)."""
     atol, rtol = tol
     own, drift, before = errors.ratios(atol, rtol)
     updates = []
     for i, client in enumerate(holds.clients):
         scale = atol + rtol * errors.size(i)
-        error, update = client.step(holds.h, left, errors.upstream(client.sources))
+        bound = errors.upstream(client.sources)
+        carried = signed(client.sources)
+        error, update = client.step(holds.h, left, (bound, bound if carried is None
+                                                     else carried))
         own, drift = max(own, error / scale), max(drift, client.after(h, update) / scale)
         before = max(before, max(client.now()) / scale)
         updates.append(update)
@@ -496,6 +502,10 @@ class _Loop:
         return [*(e for c in self.holds.clients for e in c.now(signed=True)),
                 *(np.abs(self.errors.sum) if self.whole is None else self.whole.error())]
 
+    def _carried(self, slots) -> np.ndarray | None:
+        """The whole-step trajectory's signed error estimate at `slots` (None without it)."""
+        return None if self.whole is None else self.whole.signed(slots)
+
     def names(self) -> list[str]:
         return [*(f"{c.name}.{o}" for c in self.holds.clients for o in c.outputs),
                 *self.errors.names]
@@ -534,7 +544,8 @@ class _Loop:
                 raise KeyboardInterrupt
             self._attempt(t, h)
             own, drift, updates = step_errors(self.holds, self.errors, self.stop - t - h, h,
-                                              self.tol)
+                                              self.tol,
+                                              self._carried)
             ratio, worst = control.ratios(own, h, drift, t + h - self.start,
                                           self.holds.jump_next)
             rows = self.rows.ratio(t + h)     # the rows in the step: their interpolation

@@ -33,6 +33,7 @@ class WholeSteps:
         self.states: list | None = None         # None: at t0 it is the run's own state
         self.history = [b.history.copy() for b in blends]
         self.difference = np.zeros(len(slots))
+        self.position = {int(slot): i for i, slot in enumerate(slots)}
 
     def step(self, t: float, h: float) -> None:
         """Move it over the step just accepted (t -> t + h). The FMUs are at the kept run's
@@ -58,6 +59,11 @@ class WholeSteps:
     def error(self) -> np.ndarray:
         """|the kept run's error| per recorded output: the difference over 3."""
         return np.abs(self.difference) / 3.0
+
+    def signed(self, slots) -> np.ndarray:
+        """The kept run's signed error at the given buffer slots now (0 where it has none)."""
+        at = [self.position.get(int(slot)) for slot in slots]
+        return np.array([0.0 if i is None else self.difference[i] / 3.0 for i in at])
 
     def _swap_in(self) -> list:
         """The blends take this trajectory's history; the later sources' values are shifted
