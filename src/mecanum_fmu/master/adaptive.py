@@ -472,6 +472,8 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
         if progress is not None and _time.perf_counter() >= next_report:
             progress((t - start) / (stop - start))
             next_report = _time.perf_counter() + 0.5
+    if loop.whole is not None:
+        loop.whole.close(t)
 
 
 class _Loop:

@@ -56,6 +56,12 @@ class WholeSteps:
         free_states(self.running, t + h, kept)
         self.real[:], self.ints[:] = values
 
+    def close(self, t: float) -> None:
+        """Free its FMU states (the run is over)."""
+        if self.states is not None:
+            free_states(self.running, t, self.states)
+            self.states = None
+
     def error(self) -> np.ndarray:
         """|the kept run's error| per recorded output: the difference over 3."""
         return np.abs(self.difference) / 3.0
