@@ -21,6 +21,7 @@ State x = (w, z, i, E_el, E_cu, E_visc, E_gear, E_load); i is a state only when 
 the algebraic (V - k_e w)/R_a); the energies are the integrals of V i, R_a i^2, b w^2,
 (k_e - k_t) i w and tau_load w, taken with the same Runge-Kutta stages as the motion.
 """
+import functools
 import math
 
 DATASHEET = ("V_supply", "stall_torque", "stall_current", "no_load_speed", "no_load_current")
@@ -97,13 +98,34 @@ class Motor:
 
     def rates(self, w: float, z: float, i: float, w_ref: float, tau_load: float) -> tuple:
         """The derivatives of x = (w, z, i, E_el, E_cu, E_visc, E_gear, E_load)."""
-        V, wanted = self.voltage(w, z, w_ref)
-        i = self.current(w, i, V)
-        di = (V - self.R_a * i - self.k_e * w) / self.La if self.La > 0.0 else 0.0
-        return ((self.k_t * i - self.b * w - tau_load) / self.J,
-                self.ki * (w_ref - w) + self.k_b * (V - wanted), di,
-                V * i, self.R_a * i * i, self.b * w * w, (self.k_e - self.k_t) * i * w,
-                tau_load * w)
+        return self._rates(w, z, i, w_ref, tau_load)
+
+    @functools.cached_property
+    def _rates(self):
+        """rates() with voltage() and current() inlined and the constants bound: the same
+        float operations in the same order (the same bits), without the method calls and
+        attribute look-ups, which were most of a drive-train run's time."""
+        kp, ki, k_b, k_t, k_e, b = self.kp, self.ki, self.k_b, self.k_t, self.k_e, self.b
+        R_a, La, J, V_supply = self.R_a, self.La, self.J, self.V_supply
+        span, gear, inductive = R_a * self.i_max, k_e - k_t, La > 0.0
+
+        def rates(w, z, i, w_ref, tau_load):
+            wanted = kp * (w_ref - w) + z
+            back = k_e * w
+            # voltage()'s max(lo, min(hi, v)), written as the builtins decide (min(a, b) is
+            # b if b < a else a, max(a, b) is b if b > a else a: NaN included)
+            hi, lo = back + span, back - span
+            V = wanted if wanted < hi else hi
+            V = V if V > lo else lo
+            V = V if V < V_supply else V_supply
+            V = V if V > -V_supply else -V_supply
+            if inductive:
+                di = (V - R_a * i - k_e * w) / La
+            else:
+                i, di = (V - k_e * w) / R_a, 0.0
+            return ((k_t * i - b * w - tau_load) / J, ki * (w_ref - w) + k_b * (V - wanted), di,
+                    V * i, R_a * i * i, b * w * w, gear * i * w, tau_load * w)
+        return rates
 
     def step(self, x: list, w_ref: float, tau_load: float, h: float) -> list:
         """Advance the state by h with w_ref and tau_load held (classic RK4 substeps: the stages
@@ -111,7 +133,7 @@ class Motor:
         back, so only (w, z, i) go into the stages)."""
         n = max(1, math.ceil(h * self.rate / RATE_STEP))
         dt = h / n
-        half, sixth, rates = 0.5 * dt, dt / 6.0, self.rates
+        half, sixth, rates = 0.5 * dt, dt / 6.0, self._rates
         w, z, i, e3, e4, e5, e6, e7 = x
         for _ in range(n):
             p = rates(w, z, i, w_ref, tau_load)
