@@ -29,8 +29,10 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   time and on the breakpoints of the graph (Stops: a jump gets a short step before it), and
   the rows between (every step_size seconds: results.csv's) are interpolated (dense.py),
   whose error estimate cuts a step too.
-The signed sum of the accepted steps' errors is the run's error estimate (plus a row's
-interpolation error's).
+The controller holds the signed sum of the accepted steps' errors; the run's error estimate
+is the error models' and, for the pair's outputs, the difference of the run and the run
+stepped whole beside it over 3 (trajectory.py: the errors carried through the dynamics,
+damped where the states relax), plus a row's interpolation error's.
 """
 from __future__ import annotations
 
@@ -48,6 +50,7 @@ from .instance import RunningInstance
 from .plan import Holds
 from .dense import DenseRows
 from .recorder import Recorder
+from .trajectory import WholeSteps
 from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
 
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
@@ -72,7 +75,9 @@ class AdaptiveHolds(Holds):
     """Holds over unequal steps: h (this step), g and f (the two before). `hold`: the
     registry's (masters.py) for the adaptive master, whose fixed weights the blends replace;
     `models`: Graph.error_models (per instance name, a factory of an error model for its
-    held inputs)."""
+    held inputs). A "through" input (plan._blend_roles) is held as a "state" one, and set to
+    its end value after the doStep."""
+    through = True
 
     def __init__(self, hold: str, models: tuple = ()):
         super().__init__(hold)
@@ -98,7 +103,7 @@ class AdaptiveHolds(Holds):
     def add(self, buffer, src, roles, targets: list[Port], inst: Instance) -> "_VarBlend":
         blend = _VarBlend(self, buffer, src, roles)
         self.blends.append(blend)
-        self.ahead = self.ahead or any(role != "state" for role in roles)
+        self.ahead = self.ahead or any(role not in ("state", "through") for role in roles)
         factory = self.models.get(inst.name)
         client = factory(blend, [t.ref.variable for t in targets], inst) if factory else None
         (self.paired if client is None else self.clients).append(blend if client is None
@@ -136,6 +141,7 @@ class _VarBlend:
         # the held polynomial's terms beyond the line through u_k, u_k+1 (fill): a s (s - h)
         # (the limited parabola's or the cubic's) and b s (s - h) (s + g) (the cubic's)
         self.a, self.b = np.zeros(m), np.zeros(m)
+        self.shift = None   # added to the values now (the whole-step trajectory's, trajectory.py)
 
     def fill(self) -> None:
         hs = self.holds
@@ -143,6 +149,8 @@ class _VarBlend:
             self._fill_half(hs.half)
             return
         np.take(self.buffer, self.src, out=self.rows[0])
+        if self.shift is not None:
+            self.rows[0] += self.shift
         now, u, u1, _ = self.rows
         h, g = hs.h, hs.g
         mean = 0.5 * (now + u)
@@ -255,6 +263,14 @@ class OutputErrors:
         self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
         self.whole, self.step, self.sum, self.scaled, self.weighted = (
             np.zeros(len(self.slots)) for _ in range(5))
+        self.position = {int(slot): i for i, slot in enumerate(self.slots)}
+
+    def upstream(self, slots) -> np.ndarray:
+        """Per slot (an error model's inputs' sources), the signed accumulated error of that
+        output at the middle of this step (the sum so far and half this step's), 0 where the
+        pair does not cover it: the error the model's FMU is fed from upstream."""
+        at = [self.position.get(int(slot)) for slot in slots]
+        return np.array([0.0 if i is None else self.sum[i] + 0.5 * self.step[i] for i in at])
 
     def size(self, i: int) -> float:
         """The largest |y| of the i-th error model's recorded outputs."""
@@ -285,16 +301,22 @@ class OutputErrors:
 
 
 def step_errors(holds: AdaptiveHolds, errors: OutputErrors, left: float, h: float,
-                tol: tuple[float, float]) -> tuple[float, tuple[float, float], list]:
+                tol: tuple[float, float], signed: Callable = lambda slots: None
+                ) -> tuple[float, tuple[float, float], list]:
     """(the step's own error, (the accumulated error with it, without it)), in units of the
     tolerance, the worst over the error models and the pair's outputs, and the models'
-    updates."""
+    updates. Each model is fed its inputs' sources' accumulated errors: the pair's sum (for
+    its bound, the controller's) and `signed` of the slots (for its estimate: the whole-step
+    trajectory's, or None: the same sum)."""
     atol, rtol = tol
     own, drift, before = errors.ratios(atol, rtol)
     updates = []
     for i, client in enumerate(holds.clients):
         scale = atol + rtol * errors.size(i)
-        error, update = client.step(holds.h, left)
+        bound = errors.upstream(client.sources)
+        carried = signed(client.sources)
+        error, update = client.step(holds.h, left, (bound, bound if carried is None
+                                                     else carried))
         own, drift = max(own, error / scale), max(drift, client.after(h, update) / scale)
         before = max(before, max(client.now()) / scale)
         updates.append(update)
@@ -450,6 +472,8 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
         if progress is not None and _time.perf_counter() >= next_report:
             progress((t - start) / (stop - start))
             next_report = _time.perf_counter() + 0.5
+    if loop.whole is not None:
+        loop.whole.close(t)
 
 
 class _Loop:
@@ -472,11 +496,17 @@ class _Loop:
         self.rows = DenseRows(recorder, tol, near, self.names(),
                               len(self.names()) - len(self.errors.names))
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
+        self.whole = WholeSteps(running, self.program, holds.blends, self.real, self.ints,
+                                self.errors.slots) if len(self.errors.slots) else None
 
     def estimate(self) -> list[float]:
         """The accumulated error now, per covered output: the models' then the pair's."""
         return [*(e for c in self.holds.clients for e in c.now(signed=True)),
-                *np.abs(self.errors.sum)]
+                *(np.abs(self.errors.sum) if self.whole is None else self.whole.error())]
+
+    def _carried(self, slots) -> np.ndarray | None:
+        """The whole-step trajectory's signed error estimate at `slots` (None without it)."""
+        return None if self.whole is None else self.whole.signed(slots)
 
     def names(self) -> list[str]:
         return [*(f"{c.name}.{o}" for c in self.holds.clients for o in c.outputs),
@@ -488,6 +518,9 @@ class _Loop:
         save_states(self.running, t)
         self.saved[0][:], self.saved[1][:] = self.real, self.ints
         h, updates, ratio, drift = self._take(t, goal, ctrl_c)
+        if self.whole is not None:
+            self.counts["passes"] += 1
+            self.whole.step(t, h)
         free_states(self.running, t)
         self.holds.commit()
         self.counts["steps_taken"] += 1
@@ -513,7 +546,8 @@ class _Loop:
                 raise KeyboardInterrupt
             self._attempt(t, h)
             own, drift, updates = step_errors(self.holds, self.errors, self.stop - t - h, h,
-                                              self.tol)
+                                              self.tol,
+                                              self._carried)
             ratio, worst = control.ratios(own, h, drift, t + h - self.start,
                                           self.holds.jump_next)
             rows = self.rows.ratio(t + h)     # the rows in the step: their interpolation

@@ -39,10 +39,11 @@ ONE = Fraction(1)
 CANDIDATES = tuple((Fraction(a), Fraction(b)) for a, b in (
     ("3/2", "3"), ("5/4", "5/2"), ("5/3", "5"), ("2", "4"), ("2", "10"), ("5/2", "5"),
     ("5", "10"), ("5", "25")))
-ADAPTIVE_METHOD = ("the adaptive master's per-step errors, signed and summed: per recorded "
-                   "output the embedded hold pair's difference (each held input's next term "
-                   "taken off), where an FMU has an error model its own (a PoseIntegrator's: "
-                   "the hold's next term, the frame's turning, the heading's lever arm)")
+ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
+                   "the run and the same run stepped whole on its accepted steps (each step "
+                   "of the run is the embedded pair's two halves), where an FMU has an error "
+                   "model its own (a PoseIntegrator's: the hold's next term, the frame's "
+                   "turning, the heading's lever arm, the error of the twist it is fed)")
 _END = np.iinfo(np.int64).max
 # the coarser runs' differences growing more than this times as fast as the master's order
 # allows: they are out of the range where the error goes as h^p, and no number is given

@@ -94,6 +94,7 @@ class RunningInstance:
         self.failed = False   # returned Discard or worse: freed, never kept
         self.reads: list = []     # (c_get, vrs, n, pointer), filled by the plan
         self.writes: list = []    # (fill, c_set, vrs, n, pointer)
+        self.resets: list = []    # the same, set after doStep and before the reads (plan.py)
 
     def function_name(self, name: str) -> str:
         """This instance's name for an FMI 2.0 function the stepping code names in a failure

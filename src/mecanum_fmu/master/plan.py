@@ -98,7 +98,7 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
     one np.take. Real inputs that a hold blends (see HOLDS) get a staging array filled from
     their history."""
     links = [l for l in graph.links if l.target.ref.instance == r.name]
-    roles = _blend_roles(r, links, position) if hold != "zoh" else {}
+    roles = _blend_roles(r, links, position, holds.through) if hold != "zoh" else {}
     real = [l for l in links if l.target.type == "Real"]
     groups = (("Real", [l for l in real if l.target.ref.variable not in roles]),
               ("Blend", [l for l in real if l.target.ref.variable in roles]),
@@ -116,6 +116,8 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
             blend = holds.add(buf, src, [roles[l.target.ref.variable] for l in mine],
                               [l.target for l in mine], r.inst)
             r.writes.append((blend.fill, c_set, vrs, len(mine), _pointer(blend.staging, 0, ctype)))
+            _plan_resets(r, [l for l in mine if roles[l.target.ref.variable] == "through"],
+                         buffers)
         elif list(src) == list(range(src[0], src[0] + len(src))):
             r.writes.append((None, c_set, vrs, len(mine), _pointer(buf, int(src[0]), ctype)))
         else:
@@ -124,17 +126,36 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
                              _pointer(staging, 0, ctype)))
 
 
+def _plan_resets(r: RunningInstance, links: list, buffers: Buffers) -> None:
+    """The "through" inputs (held at their mean during doStep) set to their end values after
+    it, before the outputs are read: the outputs that depend on them see u_k+1."""
+    if not links:
+        return
+    ctype, dtype = _C_TYPES["Real"]
+    src = np.array([buffers.slot(l.source) for l in links], dtype=np.intp)
+    staging = np.zeros(len(links), dtype=dtype)
+    r.resets.append((_take(buffers.inp("Real"), src, staging), r.c_set["Real"],
+                     _vr_array([l.target.vr for l in links]), len(links),
+                     _pointer(staging, 0, ctype)))
+
+
 def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[[], None]:
     """Inputs take the newest values (zero-order hold), gathered from scattered slots."""
     return lambda: np.take(buffer, src, out=staging)
 
 
-def _blend_roles(r: RunningInstance, links: list, position: dict) -> dict[str, str]:
+def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool = False
+                 ) -> dict[str, str]:
     """The Real inputs a hold blends, by role: "state" (no output of the FMU depends on it,
     its source stepped first: its value at t_k+1 is known), "state_ahead" (the same, but its
     source steps later: a loop closing into the FMU's state) and "fed_back" (an input with
-    direct feedthrough whose source steps later)."""
+    direct feedthrough whose source steps later). With `through` (the adaptive master's
+    holds), "through": an input with direct feedthrough into an FMU with a state (an output
+    that depends on no input), its source stepped first: held at its mean during doStep (for
+    the state, as "state"), set to its end value after it (for the outputs): otherwise the
+    state integrates the end value held over the step, an error of the first order."""
     state_only = _state_only_inputs(r.inst)
+    stateful = through and _has_state(r.inst)
     roles = {}
     for l in links:
         name, later = l.target.ref.variable, position[l.source.ref.instance] > position[r.name]
@@ -142,7 +163,14 @@ def _blend_roles(r: RunningInstance, links: list, position: dict) -> dict[str, s
             roles[name] = "state_ahead" if later else "state"
         elif later and l.target.type == "Real":
             roles[name] = "fed_back"
+        elif stateful and l.target.type == "Real":
+            roles[name] = "through"
     return roles
+
+
+def _has_state(inst: Instance) -> bool:
+    """Some output depends on no input (declared: an empty dependency list)."""
+    return any(u.dependencies == [] for u in inst.model.outputs)
 
 
 # How a hold sets a blended input, per role, in each mode (Holds.mode: single pass or
@@ -173,6 +201,7 @@ class Holds:
     """The history of every blended input and the pass a step is in. Per step: fill() of
     each blend (through the instances' writes), then commit() once the step is final."""
     PREDICT, CORRECT = 0, 1
+    through = False     # no "through" role (_blend_roles): the fixed-step masters'
 
     def __init__(self, hold: str):
         self.hold = hold

@@ -145,25 +145,33 @@ def _pieces(running: list[RunningInstance], program: list, holds: Holds, rollbac
 
 def programs(running: list[RunningInstance]) -> list:
     """What one_pass walks: per instance in step order, its component, doStep and transfers."""
-    return [(r, r.component, r.c_do_step, r.writes, r.reads) for r in running]
+    return [(r, r.component, r.c_do_step, r.writes, r.resets, r.reads) for r in running]
 
 
 def one_pass(program: list, t: float, h_k: float) -> None:
-    """Every instance in step order: set its inputs, step it, read its outputs."""
-    for r, comp, do_step, writes, reads in program:
-        for fill, c_set, vrs, n, pointer in writes:
-            if fill is not None:
-                fill()
-            st = c_set(comp, vrs, n, pointer)
-            if st > 1:
-                raise StepFailure(r, "set", st, t, t + h_k)
+    """Every instance in step order: set its inputs, step it, set the inputs it holds at
+    their mean during the step to their end values (resets: the adaptive master's, plan.py),
+    read its outputs."""
+    for r, comp, do_step, writes, resets, reads in program:
+        _set(r, comp, writes, t, h_k)
         st = do_step(comp, t, h_k, 1)
         if st > 1:
             raise StepFailure(r, r.step_failure(), st, t, t + h_k)
+        if resets:
+            _set(r, comp, resets, t, h_k)
         for c_get, vrs, n, pointer in reads:
             st = c_get(comp, vrs, n, pointer)
             if st > 1:
                 raise StepFailure(r, "get", st, t + h_k, t + h_k)
+
+
+def _set(r: RunningInstance, comp, writes: list, t: float, h_k: float) -> None:
+    for fill, c_set, vrs, n, pointer in writes:
+        if fill is not None:
+            fill()
+        st = c_set(comp, vrs, n, pointer)
+        if st > 1:
+            raise StepFailure(r, "set", st, t, t + h_k)
 
 
 def save_states(running: list[RunningInstance], t: float, states: list | None = None) -> None:

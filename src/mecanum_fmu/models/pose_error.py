@@ -48,20 +48,29 @@ class PoseError:
         self.heading = np.zeros(2)
         self.moment = np.zeros((2, 2))
 
-    def step(self, h: float, left: float) -> tuple[float, tuple]:
+    @property
+    def sources(self):
+        """The buffer slots of the twist's sources (vx, vy, w)."""
+        return self.blend.src[self.index]
+
+    def step(self, h: float, left: float, upstream=((0.0,) * 3,) * 2) -> tuple[float, tuple]:
         """The larger of this step's position error bound (m) and |heading error| (rad),
-        and the signed update to apply if the step is accepted."""
+        and the signed update to apply if the step is accepted. `upstream`: the error the
+        twist (vx, vy, w) already carries from its sources, for the bound and for the
+        estimate (the master's, accumulated): the pose integrates it, h times it per step."""
         e, signed = self.blend.error()
         ivx, ivy, iw = self.index
+        ux, uy, uw = (h * float(v) for v in upstream[0])
+        sx, sy, sw = (h * float(v) for v in upstream[1])
         now, u, mean = self.blend.rows[0], self.blend.rows[1], self.blend.staging
         vx, vy, w = mean[ivx], mean[ivy], mean[iw]
         dvx, dvy, dw = now[ivx] - u[ivx], now[ivy] - u[ivy], now[iw] - u[iw]
         # held minus true: the cubic's term (the third derivative's, h^4/24 over the step)
         # and the frame turning within the step, -J (w dv - dw v) h^2 / 12 (docs/masters.md)
         tx, ty = (w * dvx - dw * vx) * h * h / 12, (w * dvy - dw * vy) * h * h / 12
-        body = np.array([(h * abs(e[ivx]) + ty, h * abs(e[ivy]) - tx),
-                         (h * signed[ivx] + ty, h * signed[ivy] - tx)])
-        e_theta = np.array([h * abs(e[iw]), h * signed[iw]])
+        body = np.array([(h * abs(e[ivx]) + abs(ux) + ty, h * abs(e[ivy]) + abs(uy) - tx),
+                         (h * signed[ivx] + sx + ty, h * signed[ivy] + sy - tx)])
+        e_theta = np.array([h * abs(e[iw]) + abs(uw), h * signed[iw] + sw])
         bound = math.hypot(*body[0]) + e_theta[0] * math.hypot(vx, vy) * left
         return max(bound, float(e_theta[0])), (body, e_theta, (vx, vy, w))
 

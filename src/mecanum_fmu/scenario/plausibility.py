@@ -11,9 +11,6 @@ Graph.warnings.
   (masters.py, docs/masters.md).
 - A sampled block (Encoder, Gyro, Odometry) whose period is not a whole number of steps:
   its samples do not land on communication points (docs/robot.md, Sample times).
-- A drive train (MecanumDynamics) under the adaptive master: its first-order
-  coupling and the PI's anti-windup at the voltage clamp drive the steps to ~1e-5 s and below,
-  and its estimate is not the error there (docs/robot.md, Stability).
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
 .value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of
@@ -50,7 +47,7 @@ def problems(scenario, instances) -> list[Problem]:
     for inst in instances:
         for place, message in (_units(scenario, inst) + _table_span(scenario, inst)
                                + _stability(scenario, inst, instances)
-                               + _sampling(scenario, inst) + _drive_train(scenario, inst)):
+                               + _sampling(scenario, inst)):
             problem = Problem(scenario.label, place, message)
             if problem not in found:        # a shared parameter is seen by every taker
                 found.append(problem)
@@ -136,17 +133,6 @@ def _sampling(scenario, inst) -> list[tuple[str, str]]:
     return [(_place(scenario, inst, "period"),
              f"period = {period:g} s is not a whole number of steps of {exp.step_size:g} s: "
              f"{what}; use a step of period/n (e.g. {period / max(1, math.ceil(ratio)):g} s)")]
-
-
-def _drive_train(scenario, inst) -> list[tuple[str, str]]:
-    if inst.model_name != "MecanumDynamics" or not master_entry(
-            scenario.experiment.master).adaptive:
-        return []
-    return [(inst.declared_at, "the adaptive master does not finish a drive train yet: its "
-             "coupling is first order and the motors' anti-windup slides along the "
-             "voltage clamp, so its steps fall to ~1e-5 s and below (or stop), and its error "
-             "estimate is not the error here (docs/robot.md, Stability); use a fixed-step "
-             "master (quadratic) and drop the tolerance: its error estimate holds")]
 
 
 def _stability(scenario, inst, instances) -> list[tuple[str, str]]:

@@ -7,15 +7,21 @@ All values at the output shaft, at the rated voltage V_supply:
 so that the no-load speed and the stall torque come out exactly. A gear motor's numbers give
 k_e > k_t: (k_e - k_t) i w is the gearbox's loss, kept and reported (never forced to 0).
 
-The PI loop sets the voltage V = kp (w_ref - w) + z, z' = ki (w_ref - w); V is clamped so that
+The PI loop wants the voltage V* = kp (w_ref - w) + z; V is V* clamped so that
 |V - k_e w| <= R_a i_max (the current limit: with La = 0 it is exact, with La > 0 it limits the
-current the winding tends to) and then to |V| <= V_supply. Anti-windup: z stops integrating
-while V is clamped and the error pushes further into the clamp.
+current the winding tends to) and then to |V| <= V_supply. Anti-windup by back-calculation:
+z' = ki (w_ref - w) + k_b (V - V*), with k_b = ki / kp (the tracking time constant T_t = kp / ki,
+the PI's own integral time: Astrom and Hagglund), at most the loop's natural frequency
+sqrt(k_t ki / (R_a J)) (a small kp: no rate faster than the substeps already follow). While
+clamped, z relaxes to the clamp at the rate k_b (with k_b kp = ki, z' = k_b (V - z)); unclamped
+V = V* and z' = ki (w_ref - w). The rate is continuous in the state
+(no switch in the integrator: an adaptive step meets no discontinuity where the clamp releases).
 
 State x = (w, z, i, E_el, E_cu, E_visc, E_gear, E_load); i is a state only when La > 0 (else
 the algebraic (V - k_e w)/R_a); the energies are the integrals of V i, R_a i^2, b w^2,
 (k_e - k_t) i w and tau_load w, taken with the same Runge-Kutta stages as the motion.
 """
+import functools
 import math
 
 DATASHEET = ("V_supply", "stall_torque", "stall_current", "no_load_speed", "no_load_current")
@@ -57,6 +63,13 @@ def motor_problem(V_supply, stall_torque, stall_current, no_load_speed, no_load_
     return None
 
 
+def back_calculation(kp: float, ki: float, k_t: float, R_a: float, J: float) -> float:
+    """The anti-windup's tracking gain k_b [1/s]: ki / kp (T_t = the integral time), at most
+    the PI loop's natural frequency sqrt(k_t ki / (R_a J)) (which Motor.rate includes)."""
+    natural = math.sqrt(k_t * ki / (R_a * J))
+    return min(ki / kp, natural) if kp > 0.0 else natural
+
+
 class Motor:
     """The parameters of one motor, with the derived constants."""
 
@@ -66,33 +79,53 @@ class Motor:
         self.kp, self.ki, self.i_max = kp, ki, i_max
         self.R_a, self.k_t, self.k_e, self.b = derived(
             V_supply, stall_torque, stall_current, no_load_speed, no_load_current)
+        self.k_b = back_calculation(kp, ki, self.k_t, self.R_a, J)
         rate = (self.b + self.k_t * (self.k_e + kp) / self.R_a) / J + math.sqrt(
             self.k_t * ki / (self.R_a * J))
         self.rate = max(rate, self.R_a / La) if La > 0.0 else rate
 
-    def voltage(self, w: float, z: float, w_ref: float) -> tuple[float, bool]:
-        """(V after the current limit and the supply clamp, whether z may integrate)."""
+    def voltage(self, w: float, z: float, w_ref: float) -> tuple[float, float]:
+        """(V after the current limit and the supply clamp, the PI's wanted V*)."""
         wanted = self.kp * (w_ref - w) + z
         back = self.k_e * w
         span = self.R_a * self.i_max
         V = max(back - span, min(back + span, wanted))      # the current limit, then
         V = max(-self.V_supply, min(self.V_supply, V))      # the supply: it always wins
-        error = w_ref - w
-        integrate = not ((wanted > V and error > 0.0) or (wanted < V and error < 0.0))
-        return V, integrate
+        return V, wanted
 
     def current(self, w: float, i: float, V: float) -> float:
         return i if self.La > 0.0 else (V - self.k_e * w) / self.R_a
 
     def rates(self, w: float, z: float, i: float, w_ref: float, tau_load: float) -> tuple:
         """The derivatives of x = (w, z, i, E_el, E_cu, E_visc, E_gear, E_load)."""
-        V, integrate = self.voltage(w, z, w_ref)
-        i = self.current(w, i, V)
-        di = (V - self.R_a * i - self.k_e * w) / self.La if self.La > 0.0 else 0.0
-        return ((self.k_t * i - self.b * w - tau_load) / self.J,
-                self.ki * (w_ref - w) if integrate else 0.0, di,
-                V * i, self.R_a * i * i, self.b * w * w, (self.k_e - self.k_t) * i * w,
-                tau_load * w)
+        return self._rates(w, z, i, w_ref, tau_load)
+
+    @functools.cached_property
+    def _rates(self):
+        """rates() with voltage() and current() inlined and the constants bound: the same
+        float operations in the same order (the same bits), without the method calls and
+        attribute look-ups, which were most of a drive-train run's time."""
+        kp, ki, k_b, k_t, k_e, b = self.kp, self.ki, self.k_b, self.k_t, self.k_e, self.b
+        R_a, La, J, V_supply = self.R_a, self.La, self.J, self.V_supply
+        span, gear, inductive = R_a * self.i_max, k_e - k_t, La > 0.0
+
+        def rates(w, z, i, w_ref, tau_load):
+            wanted = kp * (w_ref - w) + z
+            back = k_e * w
+            # voltage()'s max(lo, min(hi, v)), written as the builtins decide (min(a, b) is
+            # b if b < a else a, max(a, b) is b if b > a else a: NaN included)
+            hi, lo = back + span, back - span
+            V = wanted if wanted < hi else hi
+            V = V if V > lo else lo
+            V = V if V < V_supply else V_supply
+            V = V if V > -V_supply else -V_supply
+            if inductive:
+                di = (V - R_a * i - k_e * w) / La
+            else:
+                i, di = (V - k_e * w) / R_a, 0.0
+            return ((k_t * i - b * w - tau_load) / J, ki * (w_ref - w) + k_b * (V - wanted), di,
+                    V * i, R_a * i * i, b * w * w, gear * i * w, tau_load * w)
+        return rates
 
     def step(self, x: list, w_ref: float, tau_load: float, h: float) -> list:
         """Advance the state by h with w_ref and tau_load held (classic RK4 substeps: the stages
@@ -100,7 +133,7 @@ class Motor:
         back, so only (w, z, i) go into the stages)."""
         n = max(1, math.ceil(h * self.rate / RATE_STEP))
         dt = h / n
-        half, sixth, rates = 0.5 * dt, dt / 6.0, self.rates
+        half, sixth, rates = 0.5 * dt, dt / 6.0, self._rates
         w, z, i, e3, e4, e5, e6, e7 = x
         for _ in range(n):
             p = rates(w, z, i, w_ref, tau_load)
