@@ -551,3 +551,42 @@ def test_a_full_disk_is_reported_as_run_reports_it_before_the_first_run(tmp_path
         assert sorted(os.listdir(out)) == []
     finally:
         subprocess.run(["umount", str(disk)], check=False)
+
+
+SPAWN_MASKS = '''\
+"""Start the sweep's fork server as the first sweep of a process does, and print the signals
+blocked in the starting thread at each interpreter multiprocessing spawns for it."""
+import json, signal, sys
+import multiprocessing.util as util
+from mecanum_fmu.sweep import cluster
+
+seen, real = [], util.spawnv_passfds
+
+
+def spy(path, args, passfds):
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    seen.append([args[-1], sorted(int(s) for s in blocked)])
+    return real(path, args, passfds)
+
+
+util.spawnv_passfds = spy
+cluster._forkserver_ignoring_ctrl_c()
+print(json.dumps(seen))
+'''
+
+
+def test_the_fork_server_starts_with_the_group_signals_blocked(tmp_path):
+    """The fork server is a new interpreter: a Ctrl-C or SIGTERM to the group while it imports
+    `site` (before the preload ignores them) would kill it with a traceback on the sweep's
+    stderr (seen under load in test_ctrl_c_to_the_group_while_the_workers_start). Both must
+    be blocked when it is spawned, in the first sweep of a process too, where multiprocessing
+    starts its resource tracker first and unblocks both after spawning the tracker."""
+    script = tmp_path / "masks.py"
+    script.write_text(SPAWN_MASKS)
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          env=child_env(tmp_path), timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    spawned = json.loads(proc.stdout.strip().splitlines()[-1])
+    servers = [mask for command, mask in spawned if "multiprocessing.forkserver" in command]
+    assert len(servers) == 1, spawned
+    assert {int(signal.SIGINT), int(signal.SIGTERM)} <= set(servers[0]), spawned

@@ -235,13 +235,18 @@ def _forkserver_ignoring_ctrl_c() -> None:
     restarts one while the cluster closes). This thread blocks both while the server is
     spawned (the mask is inherited: a signal before the preload runs waits, then is dropped);
     the client's own dispositions never change, so a signal meanwhile is taken by another
-    thread of the client (OpenBLAS's) and handled as usual: none is lost."""
+    thread of the client (OpenBLAS's) and handled as usual: none is lost. The resource
+    tracker, which the server's start launches first in a process's first sweep, is started
+    before the mask is set: it unblocks both after its own spawn, and the server then started
+    unblocked (a group signal during its `site` import was a traceback on the sweep's stderr)."""
+    from multiprocessing import resource_tracker
     from distributed.utils import get_mp_context
     get_mp_context()                      # sets Dask's preload list for the server
     server = multiprocessing.forkserver._forkserver
     if PRELOAD not in server._preload_modules:
         server.set_forkserver_preload([PRELOAD, *server._preload_modules])
     _socket_folder()
+    resource_tracker.ensure_running()     # it blocks and unblocks both around its own spawn
     signal.pthread_sigmask(signal.SIG_BLOCK, GROUP_SIGNALS)
     try:
         server.ensure_running()
