@@ -50,7 +50,7 @@ from .instance import RunningInstance
 from .plan import Holds
 from .dense import DenseRows
 from .recorder import Recorder
-from .trajectory import WholeSteps
+from .trajectory import WholeSteps, slot_positions, values_at
 from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
 
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
@@ -263,14 +263,13 @@ class OutputErrors:
         self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
         self.whole, self.step, self.sum, self.scaled, self.weighted = (
             np.zeros(len(self.slots)) for _ in range(5))
-        self.position = {int(slot): i for i, slot in enumerate(self.slots)}
+        self.positions = slot_positions(self.slots)
 
     def upstream(self, slots) -> np.ndarray:
         """Per slot (an error model's inputs' sources), the signed accumulated error of that
         output at the middle of this step (the sum so far and half this step's), 0 where the
         pair does not cover it: the error the model's FMU is fed from upstream."""
-        at = [self.position.get(int(slot)) for slot in slots]
-        return np.array([0.0 if i is None else self.sum[i] + 0.5 * self.step[i] for i in at])
+        return values_at(self.positions, self.sum + 0.5 * self.step, slots)
 
     def size(self, i: int) -> float:
         """The largest |y| of the i-th error model's recorded outputs."""

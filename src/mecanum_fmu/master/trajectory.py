@@ -22,6 +22,17 @@ import numpy as np
 from .stepping import free_states, one_pass, restore_states, save_states
 
 
+def slot_positions(slots) -> dict[int, int]:
+    """{buffer slot: its index} of the recorded outputs an estimate covers, for values_at."""
+    return {int(slot): i for i, slot in enumerate(slots)}
+
+
+def values_at(positions: dict[int, int], values: np.ndarray, slots) -> np.ndarray:
+    """values (one per covered output) at the given buffer slots, 0 where a slot has none."""
+    at = [positions.get(int(slot)) for slot in slots]
+    return np.array([0.0 if i is None else values[i] for i in at])
+
+
 class WholeSteps:
     """The whole-step trajectory beside the kept run: its FMU states at t_k, its inputs'
     history per blend, and its difference from the kept run per recorded output."""
@@ -33,7 +44,7 @@ class WholeSteps:
         self.states: list | None = None         # None: at t0 it is the run's own state
         self.history = [b.history.copy() for b in blends]
         self.difference = np.zeros(len(slots))
-        self.position = {int(slot): i for i, slot in enumerate(slots)}
+        self.positions = slot_positions(slots)
 
     def step(self, t: float, h: float) -> None:
         """Move it over the step just accepted (t -> t + h). The FMUs are at the kept run's
@@ -68,8 +79,7 @@ class WholeSteps:
 
     def signed(self, slots) -> np.ndarray:
         """The kept run's signed error at the given buffer slots now (0 where it has none)."""
-        at = [self.position.get(int(slot)) for slot in slots]
-        return np.array([0.0 if i is None else self.difference[i] / 3.0 for i in at])
+        return values_at(self.positions, self.difference / 3.0, slots)
 
     def _swap_in(self) -> list:
         """The blends take this trajectory's history; the later sources' values are shifted
