@@ -24,7 +24,7 @@ from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario.document import Experiment
 from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .coarse import Start, coarse_runs
-from .estimate import coarse_plan, error_estimate
+from .estimate import coarse_plan, error_estimate, pair_rows
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
 from .recorder import Recorder, step_count
@@ -68,13 +68,21 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
-        start = _start(graph, experiment, running, buffers, stack) if with_estimate else None
+        pair = pair_rows(graph, experiment, buffers.real_slots, recorder.n_steps) \
+            if with_estimate else None
+        if not isinstance(pair, str) and pair is not None:
+            recorder.tap = pair
+        start = _start(graph, experiment, running, buffers, stack) \
+            if with_estimate and (not recorder.tap or pair.may_fail) else None
         recorder.record()
         holds.prime()
         stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
         _run_loop(recorder, ctrl_c, buffers, stepper)
         results = recorder.results(True)
-        if start is not None:
+        found = pair.finish() if recorder.tap else pair
+        if with_estimate:
+            results.extra["pair"] = {"graph": graph, "found": found}
+        if start is not None and not (isinstance(found, dict) and found["failed"] is None):
             results.extra["coarse"] = coarse_runs(
                 graph, results, start, holds,
                 lambda rec: _stepper(how, running, rec, ctrl_c, None, holds)[0], ctrl_c)

@@ -104,8 +104,9 @@ class AdaptiveHolds(Holds):
         blend = _VarBlend(self, buffer, src, roles)
         self.blends.append(blend)
         self.ahead = self.ahead or any(role not in ("state", "through") for role in roles)
-        factory = self.models.get(inst.name)
-        client = factory(blend, [t.ref.variable for t in targets], inst) if factory else None
+        model = self.models.get(inst.name)
+        client = (model.stepwise(blend, [t.ref.variable for t in targets], inst) if model
+                  else None)
         (self.paired if client is None else self.clients).append(blend if client is None
                                                                  else client)
         return blend

@@ -30,6 +30,8 @@ from ..scenario.graph import Graph
 from ..masters import DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, entry as master_entry
 from ..results import BELOW_ROUND_OFF, Results, round_off
 from .breakpoints import graph_breaks
+from .pair import METHOD as PAIR_METHOD, PairPlan, pair_plan
+from .pair_rows import PairRows
 
 METHOD = ("Richardson extrapolation: the run repeated at {r1} h and {r2} h, e ~ (y_h - y_r1h)/"
           "(r1^p - 1) with the observed order p bounded to [1, {order}]")
@@ -91,6 +93,23 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
         "the run has fewer than 4 steps: no coarser runs to compare with")
 
 
+def pair_of(graph: Graph, exp, real_slots: dict) -> PairPlan | str | None:
+    """The embedded pair's plan for this run (pair.py), or why the pair does not apply
+    (Richardson then estimates), or None where the run gets no pair: an estimate other than
+    auto, the adaptive master, no recorded Real output."""
+    if exp.estimate != "auto" or master_entry(exp.master).adaptive or not any(
+            p.type == "Real" for p in graph.recorded):
+        return None
+    return pair_plan(graph, real_slots)
+
+
+def pair_rows(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | str | None:
+    """The recorder's tap of the pair for this run (pair_rows.py), or why there is none."""
+    plan = pair_of(graph, exp, real_slots)
+    return PairRows(plan, exp, n_steps, graph_breaks(graph)) if isinstance(plan, PairPlan) \
+        else plan
+
+
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     """summary.json's `error_estimate` (per recorded Real output {"max", "end"}, in its unit,
     or None)
@@ -110,6 +129,10 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "relative_tolerance": (DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance
                                        is None else exp.relative_tolerance),
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
+    pair = results.extra.get("pair", {})
+    pair = pair.get("found") if pair.get("graph") is graph else _pair_afresh(graph, simulate)
+    if isinstance(pair, dict) and pair["failed"] is None:
+        return _pair_estimate(graph, results, names, pair)
     marks = graph_breaks(graph).times()
     factors = coarse_plan(graph, exp, marks)
     if isinstance(factors, str):
@@ -129,10 +152,42 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
         results[n], dtype=float), coarse[0][2][n], coarse[1][2][n]), rows, orders)
         for n in names}
     cost = sum(c[0] for c in coarse) / max(results.wall_time, 1e-12)
+    why = pair["failed"] if isinstance(pair, dict) else pair
     return {"error_estimate": estimate,
             "error_estimate_method": METHOD.format(r1=str(factors[0]), r2=str(factors[1]),
-                                                   order=orders[1]),
+                                                   order=orders[1])
+            + (f" (the embedded pair does not apply: {why})" if why else ""),
             "error_estimate_cost": round(cost, 3)}
+
+
+def _pair_afresh(graph: Graph, simulate) -> dict | str | None:
+    """The pair of a run made without it (master.simulate without with_estimate): the run
+    made again with it, or why the pair does not apply (None: the run gets none)."""
+    from .plan import Buffers
+    exp = graph.scenario.experiment
+    plan = pair_of(graph, exp, Buffers(graph, freeze=False).real_slots)
+    if not isinstance(plan, PairPlan):
+        return plan
+    try:
+        return simulate(graph, exp, keep_rows=2, with_estimate=True).extra["pair"]["found"]
+    except SimulationError as err:
+        return f"the run made again for it failed ({err})"
+
+
+def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict) -> dict:
+    """summary.json's estimate from the pair (pair_rows.PairRows.finish)."""
+    estimate = {}
+    for name in names:
+        worst, end = pair["estimate"].get(name, (0.0, 0.0))
+        floor = round_off(np.asarray(results[name], dtype=float), results.steps)
+        estimate[name] = {"max": worst if worst > floor else BELOW_ROUND_OFF,
+                          "end": end if end > floor else BELOW_ROUND_OFF}
+    models = ", ".join(pair["models"]) or "none here"
+    return {"error_estimate": estimate,
+            "error_estimate_method": PAIR_METHOD.format(
+                models=models, lag=" (under Jacobi, a step late per FMU with direct "
+                "feedthrough)" if pair["lagged"] else ""),
+            "error_estimate_cost": round(pair["seconds"] / max(results.wall_time, 1e-12), 3)}
 
 
 def steps_across(marks: np.ndarray, exp) -> bool:

@@ -154,8 +154,8 @@ def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool 
     that depends on no input), its source stepped first: held at its mean during doStep (for
     the state, as "state"), set to its end value after it (for the outputs): otherwise the
     state integrates the end value held over the step, an error of the first order."""
-    state_only = _state_only_inputs(r.inst)
-    stateful = through and _has_state(r.inst)
+    state_only = state_only_inputs(r.inst)
+    stateful = through and has_state(r.inst)
     roles = {}
     for l in links:
         name, later = l.target.ref.variable, position[l.source.ref.instance] > position[r.name]
@@ -168,7 +168,7 @@ def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool 
     return roles
 
 
-def _has_state(inst: Instance) -> bool:
+def has_state(inst: Instance) -> bool:
     """Some output depends on no input (declared: an empty dependency list)."""
     return any(u.dependencies == [] for u in inst.model.outputs)
 
@@ -303,7 +303,7 @@ def _pointer(array: np.ndarray, offset: int, ctype):
     return pointer
 
 
-def _state_only_inputs(inst: Instance) -> set[str]:
+def state_only_inputs(inst: Instance) -> set[str]:
     """Inputs that no output depends on directly (per the FMU's ModelStructure). Undeclared
     dependencies mean 'depends on every input', so such an FMU has no state-only inputs."""
     inputs = {v.name for v in inst.model.modelVariables if v.causality == "input"}

@@ -67,6 +67,9 @@ class Recorder:
         self.kept: list[np.ndarray] = []
         self.last: np.ndarray | None = None
         self.sink_seconds = 0.0  # time spent in flush (formatting, writing): not the loop's
+        # fed every chunk of whole buffer rows (and the index of its first row) as it is
+        # flushed: the embedded pair's error estimate (pair_rows.py)
+        self.tap: Callable[[np.ndarray, int], None] | None = None
         self.wall = 0.0
 
     @property
@@ -89,6 +92,8 @@ class Recorder:
             return
         tick = _time.perf_counter()
         exp, first, n = self.experiment, self.flushed, self.fill
+        if self.tap is not None:
+            self.tap(self.real[:n], first)
         index = np.arange(first, first + n)
         data = np.empty(n, dtype=self.dtype)
         data["time"] = grid_times(exp, index, self.n_steps)

@@ -101,3 +101,67 @@ class PoseError:
         carried = self.p * self.heading[k] - self.moment[k]
         return (abs(self.e[k, 0] - carried[1]), abs(self.e[k, 1] + carried[0]),
                 abs(self.heading[k]))
+
+
+def pose_batch(names: list[str], inst) -> "PoseBatch | None":
+    """The fixed-step masters' client for a PoseIntegrator whose vx, vy and w are linked
+    (`names`: its linked Real inputs, in the order the master hands their values), else None."""
+    if not all(n in names for n in _TWIST):
+        return None
+    return PoseBatch([names.index(n) for n in _TWIST], inst)
+
+
+class PoseBatch:
+    """The same error of one pose as PoseError's signed part, for the fixed-step masters'
+    embedded pair (master/pair.py), many steps at once. Per step it is handed the held twist,
+    its error (held - true mean over the step) and the true twist's change over the step,
+    in arrays. The run's pose is the held twist stepped on SE(2) (what the PoseIntegrator
+    does), the true one the true mean twist stepped the same way less the frame turning
+    within the step, J (w dv - dw v) h^2 / 12 (docs/masters.md); their difference is summed
+    step by step (each step's displacement against the other's, turned by the heading
+    error: no difference of two large sums, and no linearisation in the heading error,
+    which Jacobi's lag makes large), the running totals carried from batch to batch.
+
+    The batch interface: `outputs` (the variables it covers), steps(h, held, error, change)
+    -> the signed accumulated error of each output after each step, shape (steps, outputs)."""
+
+    def __init__(self, index: list[int], inst):
+        self.index, self.name = index, inst.name
+        self.outputs = _POSE
+        self.theta = float(inst.value("theta0"))      # the run's heading
+        self.e, self.heading = np.zeros(2), 0.0         # run - true: position, heading
+
+    def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
+              ) -> np.ndarray:
+        ivx, ivy, iw = self.index
+        vx, vy, w = held[:, ivx], held[:, ivy], held[:, iw]
+        ux, uy, uw = vx - error[:, ivx], vy - error[:, ivy], w - error[:, iw]
+        dvx, dvy, dw = change[:, ivx], change[:, ivy], change[:, iw]
+        run = _displacement(h, vx, vy, w)
+        tx, ty = (uw * dvx - dw * ux) * h * h / 12, (uw * dvy - dw * uy) * h * h / 12
+        true = _displacement(h, ux, uy, uw)
+        true = (true[0] - ty, true[1] + tx)
+        turned = self.theta + np.cumsum(h * w)
+        heading = self.heading + np.cumsum(h * error[:, iw])
+        before = np.concatenate(([self.theta], turned[:-1]))
+        lag = np.concatenate(([self.heading], heading[:-1]))
+        c, s = np.cos(lag), np.sin(lag)
+        bx = run[0] - (c * true[0] + s * true[1])      # R(-heading error) turns the true step
+        by = run[1] - (-s * true[0] + c * true[1])
+        c, s = np.cos(before), np.sin(before)
+        e = self.e + np.cumsum(np.column_stack((c * bx - s * by, s * bx + c * by)), axis=0)
+        self.theta, self.e, self.heading = float(turned[-1]), e[-1].copy(), float(heading[-1])
+        return np.column_stack((e, heading))
+
+
+def _displacement(h, vx, vy, w) -> tuple[np.ndarray, np.ndarray]:
+    """The body-frame displacement of a twist held over h on SE(2) (blocks/pose.pose_step's,
+    for arrays)."""
+    phi = w * h
+    small = np.abs(phi) < 1e-6
+    safe = np.where(small, 1.0, phi)
+    phi2 = phi * phi
+    a = np.where(small, 1.0 - phi2 / 6.0 + phi2 * phi2 / 120.0, np.sin(safe) / safe)
+    half = np.sin(0.5 * safe)
+    b = np.where(small, phi / 2.0 - phi * phi2 / 24.0, 2.0 * half * half / safe)
+    return h * (a * vx - b * vy), h * (b * vx + a * vy)

@@ -18,7 +18,7 @@ from fmpy.model_description import ModelDescription, ScalarVariable
 from . import plausibility
 from ..models import library as fmu_library
 from ..models.catalog import SAMPLED_MODELS, bundled_model
-from ..models.pose_error import pose_error
+from ..models.pose_error import pose_batch, pose_error
 from ..errors import Problem, ScenarioError
 from ..masters import DEFAULT, entry as master_entry
 from ..values import is_finite
@@ -75,9 +75,9 @@ class Graph:
     links: tuple[Link, ...]           # dependency order: walking it makes t0 consistent
     recorded: tuple[Port, ...]
     warnings: tuple[str, ...]
-    # per instance name, an error model the adaptive master hands its held inputs to (the
+    # per instance name, an error model the masters hand its held inputs to (the
     # PoseIntegrator's, models/pose_error.py): what the master cannot see on its own
-    error_models: tuple[tuple[str, Callable], ...] = ()
+    error_models: tuple[tuple[str, "ErrorModel"], ...] = ()
 
     def instance(self, name: str) -> Instance:
         return next(i for i in self.instances if i.name == name)
@@ -170,9 +170,21 @@ def _adaptive_problems(scenario: Scenario, order: list[Instance]) -> list[Proble
                     "tolerance")]
 
 
-def _error_models(order: list[Instance]) -> tuple[tuple[str, Callable], ...]:
-    """The bundled models' error models for the adaptive master (Graph.error_models)."""
-    return tuple((inst.name, pose_error) for inst in order if _role(inst) == "pose")
+@dataclass(frozen=True)
+class ErrorModel:
+    """An FMU's error model in the two forms the masters take: `stepwise(blend, names, inst)`
+    for the adaptive master (master/adaptive.py), `batch(names, inst)` for the fixed-step
+    masters' embedded pair (master/pair.py); each gives None where it does not apply."""
+    stepwise: Callable
+    batch: Callable
+
+
+POSE_MODEL = ErrorModel(pose_error, pose_batch)
+
+
+def _error_models(order: list[Instance]) -> tuple[tuple[str, ErrorModel], ...]:
+    """The bundled models' error models (Graph.error_models)."""
+    return tuple((inst.name, POSE_MODEL) for inst in order if _role(inst) == "pose")
 
 
 def _role(inst: Instance) -> str | None:

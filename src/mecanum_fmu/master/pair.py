@@ -1,0 +1,197 @@
+"""The fixed-step masters' error estimate from the run's own values: the embedded pair.
+
+A fixed-step run's coupling error comes from what the master holds over a step: an FMU with a
+state integrates the held value of an input that moves within the step, and under Jacobi
+every FMU with direct feedthrough hands its value on a step late. The recorder's rows hold
+every value that moves (plan.Buffers), so the pair takes no extra doStep. Per step and held
+input:
+- the master's own hold (the pair's lower-order member) is rebuilt from the values the input
+  took: gauss-seidel's newest value, the trapezoid, the quadratic master's limited parabola,
+  Jacobi's value of t_k;
+- the higher-order member is the mean over the step of the cubic through the four nearest
+  values of the same smooth piece of the sources (breakpoints.py: no piece reaches across a
+  table's corner or a jump; a step that ends on a jump sees the left value, extrapolated,
+  as the master steps it; a jump inside a step splits the step's mean between its pieces);
+- held - that mean is the step's error of the input.
+An FMU's error model (Graph.error_models' batch form: the PoseIntegrator's) carries those
+errors into its outputs. The outputs of an FMU without a state (every output depends on an
+input) read their inputs exactly: no error, or under Jacobi the lag d, row k against row
+k + d. An FMU with a state and no error model must see no error at all (its inputs held
+exactly: constants), else the estimate falls back to Richardson (estimate.py), as it does
+where the pair cannot follow an error: a feedback loop, an FMU fed by another's error.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.polynomial import polynomial as P
+
+from ..masters import entry as master_entry
+from ..scenario.graph import Graph
+from .breakpoints import NEAR
+from .plan import has_state, state_only_inputs
+
+METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
+          "through its nearest values in the same smooth piece (no extra doStep), carried "
+          "into the outputs by the FMUs' error models ({models}); outputs of FMUs without a "
+          "state read their inputs exactly{lag}")
+
+
+@dataclass
+class Group:
+    """One FMU's held Real inputs: their columns in the tapped rows, their roles ("state":
+    blended by the trapezoidal and quadratic holds; "direct": the newest value), the lag of
+    their values (Jacobi: steps late), and the FMU's error model (None: it must see none)."""
+    name: str
+    cols: np.ndarray
+    roles: np.ndarray
+    lag: int
+    model: object | None
+
+
+@dataclass
+class PairPlan:
+    slots: np.ndarray            # the buffer slots the tap keeps of every row
+    groups: list[Group]
+    lagged: list[tuple[str, int, int]]      # (output, column, lag): Jacobi's late outputs
+    covered: dict[str, tuple[int, int]]     # output -> (group, index in its model's outputs)
+    exact: list[str]
+    hold: str                    # "zoh", "trapezoidal", "quadratic" ; jacobi: "frozen"
+
+
+def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
+    """The pair's plan for this graph's fixed-step master, or why it has none.
+    `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives)."""
+    how = master_entry(graph.scenario.experiment.master)
+    frozen = how.freezes_inputs
+    position = {inst.name: i for i, inst in enumerate(graph.instances)}
+    into = {inst.name: [l for l in graph.links if l.target.ref.instance == inst.name]
+            for inst in graph.instances}
+    models = dict(graph.error_models)
+    lag: dict[str, int] = {}        # the FMUs whose outputs are exact (Jacobi: late by lag)
+    slots: dict[int, int] = {}
+    groups, failed = [], None
+    col = lambda port: slots.setdefault(real_slots[port], len(slots))   # noqa: E731
+    for inst in graph.instances:
+        links = into[inst.name]
+        late = [l for l in links if position[l.source.ref.instance] >= position[inst.name]]
+        if late:
+            return (f"{inst.name}'s input {late[0].target.ref.variable} closes a feedback "
+                    "loop, whose error the pair does not follow")
+        fed = sorted({l.source.ref.instance for l in links} - set(lag))
+        if fed:
+            return (f"{inst.name} is fed by {fed[0]}'s outputs, whose error the pair does "
+                    f"not carry through {inst.name}")
+        lags = {lag[l.source.ref.instance] for l in links}
+        if len(lags) > 1:
+            return f"{inst.name}'s inputs arrive with different lags under Jacobi"
+        d = lags.pop() if lags else 0
+        if not links or not has_state(inst):
+            lag[inst.name] = d + 1 if frozen and links else d
+            continue
+        if any(l.target.type != "Real" for l in links):
+            return f"{inst.name} has a state and an input that is not Real"
+        names = [l.target.ref.variable for l in links]
+        model = models.get(inst.name)
+        client = model.batch(names, inst) if model is not None else None
+        state_only = state_only_inputs(inst)
+        roles = np.array(["state" if how.hold != "zoh" and n in state_only else "direct"
+                          for n in names])
+        groups.append(Group(inst.name, np.array([col(l.source) for l in links]), roles, d,
+                            client))
+        if client is None:
+            lag[inst.name] = 0      # exact, if its inputs are held exactly (PairTap checks)
+    return _outputs(graph, lag, groups, slots, col, "frozen" if frozen else how.hold)
+
+
+def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hold: str
+             ) -> PairPlan | str:
+    """The plan's recorded outputs: exact, late (Jacobi) or covered by a model."""
+    covered, lagged, exact = {}, [], []
+    by_name = {g.name: (i, g) for i, g in enumerate(groups) if g.model is not None}
+    for port in graph.recorded:
+        if port.type != "Real":
+            continue
+        name, owner = str(port.ref), port.ref.instance
+        if owner in by_name:
+            i, g = by_name[owner]
+            if port.ref.variable not in g.model.outputs:
+                return (f"{name} is an output of {owner} that its error model does not "
+                        "cover")
+            covered[name] = (i, list(g.model.outputs).index(port.ref.variable))
+        elif lag.get(owner, 0) > 0:
+            lagged.append((name, col(port), lag[owner]))
+        else:
+            exact.append(name)
+    order = np.array(sorted(slots, key=slots.get), dtype=np.intp)
+    return PairPlan(order, groups, lagged, covered, exact, hold)
+
+
+# --- the weights of the cubic (or lower) through nodes 0 .. m-1, one step apart -----------
+
+@lru_cache(maxsize=None)
+def _weights(nodes: tuple[float, ...], lo: float, hi: float | None) -> np.ndarray:
+    """Per node, its Lagrange basis polynomial's mean over [lo, hi] (hi None: its value at
+    lo): the interpolant's mean (or value) is these weights dot the nodes' values."""
+    out = []
+    for i, x in enumerate(nodes):
+        others = [y for j, y in enumerate(nodes) if j != i]
+        basis = P.polyfromroots(others) / np.prod([x - y for y in others]) if others \
+            else np.array([1.0])
+        if hi is None:
+            out.append(P.polyval(lo, basis))
+        else:
+            whole = P.polyint(basis)
+            out.append((P.polyval(hi, whole) - P.polyval(lo, whole)) / (hi - lo))
+    return np.array(out)
+
+
+def _unit(m: int) -> tuple[float, ...]:
+    return tuple(float(i) for i in range(m))
+
+
+@dataclass(frozen=True)
+class Pieces:
+    """The smooth pieces of the sources on the grid of nodes 0 .. n (true times, in steps):
+    piece i starts at node starts[i] and its values are usable up to node ends[i] (a jump's
+    node belongs to the piece after it); `cut`: the nodes at which a step ends on a jump (the
+    master cuts it: the step sees the left value, the holds restart); `across`: step index ->
+    the fraction of it before a breakpoint inside it."""
+    starts: np.ndarray
+    ends: np.ndarray
+    cut: np.ndarray
+    across: dict
+
+
+_RANK = {"kink": 0, "across": 1, "jump": 2}
+
+
+def pieces(breaks, start: float, h: float, n: int) -> Pieces:
+    """The pieces of `breaks` (tables.Breaks) on a run of n steps of h from start: a kink on
+    a node ends one piece there and starts the next; a jump (or what may be one: `others`)
+    on a node starts the next piece there, the one before ending a node earlier; one inside
+    a step ends a piece at the step's start and starts the next at its end."""
+    bounds: dict[int, str] = {}
+    across: dict[int, float] = {}
+
+    def mark(j: int, kind: str) -> None:
+        if _RANK[kind] >= _RANK[bounds.get(j, "kink")]:
+            bounds[j] = kind
+    for times, kind in ((breaks.kinks, "kink"), (breaks.jumps, "jump"), (breaks.others, "jump")):
+        for b in np.asarray(times, dtype=float):
+            x = (b - start) / h
+            j = int(round(x))
+            if abs(x - j) < NEAR:
+                if 0 < j <= n:
+                    mark(j, kind)
+            elif 0 < x < n:
+                k = int(np.floor(x))
+                across.setdefault(k, x - k)
+                mark(k + 1, "across")
+    starts = [0] + sorted(bounds)
+    ends = [j if bounds[j] == "kink" else j - 1 for j in starts[1:]] + [n]
+    cut = sorted(j for j, kind in bounds.items() if kind == "jump")
+    return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
+                  np.array(cut, dtype=np.int64), across)
