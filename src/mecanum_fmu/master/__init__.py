@@ -24,7 +24,7 @@ from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario.document import Experiment
 from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .coarse import Start, coarse_runs
-from .estimate import coarse_plan, error_estimate, pair_rows
+from .estimate import coarse_plan, error_estimate, pair_tap
 from .instance import FmuCallError, RunningInstance
 from .plan import Buffers, Holds, plan_transfers
 from .recorder import Recorder, step_count
@@ -68,7 +68,7 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
-        pair = pair_rows(graph, experiment, buffers.real_slots, recorder.n_steps) \
+        pair = pair_tap(graph, experiment, buffers.real_slots, recorder.n_steps) \
             if with_estimate else None
         if not isinstance(pair, str) and pair is not None:
             recorder.tap = pair

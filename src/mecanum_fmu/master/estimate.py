@@ -93,6 +93,10 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
         "the run has fewer than 4 steps: no coarser runs to compare with")
 
 
+SHORT_PIECES = ("a table's rows are closer than two steps: the values the run sees do not "
+                "tell its input between them")
+
+
 def pair_of(graph: Graph, exp, real_slots: dict) -> PairPlan | str | None:
     """The embedded pair's plan for this run (pair.py), or why the pair does not apply
     (Richardson then estimates), or None where the run gets no pair: an estimate other than
@@ -103,11 +107,13 @@ def pair_of(graph: Graph, exp, real_slots: dict) -> PairPlan | str | None:
     return pair_plan(graph, real_slots)
 
 
-def pair_rows(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | str | None:
+def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | str | None:
     """The recorder's tap of the pair for this run (pair_rows.py), or why there is none."""
     plan = pair_of(graph, exp, real_slots)
-    return PairRows(plan, exp, n_steps, graph_breaks(graph)) if isinstance(plan, PairPlan) \
-        else plan
+    if not isinstance(plan, PairPlan):
+        return plan
+    rows = PairRows(plan, exp, n_steps, graph_breaks(graph))
+    return SHORT_PIECES if rows.pieces.short else rows
 
 
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:
@@ -164,10 +170,11 @@ def _pair_afresh(graph: Graph, simulate) -> dict | str | None:
     """The pair of a run made without it (master.simulate without with_estimate): the run
     made again with it, or why the pair does not apply (None: the run gets none)."""
     from .plan import Buffers
+    from .recorder import step_count
     exp = graph.scenario.experiment
-    plan = pair_of(graph, exp, Buffers(graph, freeze=False).real_slots)
-    if not isinstance(plan, PairPlan):
-        return plan
+    tap = pair_tap(graph, exp, Buffers(graph, freeze=False).real_slots, step_count(exp))
+    if not isinstance(tap, PairRows):
+        return tap
     try:
         return simulate(graph, exp, keep_rows=2, with_estimate=True).extra["pair"]["found"]
     except SimulationError as err:

@@ -23,10 +23,8 @@ where the pair cannot follow an error: a feedback loop, an FMU fed by another's 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-from numpy.polynomial import polynomial as P
 
 from ..masters import entry as master_entry
 from ..scenario.graph import Graph
@@ -129,40 +127,20 @@ def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hol
     return PairPlan(order, groups, lagged, covered, exact, hold)
 
 
-# --- the weights of the cubic (or lower) through nodes 0 .. m-1, one step apart -----------
-
-@lru_cache(maxsize=None)
-def _weights(nodes: tuple[float, ...], lo: float, hi: float | None) -> np.ndarray:
-    """Per node, its Lagrange basis polynomial's mean over [lo, hi] (hi None: its value at
-    lo): the interpolant's mean (or value) is these weights dot the nodes' values."""
-    out = []
-    for i, x in enumerate(nodes):
-        others = [y for j, y in enumerate(nodes) if j != i]
-        basis = P.polyfromroots(others) / np.prod([x - y for y in others]) if others \
-            else np.array([1.0])
-        if hi is None:
-            out.append(P.polyval(lo, basis))
-        else:
-            whole = P.polyint(basis)
-            out.append((P.polyval(hi, whole) - P.polyval(lo, whole)) / (hi - lo))
-    return np.array(out)
-
-
-def _unit(m: int) -> tuple[float, ...]:
-    return tuple(float(i) for i in range(m))
-
-
 @dataclass(frozen=True)
 class Pieces:
     """The smooth pieces of the sources on the grid of nodes 0 .. n (true times, in steps):
     piece i starts at node starts[i] and its values are usable up to node ends[i] (a jump's
     node belongs to the piece after it); `cut`: the nodes at which a step ends on a jump (the
     master cuts it: the step sees the left value, the holds restart); `across`: step index ->
-    the fraction of it before a breakpoint inside it."""
+    (the fraction of it before a breakpoint inside it, whether that may be a jump)."""
     starts: np.ndarray
     ends: np.ndarray
     cut: np.ndarray
     across: dict
+    # a piece with a kink at an end holds fewer than two nodes: the steps are longer than
+    # the table's rows, and the values the run sees do not tell the input between them
+    short: bool = False
 
 
 _RANK = {"kink": 0, "across": 1, "jump": 2}
@@ -174,7 +152,7 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     on a node starts the next piece there, the one before ending a node earlier; one inside
     a step ends a piece at the step's start and starts the next at its end."""
     bounds: dict[int, str] = {}
-    across: dict[int, float] = {}
+    across: dict[int, tuple[float, bool]] = {}
 
     def mark(j: int, kind: str) -> None:
         if _RANK[kind] >= _RANK[bounds.get(j, "kink")]:
@@ -188,10 +166,14 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
                     mark(j, kind)
             elif 0 < x < n:
                 k = int(np.floor(x))
-                across.setdefault(k, x - k)
+                if k not in across or kind == "jump":
+                    across[k] = (x - k, kind == "jump")
                 mark(k + 1, "across")
     starts = [0] + sorted(bounds)
     ends = [j if bounds[j] == "kink" else j - 1 for j in starts[1:]] + [n]
+    kinked = [bounds.get(j) in ("kink", "across") or bounds.get(e + 1) in ("kink", "across")
+              or (e in across and not across[e][1]) for j, e in zip(starts, ends)]
+    short = any(k and e - j < 1 for j, e, k in zip(starts, ends, kinked))
     cut = sorted(j for j, kind in bounds.items() if kind == "jump")
     return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
-                  np.array(cut, dtype=np.int64), across)
+                  np.array(cut, dtype=np.int64), across, short)

@@ -8,12 +8,49 @@ cost is a few NumPy operations per chunk of 4096 rows, not per step.
 from __future__ import annotations
 
 import time as _time
+from functools import lru_cache
 
 import numpy as np
 
-from .pair import Group, PairPlan, _unit, _weights, pieces
+from numpy.polynomial import polynomial as P
+
+from .pair import Group, PairPlan, pieces
 
 _FLOOR = 8 * np.finfo(float).eps     # per step and unit of size: results.round_off's
+
+
+@lru_cache(maxsize=64)
+def _basis(nodes: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The Lagrange basis polynomials through `nodes` (positions in steps, relative to a
+    step's start), as coefficient columns, and their antiderivatives."""
+    columns = []
+    for i, x in enumerate(nodes):
+        others = [y for j, y in enumerate(nodes) if j != i]
+        columns.append(P.polyfromroots(others) / np.prod([x - y for y in others])
+                       if others else np.array([1.0]))
+    values = np.column_stack(columns)
+    return values, np.column_stack([P.polyint(c) for c in values.T])
+
+
+def _means(nodes: tuple[float, ...], lo, hi) -> np.ndarray:
+    """Per node, its basis polynomial's integral over [lo, hi] (arrays of bounds: shape
+    (bounds, nodes))."""
+    whole = _basis(nodes)[1]
+    return (P.polyval(np.asarray(hi, dtype=float), whole)
+            - P.polyval(np.asarray(lo, dtype=float), whole)).T
+
+
+def _values(nodes: tuple[float, ...], x) -> np.ndarray:
+    """Per node, its basis polynomial's value at x (shape (x, nodes))."""
+    return P.polyval(np.asarray(x, dtype=float), _basis(nodes)[0]).T
+
+
+@lru_cache(maxsize=None)
+def _three(m: int, o: int) -> np.ndarray:
+    """For the nodes 0 .. m-1 one step apart: the weights of the mean over [o, o + 1] and of
+    the values at o and o + 1, as rows."""
+    nodes = tuple(float(i) for i in range(m))
+    return np.vstack((_means(nodes, [o], [o + 1.0]), _values(nodes, [o, o + 1.0])))
 
 
 class PairRows:
@@ -23,10 +60,29 @@ class PairRows:
         self.plan, self.n, self.h = plan, n_steps, exp.step_size
         self.last = (exp.stop_time - exp.start_time) / exp.step_size - (n_steps - 1)
         self.pieces = pieces(breaks, exp.start_time, exp.step_size, n_steps)
+        self.across_k = np.array(sorted(self.pieces.across), dtype=np.int64)
+        self.across_f = np.array([self.pieces.across[k][0] for k in self.across_k])
+        self.across_jump = np.array([self.pieces.across[k][1] for k in self.across_k], dtype=bool)
         self.window = np.empty((0, len(plan.slots)))
         self.lo, self.k = 0, 0      # the row window[0] holds; the next step to work out
         lags = [g.lag for g in plan.groups] + [d for _, _, d in plan.lagged]
         self.reach = 4 + max(lags, default=0)   # an across step's right nodes
+        # per lag, the columns whose true values the stencils rebuild (held inputs, late
+        # outputs), once per batch; where each group's and each late output's are among them
+        cols: dict[int, list] = {}
+        for g in plan.groups:
+            cols.setdefault(g.lag, []).extend(c for c in g.cols if c not in cols[g.lag])
+        for _, c, d in plan.lagged:
+            if c not in cols.setdefault(d, []):
+                cols[d].append(c)
+        self.cols = {d: np.array(c, dtype=np.intp) for d, c in cols.items()}
+        self.at = [np.array([cols[g.lag].index(c) for c in g.cols]) for g in plan.groups]
+        by_lag: dict[int, list] = {}
+        for name, col, d in plan.lagged:
+            by_lag.setdefault(d, []).append((name, cols[d].index(col)))
+        # Jacobi's late outputs, by lag: (lag, names, where their columns are in cols[lag])
+        self.lags = [(d, [n for n, _ in pairs], np.array([c for _, c in pairs]))
+                     for d, pairs in by_lag.items()]
         self.worst = {name: 0.0 for name in (*plan.covered, *(n for n, _, _ in plan.lagged))}
         self.end = dict.fromkeys(self.worst, 0.0)
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
@@ -45,7 +101,8 @@ class PairRows:
         new = rows[:, self.plan.slots]
         self.window = np.concatenate((self.window, new))
         np.maximum(self.size, np.max(np.abs(new), axis=0, initial=0.0), out=self.size)
-        self._steps(min(self.n - 1, self.lo + len(self.window) - 1 - self.reach))
+        if first + len(rows) <= self.n:     # not the last chunk (finish works that out)
+            self._steps(min(self.n - 1, self.lo + len(self.window) - 1 - self.reach))
         self.seconds += _time.perf_counter() - tick
 
     def finish(self) -> dict:
@@ -53,9 +110,11 @@ class PairRows:
         it took, and why the estimate falls back to Richardson (None: it does not)."""
         tick = _time.perf_counter()
         self._steps(self.n - 1)
-        for name, col, d in self.plan.lagged:      # the last row, against its true value
-            _, start, end = self._stencils(np.array([self.n - 1]), d, np.array([col]))
-            self._keep(name, self.window[self.n - self.lo, col] - end[:, 0])
+        for d, names, at in self.lags:      # the last row, against its true value
+            cols = self.cols[d][at]
+            _, _, end = self._stencils(np.array([self.n - 1]), d, cols)
+            for name, late in zip(names, self.window[self.n - self.lo, cols] - end[0]):
+                self._keep(name, np.array([late]))
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n]) for n in self.worst},
                 "seconds": self.seconds, "failed": self._moved(), "lagged": bool(
@@ -85,8 +144,9 @@ class PairRows:
         h = np.full(len(ks), self.h)
         if ks[-1] == self.n - 1:
             h[-1] = self.last * self.h
+        stencils = {d: self._stencils(ks, d, cols) for d, cols in self.cols.items()}
         for i, g in enumerate(self.plan.groups):
-            held, error, change = self._group(g, ks)
+            held, error, change = self._group(g, ks, [a[:, self.at[i]] for a in stencils[g.lag]])
             if g.model is None:
                 np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
                 continue
@@ -94,16 +154,18 @@ class PairRows:
             for name, (j, index) in self.plan.covered.items():
                 if j == i:
                     self._keep(name, signed[:, index])
-        for name, col, d in self.plan.lagged:
-            _, start, _ = self._stencils(ks, d, np.array([col]))
-            self._keep(name, self.window[ks - self.lo, col] - start[:, 0])
+        for d, names, at in self.lags:
+            late = self.window[ks - self.lo][:, self.cols[d][at]] - stencils[d][1][:, at]
+            for name, column in zip(names, late.T):
+                self._keep(name, column)
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
 
-    def _group(self, g: Group, ks: np.ndarray) -> tuple:
-        """(held, held - true mean, the true change over the step) per step and input."""
-        mean, start, end = self._stencils(ks, g.lag, g.cols)
+    def _group(self, g: Group, ks: np.ndarray, stencils: list) -> tuple:
+        """(held, held - true mean, the true change over the step) per step and input, from
+        the true input's (mean, start, end) per step (_stencils)."""
+        mean, start, end = stencils
         row = lambda shift: self.window[np.maximum(ks + shift - self.lo, 0)][:, g.cols]  # noqa
         now = row(0)
         if self.plan.hold == "frozen":      # Jacobi: the values of t_k, late by the lag
@@ -139,50 +201,80 @@ class PairRows:
         out = [np.empty((len(ks), len(cols))) for _ in range(3)]
         for mm, oo in set(zip(m.tolist(), o.tolist())):
             sel = (m == mm) & (o == oo)
-            nodes = _unit(mm)
             rows = s[sel][:, None] + np.arange(mm) + d - self.lo
-            values = self.window[rows][:, :, cols]
-            for target, w in zip(out, (_weights(nodes, oo, oo + 1.0), _weights(nodes, oo, None),
-                                       _weights(nodes, oo + 1.0, None))):
-                target[sel] = np.tensordot(values, w, axes=([1], [0]))
+            values = self.window[rows][:, :, cols]          # (steps, nodes, columns)
+            found = _three(mm, oo) @ values                 # (steps, 3, columns)
+            for i, target in enumerate(out):
+                target[sel] = found[:, i]
         self._odd_steps(ks, d, cols, (a, b, s, m), out)
         return tuple(out)
 
     def _odd_steps(self, ks, d, cols, stencil, out) -> None:
-        """The steps the uniform stencils do not fit: the last one when it is shorter, and a
-        step with a breakpoint inside (its mean split between the pieces on either side)."""
+        """The steps the uniform stencils do not fit: a step with a breakpoint inside (its
+        mean split between the pieces on either side), and the last one when shorter."""
         a, b, s, m = stencil
         first, last = int(ks[0]), int(ks[-1])
-        odd = [k for k in self.pieces.across if first <= k <= last]
-        if last == self.n - 1 and abs(self.last - 1.0) > 1e-9 and last not in odd:
-            odd.append(last)
-        for k in odd:
-            i = k - first
-            if k in self.pieces.across:
-                self._across(k, d, cols, (int(a[i]), int(m[i])), [o[i] for o in out])
-                continue
-            nodes = tuple(float(j) if j < self.n else k + self.last
+        # (a step whose right node is past the run's last true value (Jacobi's last d steps)
+        # keeps the left piece's polynomial)
+        lo, hi = np.searchsorted(self.across_k, [first, min(last, self.n - d - 1) + 1])
+        if hi > lo:
+            jump = self.across_jump[lo:hi]
+            self._across(self.across_k[lo:hi][jump], self.across_f[lo:hi][jump], first, d,
+                         cols, out)
+            self._kinked(self.across_k[lo:hi][~jump], self.across_f[lo:hi][~jump], first, d,
+                         cols, out)
+        if last == self.n - 1 and abs(self.last - 1.0) > 1e-9 and last not in self.pieces.across:
+            i, k = last - first, last
+            nodes = tuple(float(j - k) if j < self.n else self.last
                           for j in range(s[i], s[i] + m[i]))
             values = self.window[np.arange(s[i], s[i] + m[i]) + d - self.lo][:, cols]
-            for target, w in zip(out, (_weights(nodes, k, k + self.last),
-                                       _weights(nodes, k, None),
-                                       _weights(nodes, k + self.last, None))):
-                target[i] = w @ values
+            out[0][i] = (_means(nodes, [0.0], [self.last])[0] / self.last) @ values
+            out[1][i], out[2][i] = _values(nodes, [0.0, self.last]) @ values
 
-    def _across(self, k: int, d: int, cols, left: tuple, out: list) -> None:
-        """A step with a breakpoint at fraction f inside: f of the left piece's polynomial
-        (through the nodes up to k), 1 - f of the right one's (from node k + 1)."""
-        f = self.pieces.across[k]
-        a, _ = left
-        m_left = max(1, min(k - a + 1, 4))
-        nxt = int(np.searchsorted(self.pieces.starts, k + 1, side="right") - 1)
-        m_right = max(1, min(int(min(self.pieces.ends[nxt], self.n - d)) - k, 4))
-        lnodes = tuple(float(j) for j in range(k - m_left + 1, k + 1))
-        rnodes = tuple(float(j) for j in range(k + 1, k + 1 + m_right))
-        lvals = self.window[np.arange(k - m_left + 1, k + 1) + d - self.lo][:, cols]
-        rvals = self.window[np.arange(k + 1, k + 1 + m_right) + d - self.lo][:, cols]
+    def _kinked(self, ks, fs, first: int, d: int, cols, out: list) -> None:
+        """Steps with a kink at fraction f inside (the value is continuous there): the mean
+        of the two lines from u_k and u_k+1 to the value at the kink, the lines through two
+        nodes of each piece extrapolated to it (their mean where both pieces have two; the
+        chord where neither has)."""
+        if not len(ks):
+            return
+        pc = self.pieces
+        a = pc.starts[np.searchsorted(pc.starts, ks, side="right") - 1]
+        b = np.minimum(pc.ends[np.searchsorted(pc.starts, ks + 1, side="right") - 1],
+                       self.n - d)
+        row = lambda j: self.window[np.clip(j + d - self.lo, 0, len(self.window) - 1)][:, cols]  # noqa
+        u0, u1 = row(ks), row(ks + 1)
+        f = fs[:, None]
+        left = u0 + (u0 - row(ks - 1)) * f
+        right = u1 - (row(ks + 2) - u1) * (1 - f)
+        has_left, has_right = (ks - a >= 1)[:, None], (b - ks >= 2)[:, None]
+        chord = u0 + (u1 - u0) * f
+        kink = np.where(has_left & has_right, 0.5 * (left + right),
+                        np.where(has_left, left, np.where(has_right, right, chord)))
+        i = ks - first
+        out[0][i] = 0.5 * f * (u0 + kink) + 0.5 * (1 - f) * (kink + u1)
+        out[1][i], out[2][i] = u0, u1
+
+    def _across(self, ks, fs, first: int, d: int, cols, out: list) -> None:
+        """Steps with a jump at fraction f inside: the mean of the left piece's
+        polynomial (through its nodes up to k, at most 3) over [0, f] and of the right one's
+        (from node k + 1) over [f, 1]; their values at k and k + 1."""
+        if not len(ks):
+            return
+        pc = self.pieces
+        a = pc.starts[np.searchsorted(pc.starts, ks, side="right") - 1]
+        right = np.searchsorted(pc.starts, ks + 1, side="right") - 1
+        m_left = np.clip(ks - a + 1, 1, 3)
+        m_right = np.clip(np.minimum(pc.ends[right], self.n - d) - ks, 1, 3)
         mean, start, end = out
-        mean[:] = (f * (_weights(lnodes, k, k + f) @ lvals)
-                   + (1 - f) * (_weights(rnodes, k + f, k + 1.0) @ rvals))
-        start[:] = _weights(lnodes, float(k), None) @ lvals
-        end[:] = _weights(rnodes, k + 1.0, None) @ rvals
+        for ml, mr in set(zip(m_left.tolist(), m_right.tolist())):
+            sel = (m_left == ml) & (m_right == mr)
+            k, f, i = ks[sel], fs[sel], ks[sel] - first
+            lnodes = tuple(float(j) for j in range(1 - ml, 1))
+            rnodes = tuple(float(j) for j in range(1, mr + 1))
+            lvals = self.window[k[:, None] + np.arange(1 - ml, 1) + d - self.lo][:, :, cols]
+            rvals = self.window[k[:, None] + np.arange(1, mr + 1) + d - self.lo][:, :, cols]
+            mean[i] = (np.einsum("sn,snc->sc", _means(lnodes, np.zeros_like(f), f), lvals)
+                       + np.einsum("sn,snc->sc", _means(rnodes, f, np.ones_like(f)), rvals))
+            start[i] = lvals[:, -1]
+            end[i] = rvals[:, 0]
