@@ -2,7 +2,7 @@
 sweep worker adds per run (the error estimate above all, docs/masters.md) as a ratio of
 medians. The runs are the first N variants of scenarios/sweeps/wheel_tolerance.yaml, made by
 the worker's own run_batch; interleaved rounds, the first run of each kind not timed. Twice:
-with the default estimate (auto: Richardson) and with `experiment: {estimate: none}`.
+with the default estimate (auto: the embedded pair) and with `experiment: {estimate: none}`.
 
 Run: .venv/bin/python bench/sweep_estimate.py [--runs N] [--rounds R]
 """

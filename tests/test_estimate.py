@@ -1,6 +1,7 @@
 """The error estimate of every run (master/estimate.py), checked against the true error: the
 seed circle's closed form (docs/spec.md: vx = sin t, vy = cos t, w = 0 from the origin gives
-x = 1 - cos t, y = sin t, theta = 0) and the ground truth of a turning scenario."""
+x = 1 - cos t, y = sin t, theta = 0) and the ground truth of a turning scenario; the default
+(auto: the embedded pair, master/pair.py, where it applies) and Richardson by name."""
 import json
 
 import numpy as np
@@ -16,9 +17,10 @@ CIRCLE = ROOT / "scenarios" / "circle.yaml"
 FACTOR = 3.0        # the target: the estimate within a factor 3 of the true error
 
 
-def _at_step(path, master_name: str, factor: int):
+def _at_step(path, master_name: str, factor: int, estimate: str = "auto"):
     graph = runner.prepare(path, master_name=master_name)
-    graph, exp = with_experiment(graph, step_size=graph.scenario.experiment.step_size * factor)
+    graph, exp = with_experiment(graph, step_size=graph.scenario.experiment.step_size * factor,
+                                 estimate=estimate)
     results = master.simulate(graph, exp)
     return graph, results, master.estimate_error(graph, results)
 
@@ -29,11 +31,13 @@ def _close(estimate: float, true: float) -> bool:
 
 # jacobi at 4x the seed's step (h = 0.2 s: three steps of lag, the error's sign at the end
 # changes between h and 2h) needs the end's two error terms
-@pytest.mark.parametrize("name,factor", [(m, f) for m in ("quadratic", "trapezoidal",
-                                                           "gauss-seidel", "jacobi")
-                                         for f in (1, 2, 4)])
-def test_circle_estimate_is_within_3x_of_the_closed_form(name, factor):
-    graph, results, found = _at_step(CIRCLE, name, factor)
+@pytest.mark.parametrize("name,factor,estimate", [
+    (m, f, e) for m in ("quadratic", "trapezoidal", "gauss-seidel", "jacobi") for f in (1, 2, 4)
+    for e in ("auto", "richardson")])
+def test_circle_estimate_is_within_3x_of_the_closed_form(name, factor, estimate):
+    graph, results, found = _at_step(CIRCLE, name, factor, estimate)
+    assert found["error_estimate_method"].startswith(
+        "the embedded pair" if estimate == "auto" else "Richardson")
     t = results.time
     true = {"pose.x": np.abs(results["pose.x"] - (1 - np.cos(t))),
             "pose.y": np.abs(results["pose.y"] - np.sin(t))}
@@ -62,8 +66,9 @@ def test_turning_estimate_is_within_3x_of_the_ground_truth(name):
     assert found["error_estimate"]["pose.theta"]["max"] == BELOW_ROUND_OFF
 
 
-def test_no_estimate_with_fewer_than_four_steps():
-    graph = runner.prepare(CIRCLE, step_size=4.0)
+@pytest.mark.parametrize("estimate", ["auto", "richardson"])
+def test_no_estimate_with_fewer_than_four_steps(estimate):
+    graph = runner.prepare(CIRCLE, step_size=4.0, estimate=estimate)
     results = master.simulate(graph, graph.scenario.experiment)
     found = master.estimate_error(graph, results)
     assert found["error_estimate"] is None
@@ -78,16 +83,17 @@ def test_run_writes_and_prints_the_estimate(tmp_path):
     # the seed at h = 0.05 under the quadratic master: 2.7e-6 m off at the end (docs/masters.md)
     true_end = abs(summary["end_pose"]["x"] - (1 - np.cos(10.0)))
     assert _close(x["end"], true_end)
-    assert summary["error_estimate_method"].startswith("Richardson")
+    assert summary["error_estimate_method"].startswith("the embedded pair")
+    assert summary["error_estimate_cost"] < 1.0
     assert any(line.strip().startswith("pose.x: max") for line in lines)
 
 
 def _within_3x_of_the_truth(path, name: str, factor: int, axes=("x", "y", "theta"),
-                            withheld=()):
+                            withheld=(), estimate="auto"):
     """Every estimate (max and end) within 3x of |run - ground truth|; a true error at or
     below 1e-9 (the truth is solved to rtol 1e-10) must have no number or one as small.
     `withheld`: the (axis, "end") whose end must have no number (UNRESOLVED_END)."""
-    graph, results, found = _at_step(path, name, factor)
+    graph, results, found = _at_step(path, name, factor, estimate)
     truth = ground_truth(graph, results.time)
     assert len(truth.time) == len(results.time)
     for k in axes:
@@ -106,8 +112,10 @@ def _within_3x_of_the_truth(path, name: str, factor: int, axes=("x", "y", "theta
 # segments that jump at odd seconds: at h = 0.04 a run at 2h would step over the jumps the run
 # steps on (its error of another kind); the coarser runs keep them
 @pytest.mark.parametrize("name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
-def test_segments_estimate_keeps_the_jumps(name):
-    _within_3x_of_the_truth(ROOT / "scenarios" / "modes" / "showcase.yaml", name, 4)
+@pytest.mark.parametrize("estimate", ["auto", "richardson"])
+def test_segments_estimate_keeps_the_jumps(name, estimate):
+    _within_3x_of_the_truth(ROOT / "scenarios" / "modes" / "showcase.yaml", name, 4,
+                            estimate=estimate)
 
 
 # a 20 Hz table at h = 0.01: the run steps on every row; the coarser runs must too
@@ -128,7 +136,7 @@ def test_no_number_where_the_coarser_runs_are_out_of_range():
     """quiet_then_busy at 4x (h = 0.2 s: 10 steps through 2 s of w = 2 sin 5t): x's coarser
     runs are out of the h^p range and x gets no number; what is given is within 3x."""
     graph, results, found = _at_step(ROOT / "scenarios" / "profiles" / "quiet_then_busy.yaml",
-                                     "quadratic", 4)
+                                     "quadratic", 4, "richardson")
     truth = ground_truth(graph, results.time)
     assert found["error_estimate"]["pose.x"] == {"max": UNRESOLVED, "end": UNRESOLVED}
     for k in ("y", "theta"):
@@ -155,7 +163,7 @@ def test_no_end_where_the_coarser_runs_are_far_off():
     off by most of theta's range, and theta's end, 8.5x over before, gets no number; its max
     and x, y stay within 3x."""
     _within_3x_of_the_truth(ROOT / "scenarios" / "profiles" / "quiet_then_busy.yaml",
-                            "jacobi", 2, withheld={("theta", "end")})
+                            "jacobi", 2, withheld={("theta", "end")}, estimate="richardson")
 
 
 # the coarser runs stepped on the run's own instances (master/coarse.py: t0 states restored)
@@ -166,7 +174,8 @@ def test_no_end_where_the_coarser_runs_are_far_off():
                                            ("closed_loop/track_circle.yaml", "quadratic"),
                                            ("modes/showcase.yaml", "trapezoidal")])
 def test_coarser_runs_on_the_runs_own_instances_equal_fresh_ones(scenario, name):
-    graph = runner.prepare(ROOT / "scenarios" / scenario, master_name=name)
+    graph = runner.prepare(ROOT / "scenarios" / scenario, master_name=name,
+                           estimate="richardson")
     exp = graph.scenario.experiment
     fresh = master.estimate_error(graph, master.simulate(graph, exp))
     results = master.simulate(graph, exp, with_estimate=True)

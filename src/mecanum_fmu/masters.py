@@ -60,10 +60,12 @@ DEFAULT_TOLERANCE = 1e-4  # the adaptive master's, when neither --tolerance nor 
 DEFAULT_RELATIVE_TOLERANCE = 0.0
 ZOH_HOST = "jacobi"     # the master that steps as a plain fixed-step host does (cross-check)
 # How a run's error is estimated (--estimate, experiment.estimate; docs/masters.md, "The error
-# estimate"): "auto" is the master's own way (Richardson for a fixed step, the adaptive
-# master's per-step errors), "richardson" asks for Richardson by name (a fixed step only),
-# "none" turns the estimate off (a sweep that needs only its end points runs faster)
-ESTIMATES = {"auto": "the fixed-step masters: Richardson; the adaptive master: its own",
+# estimate"): "auto" is the master's own way (for a fixed step the embedded pair, from the
+# run's own values, and Richardson where the pair does not apply; the adaptive master's
+# per-step errors), "richardson" asks for Richardson by name (a fixed step only), "none"
+# turns the estimate off
+ESTIMATES = {"auto": "the fixed-step masters: the embedded pair from the run's own values "
+                     "(Richardson where it does not apply); the adaptive master: its own",
              "richardson": "the run repeated at two coarser steps (fixed-step masters)",
              "none": "no estimate (summary.json says why)"}
 DEFAULT_ESTIMATE = "auto"

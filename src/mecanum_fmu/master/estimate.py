@@ -89,10 +89,10 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
     if graph.sampled:
         return (f"{', '.join(graph.sampled)} sample at their own period: a coarser step moves "
                 "their samples (a different model, not a coarser run of this one)")
-    return coarse_factors(graph, exp, marks) or (
-        "the run has fewer than 4 steps: no coarser runs to compare with")
+    return coarse_factors(graph, exp, marks) or FEW_STEPS
 
 
+FEW_STEPS = "the run has fewer than 4 steps: no coarser runs to compare with"
 SHORT_PIECES = ("a table's rows are closer than two steps: the values the run sees do not "
                 "tell its input between them")
 
@@ -112,6 +112,8 @@ def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | st
     plan = pair_of(graph, exp, real_slots)
     if not isinstance(plan, PairPlan):
         return plan
+    if n_steps < 4:
+        return FEW_STEPS
     rows = PairRows(plan, exp, n_steps, graph_breaks(graph))
     return SHORT_PIECES if rows.pieces.short else rows
 
