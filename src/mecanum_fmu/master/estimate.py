@@ -93,6 +93,8 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
 
 
 FEW_STEPS = "the run has fewer than 4 steps: no coarser runs to compare with"
+LATE_END = ("unresolved (under Jacobi the last steps' true inputs lie past the run's values; "
+            "extrapolated by the cubic and by the parabola, they disagree)")
 SHORT_PIECES = ("a table's rows are closer than two steps: the values the run sees do not "
                 "tell its input between them")
 
@@ -187,10 +189,11 @@ def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict)
     """summary.json's estimate from the pair (pair_rows.PairRows.finish)."""
     estimate = {}
     for name in names:
-        worst, end = pair["estimate"].get(name, (0.0, 0.0))
+        worst, end, other = pair["estimate"].get(name, (0.0, 0.0, 0.0))
         floor = round_off(np.asarray(results[name], dtype=float), results.steps)
-        estimate[name] = {"max": worst if worst > floor else BELOW_ROUND_OFF,
-                          "end": end if end > floor else BELOW_ROUND_OFF}
+        end = BELOW_ROUND_OFF if max(end, other) <= floor else \
+            LATE_END if abs(other - end) > 0.5 * end else end
+        estimate[name] = {"max": worst if worst > floor else BELOW_ROUND_OFF, "end": end}
     models = ", ".join(pair["models"]) or "none here"
     return {"error_estimate": estimate,
             "error_estimate_method": PAIR_METHOD.format(

@@ -7,6 +7,7 @@ cost is a few NumPy operations per chunk of 4096 rows, not per step.
 """
 from __future__ import annotations
 
+import copy
 import time as _time
 from functools import lru_cache
 
@@ -43,6 +44,21 @@ def _means(nodes: tuple[float, ...], lo, hi) -> np.ndarray:
 def _values(nodes: tuple[float, ...], x) -> np.ndarray:
     """Per node, its basis polynomial's value at x (shape (x, nodes))."""
     return P.polyval(np.asarray(x, dtype=float), _basis(nodes)[0]).T
+
+
+_FOUR = np.arange(4)
+
+
+@lru_cache(maxsize=None)
+def _table(offsets: int) -> np.ndarray:
+    """_three's weights for m = 1 .. 4 nodes and offsets 0 .. offsets - 1, at
+    (m - 1) offsets + o, padded with zeros to four nodes: one gather and one product a
+    batch."""
+    table = np.zeros((4 * offsets, 3, 4))
+    for m in range(1, 5):
+        for o in range(offsets):
+            table[(m - 1) * offsets + o, :, :m] = _three(m, o)
+    return table
 
 
 @lru_cache(maxsize=None)
@@ -88,6 +104,12 @@ class PairRows:
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
         self.size = np.zeros(len(plan.slots))
         self.seconds = 0.0
+        self.highest = 4        # the stencils' most nodes (the cubic's)
+        # per group, the outputs its model covers and their columns in its signed errors
+        self.covers = [([n for n, (j, _) in plan.covered.items() if j == i],
+                        [k for n, (j, k) in plan.covered.items() if j == i])
+                       for i in range(len(plan.groups))]
+        self.lag = max(lags, default=0)
 
     @property
     def may_fail(self) -> bool:
@@ -107,19 +129,45 @@ class PairRows:
 
     def finish(self) -> dict:
         """results.extra["pair"]: per output the largest |error| and the end's, the seconds
-        it took, and why the estimate falls back to Richardson (None: it does not)."""
+        it took, and why the estimate falls back to Richardson (None: it does not). Under
+        Jacobi the last steps' true inputs lie past the run's values (node j is row j + d)
+        and are extrapolated: the end is worked out with the cubic and with the parabola
+        there (the estimate's third value per output; estimate.py words an end the two do not
+        agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
-        self._steps(self.n - 1)
-        for d, names, at in self.lags:      # the last row, against its true value
-            cols = self.cols[d][at]
-            _, _, end = self._stencils(np.array([self.n - 1]), d, cols)
-            for name, late in zip(names, self.window[self.n - self.lo, cols] - end[0]):
-                self._keep(name, np.array([late]))
+        self._steps(self.n - 2 - self.reach)
+        before = self._state() if self.lag else None
+        self._tail()
+        if before is not None:
+            after = self._state()
+            self._restore(before)
+            self.highest = 3
+            self._tail()
+            parabola = dict(self.end)
+            self._restore(after)
+            self.highest = 4
+        else:
+            parabola = self.end
         self.seconds += _time.perf_counter() - tick
-        return {"estimate": {n: (self.worst[n], self.end[n]) for n in self.worst},
-                "seconds": self.seconds, "failed": self._moved(), "lagged": bool(
-                    self.plan.lagged) or any(g.lag for g in self.plan.groups),
+        return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
+                "seconds": self.seconds, "failed": self._moved(), "lagged": bool(self.lag),
                 "models": [f"{g.name}'s" for g in self.plan.groups if g.model is not None]}
+
+    def _tail(self) -> None:
+        """The steps left."""
+        self._steps(self.n - 1)
+
+    def _state(self) -> tuple:
+        """What the tail changes (the models' running totals are replaced, not changed in
+        place: a shallow copy keeps them; the window is sliced, never written)."""
+        return ([copy.copy(g.model) for g in self.plan.groups], dict(self.worst),
+                dict(self.end), self.k, self.lo, self.window, [m.copy() for m in self.moved])
+
+    def _restore(self, state: tuple) -> None:
+        models, worst, end, self.k, self.lo, self.window, moved = state
+        for g, model in zip(self.plan.groups, models):
+            g.model = copy.copy(model)
+        self.worst, self.end, self.moved = dict(worst), dict(end), [m.copy() for m in moved]
 
     def _moved(self) -> str | None:
         """Why the pair does not hold: an FMU with a state and no error model whose held
@@ -131,10 +179,13 @@ class PairRows:
                         "within the steps")
         return None
 
-    def _keep(self, name: str, errors: np.ndarray) -> None:
+    def _keep(self, names: list[str], errors: np.ndarray) -> None:
+        """The signed errors of outputs `names` (a column each) on a batch of rows."""
         if len(errors):
-            self.worst[name] = max(self.worst[name], float(np.max(np.abs(errors))))
-            self.end[name] = abs(float(errors[-1]))
+            worst, end = np.max(np.abs(errors), axis=0).tolist(), np.abs(errors[-1]).tolist()
+            for name, w, e in zip(names, worst, end):
+                self.worst[name] = max(self.worst[name], w)
+                self.end[name] = e
 
     def _steps(self, k_hi: int) -> None:
         """Work out steps self.k .. k_hi, then drop the rows no later step reads."""
@@ -151,13 +202,14 @@ class PairRows:
                 np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
                 continue
             signed = g.model.steps(h, held, error, change)
-            for name, (j, index) in self.plan.covered.items():
-                if j == i:
-                    self._keep(name, signed[:, index])
+            names, index = self.covers[i]
+            self._keep(names, signed[:, index])
         for d, names, at in self.lags:
-            late = self.window[ks - self.lo][:, self.cols[d][at]] - stencils[d][1][:, at]
-            for name, column in zip(names, late.T):
-                self._keep(name, column)
+            self._keep(names, self.window[ks - self.lo][:, self.cols[d][at]]
+                       - stencils[d][1][:, at])
+            if k_hi == self.n - 1:      # and the last row, against the last step's end
+                self._keep(names, self.window[[self.n - self.lo]][:, self.cols[d][at]]
+                           - stencils[d][2][-1:, at])
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
@@ -195,17 +247,13 @@ class PairRows:
         pc = self.pieces
         piece = np.searchsorted(pc.starts, ks, side="right") - 1
         a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)
-        m = np.clip(b - a + 1, 1, 4)
+        m = np.minimum(np.maximum(b - a + 1, 1), self.highest)
         s = np.minimum(np.maximum(ks - 1, a), b - m + 1)
-        o = ks - s
-        out = [np.empty((len(ks), len(cols))) for _ in range(3)]
-        for mm, oo in set(zip(m.tolist(), o.tolist())):
-            sel = (m == mm) & (o == oo)
-            rows = s[sel][:, None] + np.arange(mm) + d - self.lo
-            values = self.window[rows][:, :, cols]          # (steps, nodes, columns)
-            found = _three(mm, oo) @ values                 # (steps, 3, columns)
-            for i, target in enumerate(out):
-                target[sel] = found[:, i]
+        offsets = 5 + self.lag
+        key = (m - 1) * offsets + np.minimum(ks - s, offsets - 1)
+        rows = np.minimum(np.maximum(s[:, None] + _FOUR + d - self.lo, 0), len(self.window) - 1)
+        found = _table(offsets)[key] @ self.window[rows][:, :, cols]   # (steps, 3, columns)
+        out = [found[:, 0], found[:, 1], found[:, 2]]
         self._odd_steps(ks, d, cols, (a, b, s, m), out)
         return tuple(out)
 
