@@ -77,6 +77,9 @@ def test_the_estimate_of_a_fixed_master_is_within_3x_of_the_closed_form(tmp_path
     error = np.abs(results["lag.x"] - _truth(results.time))
     assert error.max() > 1e-9          # a coupling error there is to estimate
     _within_3x(summary["error_estimate"]["lag.x"], error)
+    # the lag has a state and no error model, and its input moves: Richardson, which says so
+    assert summary["error_estimate_method"].startswith("Richardson")
+    assert "lag has a state and no error model" in summary["error_estimate_method"]
 
 
 @pytest.mark.parametrize("tolerance", [1e-4, 1e-6])

@@ -143,7 +143,7 @@ class Pieces:
     short: bool = False
 
 
-_RANK = {"kink": 0, "across": 1, "jump": 2}
+_RANK = {"kink": 0, "across kink": 1, "across jump": 2, "jump": 3}
 
 
 def pieces(breaks, start: float, h: float, n: int) -> Pieces:
@@ -151,7 +151,7 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     a node ends one piece there and starts the next; a jump (or what may be one: `others`)
     on a node starts the next piece there, the one before ending a node earlier; one inside
     a step ends a piece at the step's start and starts the next at its end."""
-    bounds: dict[int, str] = {}
+    bounds: dict[int, str] = {}       # the node a piece starts at -> the break before it
     across: dict[int, tuple[float, bool]] = {}
 
     def mark(j: int, kind: str) -> None:
@@ -168,11 +168,12 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
                 k = int(np.floor(x))
                 if k not in across or kind == "jump":
                     across[k] = (x - k, kind == "jump")
-                mark(k + 1, "across")
+                mark(k + 1, f"across {kind}")
     starts = [0] + sorted(bounds)
     ends = [j if bounds[j] == "kink" else j - 1 for j in starts[1:]] + [n]
-    kinked = [bounds.get(j) in ("kink", "across") or bounds.get(e + 1) in ("kink", "across")
-              or (e in across and not across[e][1]) for j, e in zip(starts, ends)]
+    kinks = ("kink", "across kink")
+    kinked = [bounds.get(j) in kinks or bounds.get(nxt) in kinks
+              for j, nxt in zip(starts, starts[1:] + [None])]
     short = any(k and e - j < 1 for j, e, k in zip(starts, ends, kinked))
     cut = sorted(j for j, kind in bounds.items() if kind == "jump")
     return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),

@@ -1,0 +1,159 @@
+"""The embedded pair, the fixed-step masters' default estimate (master/pair.py, pair_rows.py):
+its pieces and weights against hand-worked values, the hold it rebuilds against the one the
+master fed, where it hands over to Richardson and why, and the ends it will not stand
+behind. Its accuracy against the truth is tests/test_estimate.py's (auto)."""
+import numpy as np
+import pytest
+
+from helpers import ROOT, with_experiment
+from mecanum_fmu import master, runner
+from mecanum_fmu.master import pair_rows, plan, stepping
+from mecanum_fmu.master.estimate import LATE_END, SHORT_PIECES
+from mecanum_fmu.master.pair import pieces
+from mecanum_fmu.models import pose_error
+from mecanum_fmu.scenario.tables import Breaks
+
+SCENARIOS = ROOT / "scenarios"
+
+
+def _breaks(kinks=(), jumps=(), others=()):
+    return Breaks(*(np.array(x, dtype=float) for x in (kinks, jumps, others)))
+
+
+def test_pieces_of_kinks_jumps_and_a_breakpoint_inside_a_step():
+    # 10 steps of 0.1 s: a kink at 0.3 s (node 3), a jump at 0.6 s (node 6), a jump at 0.85 s
+    found = pieces(_breaks(kinks=[0.3], jumps=[0.6, 0.85]), 0.0, 0.1, 10)
+    assert found.starts.tolist() == [0, 3, 6, 9]
+    # a kink's node ends one piece and starts the next; a jump's node is the next piece's;
+    # the one inside step 8 ends a piece on node 8 and starts the next on node 9
+    assert found.ends.tolist() == [3, 5, 8, 10]
+    assert found.cut.tolist() == [6]            # the step that ends on the jump is cut
+    assert set(found.across) == {8}
+    assert found.across[8][0] == pytest.approx(0.5) and found.across[8][1]
+    assert not found.short
+
+
+def test_a_table_with_rows_closer_than_two_steps_is_short():
+    assert pieces(_breaks(kinks=[0.05, 0.1, 0.15, 0.2]), 0.0, 0.04, 10).short
+    assert not pieces(_breaks(kinks=[0.05, 0.1, 0.15, 0.2]), 0.0, 0.01, 40).short
+    # a hold table's rows (jumps) as close: constant pieces, whose one value says it all
+    assert not pieces(_breaks(jumps=[0.05, 0.1, 0.15, 0.2]), 0.0, 0.04, 10).short
+
+
+def test_the_cubics_weights_are_the_classical_ones():
+    """The mean over one step of the cubic through four values a step apart: the centred
+    (-1, 13, 13, -1)/24, the first interval's (9, 19, -5, 1)/24 and Adams-Bashforth's
+    extrapolation (-9, 37, -59, 55)/24; with fewer nodes the parabola's and the trapezoid."""
+    three = pair_rows._three
+    assert np.allclose(three(4, 1)[0] * 24, [-1, 13, 13, -1])
+    assert np.allclose(three(4, 0)[0] * 24, [9, 19, -5, 1])
+    assert np.allclose(three(4, 3)[0] * 24, [-9, 37, -59, 55])
+    assert np.allclose(three(3, 0)[0] * 12, [5, 8, -1])
+    assert np.allclose(three(2, 0)[0], [0.5, 0.5])
+    # and the values at the step's ends: the nodes themselves, or the extrapolated one
+    assert np.allclose(three(4, 1)[1:], [[0, 1, 0, 0], [0, 0, 1, 0]])
+    assert np.allclose(three(2, 1)[2], [-1, 2])
+
+
+def _held(monkeypatch, path, name, factor=1):
+    """(what the pair rebuilt as the pose's held twist, what the master fed it) per step."""
+    fed, rebuilt = [], []
+    fill = plan._Blend.fill
+
+    def spy(blend):
+        fill(blend)
+        fed.append(blend.staging.copy())
+    monkeypatch.setattr(plan._Blend, "fill", spy)
+    steps = pose_error.PoseBatch.steps
+
+    def keep(model, h, held, error, change):
+        rebuilt.append(held.copy())
+        return steps(model, h, held, error, change)
+    monkeypatch.setattr(pose_error.PoseBatch, "steps", keep)
+    graph = runner.prepare(path, master_name=name)
+    graph, exp = with_experiment(graph, step_size=graph.scenario.experiment.step_size * factor)
+    master.simulate(graph, exp, with_estimate=True)
+    return np.concatenate(rebuilt), np.array(fed)
+
+
+@pytest.mark.parametrize("name", ["trapezoidal", "quadratic"])
+def test_the_rebuilt_hold_is_the_one_the_master_fed(monkeypatch, name):
+    rebuilt, fed = _held(monkeypatch, SCENARIOS / "circle.yaml", name)
+    assert len(rebuilt) == len(fed) == 200
+    assert np.abs(rebuilt - fed).max() < 1e-13
+
+
+def test_the_rebuilt_hold_at_jumps_is_the_left_values_one(monkeypatch):
+    """showcase at 0.04 s (jumps on the grid every 2 s): the step that ends on a jump is
+    taken in two pieces, its first on the left value: the pair rebuilds that piece's hold
+    (the master fills the blend once per piece: the first of each cut step's two fills)."""
+    rebuilt, fed = _held(monkeypatch, SCENARIOS / "modes" / "showcase.yaml", "quadratic", 4)
+    graph = runner.prepare(SCENARIOS / "modes" / "showcase.yaml")
+    cut = {int(round(b / 0.04)) - 1 for b in graph.breaks.jumps}
+    per_step, i = [], 0
+    for k in range(len(rebuilt)):
+        per_step.append(fed[i])
+        i += 2 if k in cut else 1
+    assert i == len(fed)
+    assert np.abs(rebuilt - np.array(per_step)).max() < 1e-13
+
+
+def _method(path, name="quadratic", **changes):
+    graph = runner.prepare(path, master_name=name)
+    graph, exp = with_experiment(graph, **changes)
+    results = master.simulate(graph, exp, with_estimate=True)
+    return master.estimate_error(graph, results), results
+
+
+def test_a_feedback_loop_hands_over_to_richardson_and_says_why():
+    found, results = _method(SCENARIOS / "chassis" / "omni_field_circle.yaml")
+    assert found["error_estimate_method"].startswith("Richardson")
+    assert "the embedded pair does not apply" in found["error_estimate_method"]
+    assert "closes a feedback loop" in found["error_estimate_method"]
+    assert len(results.extra["coarse"]["runs"]) == 2       # stepped on the run's instances
+
+
+def test_an_fmu_with_a_state_held_exactly_keeps_the_pair():
+    """The bicycle integrates its own pose from constant commands: held exactly, no error
+    (the truth agrees: 1e-13), and no coarser run is made."""
+    found, results = _method(SCENARIOS / "chassis" / "bicycle_circle.yaml")
+    assert found["error_estimate_method"].startswith("the embedded pair")
+    assert "coarse" not in results.extra
+    assert all(v == {"max": "below round-off", "end": "below round-off"}
+               for v in found["error_estimate"].values())
+
+
+def test_a_table_stepped_coarser_than_its_rows_hands_over():
+    found, _ = _method(SCENARIOS / "profiles" / "joystick.yaml", step_size=0.04)
+    assert found["error_estimate_method"].startswith("Richardson")
+    assert SHORT_PIECES in found["error_estimate_method"]
+
+
+def test_jacobis_extrapolated_end_is_unresolved_where_the_two_extrapolations_disagree():
+    """quiet_then_busy under jacobi at 0.1 s: w = 2 sin 5(t - 8) turns half a radian a step,
+    and theta's end rests on two steps of true inputs past the run's last values: the cubic
+    and the parabola disagree, and no number is given (the true end is 0.028 rad; the cubic
+    alone said 0.0011). At 0.05 s they agree and the end is given."""
+    found, _ = _method(SCENARIOS / "profiles" / "quiet_then_busy.yaml", "jacobi",
+                       step_size=0.1)
+    assert found["error_estimate"]["pose.theta"]["end"] == LATE_END
+    found, _ = _method(SCENARIOS / "profiles" / "quiet_then_busy.yaml", "jacobi")
+    assert isinstance(found["error_estimate"]["pose.theta"]["end"], float)
+
+
+def test_the_pair_costs_no_doStep(monkeypatch):
+    """The run with the pair steps each FMU as often as the run without an estimate."""
+    graph = runner.prepare(SCENARIOS / "circle.yaml")
+    calls = []
+    one_pass = stepping.one_pass
+
+    def count(program, t, h):
+        calls.append(t)
+        one_pass(program, t, h)
+    monkeypatch.setattr(stepping, "one_pass", count)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    assert results.extra["pair"]["found"]["failed"] is None
+    with_pair = len(calls)
+    calls.clear()
+    master.simulate(*with_experiment(graph, estimate="none"))
+    assert with_pair == len(calls) == 200
