@@ -1,8 +1,10 @@
 """The error estimate against the true error: per bundled scenario with a ground truth, per
 fixed-step master and per step (the scenario's, 2x and 4x), the true max and end error of
-pose.x, pose.y, pose.theta, the estimate (master/estimate.py), their ratio, MISS where the
-ratio is outside [1/3, 3], and the estimate's cost: its coarser runs' doStep calls against
-the run's ("calls", exact) and their stepping time against the run's ("wall", measured once);
+pose.x, pose.y, pose.theta, the estimate (master/estimate.py: the embedded pair, or
+Richardson where the pair does not apply; --estimate richardson for Richardson everywhere),
+their ratio, MISS where the ratio is outside [1/3, 3], and the estimate's cost: its doStep
+calls against the run's ("calls", exact: 0 for the pair) and its time against the run's
+stepping time ("wall", measured once: summary.json's error_estimate_cost);
 then, per scenario at its own step, the same cost as medians of 5 repetitions, of the stepping
 loops and of the whole (each run's set-up included).
 
@@ -23,7 +25,8 @@ machine runs: compare the cost ratios within one run.
 With --adaptive: the adaptive master's own estimate against the true error instead, on the
 scenarios of bench/accuracy.py at TOL 1e-2 ... 1e-6.
 
-Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING] [--adaptive]
+Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING] [--estimate richardson]
+     [--adaptive]
 """
 from __future__ import annotations
 
@@ -100,21 +103,26 @@ def verdict(estimate, true: float) -> tuple[str, str]:
     return f"{ratio:.3g}", "" if 1 / FACTOR <= ratio <= FACTOR else "MISS"
 
 
-def calls(graph, exp, steps: int) -> float:
-    """The coarser runs' steps against the run's (doStep calls: the same per step)."""
+def calls(graph, exp, steps: int, found: dict) -> float:
+    """The estimate's doStep calls against the run's: none for the embedded pair, the
+    coarser runs' steps for Richardson (the same calls per step)."""
+    if str(found.get("error_estimate_method", "")).startswith("the embedded pair"):
+        return 0.0
     factors = coarse_factors(graph, exp)
     return sum(math.ceil(steps / float(r) - 1e-9) for r in factors) / steps if factors else 0.0
 
 
-def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, tuple]:
-    graph, exp = at_step(prepare(ROOT / "scenarios" / scenario), name, factor)
-    results = master.simulate(graph, exp)
+def measure(scenario: str, name: str, factor: int, estimate: str = "auto"
+            ) -> tuple[list[str], int, tuple]:
+    graph, exp = at_step(prepare(ROOT / "scenarios" / scenario, estimate=estimate), name,
+                         factor)
+    results = master.simulate(graph, exp, with_estimate=True)     # as `run` makes it
     found = master.estimate_error(graph, results)
     truth = true_errors(graph, results)
     estimate = found.get("error_estimate")
     lines, misses, withheld = [], 0, 0
     cost = float(found.get("error_estimate_cost", float("nan")))
-    steps = calls(graph, exp, results.steps)
+    steps = calls(graph, exp, results.steps, found)
     for output, true in truth.items():
         for which in ("max", "end"):
             est = estimate[output][which] if estimate else found.get("error_estimate_method")
@@ -128,13 +136,14 @@ def measure(scenario: str, name: str, factor: int) -> tuple[list[str], int, tupl
     return lines, (misses, withheld), (steps, cost)
 
 
-def cost(scenario: str, reps: int = 5) -> tuple[float, float, float, float]:
+def cost(scenario: str, reps: int = 5, estimate: str = "auto"
+         ) -> tuple[float, float, float, float]:
     """Medians over `reps` interleaved repetitions, at the scenario's own step and master:
     (the run's stepping loop, the estimate's stepping loops, the run's whole simulate, the
     whole estimate), in seconds. Whole = with each run's set-up (reset, start values); the
     estimate as `run` makes it: its coarser runs on the run's own instances
     (simulate(with_estimate=True) less a plain simulate), then estimate_error."""
-    graph = prepare(ROOT / "scenarios" / scenario)
+    graph = prepare(ROOT / "scenarios" / scenario, estimate=estimate)
     exp, times = graph.scenario.experiment, []
     for _ in range(reps):
         tick = time.perf_counter()
@@ -148,13 +157,13 @@ def cost(scenario: str, reps: int = 5) -> tuple[float, float, float, float]:
     return tuple(float(v) for v in np.median(np.array(times), axis=0))
 
 
-def cost_table(names: list[str]) -> None:
+def cost_table(names: list[str], estimate: str = "auto") -> None:
     print(f"\nthe estimate's cost at each scenario's own step and master, medians of 5 "
           f"interleaved repetitions:\n{'scenario':<32} {'run loop':>9} {'est loops':>9} "
           f"{'ratio':>6} {'run whole':>9} {'est whole':>9} {'ratio':>6}")
     loops, wholes = [], []
     for scenario in names:
-        run_loop, est_loops, run_whole, est_whole = cost(scenario)
+        run_loop, est_loops, run_whole, est_whole = cost(scenario, estimate=estimate)
         loops.append(est_loops / run_loop)
         wholes.append(est_whole / run_whole)
         print(f"{scenario:<32} {run_loop * 1e3:>7.1f}ms {est_loops * 1e3:>7.1f}ms "
@@ -192,6 +201,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--quick", action="store_true", help="the scenario's step only")
     parser.add_argument("--only", default="", help="scenarios whose name contains this")
     parser.add_argument("--master", action="append", help="only these masters")
+    parser.add_argument("--estimate", default="auto", choices=("auto", "richardson"),
+                        help="the estimate to measure (auto: the embedded pair where it "
+                             "applies)")
     parser.add_argument("--adaptive", action="store_true",
                         help="the adaptive master's own estimate at TOL 1e-2 ... 1e-6, on the "
                              "scenarios of bench/accuracy.py")
@@ -204,12 +216,12 @@ def main(argv: list[str] | None = None) -> None:
     for scenario in [s for s in scenarios() if args.only in s]:
         for name in args.master or FIXED:
             for factor in FACTORS[:1] if args.quick else FACTORS:
-                lines, missed, cost = measure(scenario, name, factor)
+                lines, missed, cost = measure(scenario, name, factor, args.estimate)
                 print("\n".join(lines), flush=True)
                 total, misses, withheld = (total + len(lines), misses + missed[0],
                                            withheld + missed[1])
                 costs.append(cost)
-    cost_table([s for s in scenarios() if args.only in s])
+    cost_table([s for s in scenarios() if args.only in s], args.estimate)
     steps, walls = np.array(costs).T
     print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth), "
           f"{withheld} WITHHELD (no number: the coarser runs out of the h^p range)")

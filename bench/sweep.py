@@ -18,6 +18,8 @@ from pathlib import Path
 
 from mecanum_fmu.sweep.cluster import cluster, prepare_sweep, run_on, run_sweep
 
+import sweep_estimate     # bench/: the sweep worker's run against master.simulate alone
+
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "scenarios" / "sweeps" / "wheel_tolerance.yaml"
 
@@ -79,8 +81,12 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"  per run on a worker (median): {1000 * total:.2f} ms, stepping loop "
           f"{1000 * loop:.2f} ms, overhead {1000 * (total - loop):.2f} ms = "
           f"{(total - loop) / loop:.2f}x the loop (target <= 2x)")
+    graph_e, batch, path_names = sweep_estimate.study(20)
+    ratio = sweep_estimate.compare(graph_e, batch, path_names, 3, "auto")
+    print(f"  a sweep run (its error estimate included) / master.simulate alone: {ratio:.2f}x "
+          "(target <= 1.2x; bench/sweep_estimate.py: with and without the estimate)")
     measured = {"one": one, "two": two, "machine": (before, after),
-                "overhead": (total - loop) / loop}
+                "overhead": (total - loop) / loop, "estimate": ratio}
     if not args.no_study:
         measured["whole"] = whole_study()
     return measured

@@ -28,16 +28,16 @@ def main(argv=None) -> float:
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args(argv)
-    graph, batch, path_names = _study(args.runs)
-    ratio = _compare(graph, batch, path_names, args.rounds, "auto")
+    graph, batch, path_names = study(args.runs)
+    ratio = compare(graph, batch, path_names, args.rounds, "auto")
     scenario = graph.scenario
     off = dataclasses.replace(scenario, experiment=dataclasses.replace(scenario.experiment,
                                                                        estimate="none"))
-    _compare(dataclasses.replace(graph, scenario=off), batch, path_names, args.rounds, "none")
+    compare(dataclasses.replace(graph, scenario=off), batch, path_names, args.rounds, "none")
     return ratio
 
 
-def _compare(graph, batch, path_names, rounds: int, estimate: str) -> float:
+def compare(graph, batch, path_names, rounds: int, estimate: str) -> float:
     exp = graph.scenario.experiment
     run_batch(graph, batch[:1], path_names)                    # warm: unpack, instantiate
     master.simulate(with_values(graph, batch[0][1]), exp)
@@ -56,7 +56,7 @@ def _compare(graph, batch, path_names, rounds: int, estimate: str) -> float:
     return s / a
 
 
-def _study(runs: int):
+def study(runs: int):
     """The compiled graph, the first `runs` (index, values) and the path names of the study
     (the pose's x and y, as the sweep's client asks for them)."""
     _, graph, planned = prepare_sweep(STUDY)
