@@ -7,7 +7,7 @@ import pytest
 
 from helpers import ROOT, with_experiment
 from mecanum_fmu import master, runner
-from mecanum_fmu.master import pair_rows, plan, stepping
+from mecanum_fmu.master import plan, stencils, stepping
 from mecanum_fmu.master.estimate import LATE_END, SHORT_PIECES
 from mecanum_fmu.master.pair import pieces
 from mecanum_fmu.models import pose_error
@@ -44,7 +44,7 @@ def test_the_cubics_weights_are_the_classical_ones():
     """The mean over one step of the cubic through four values a step apart: the centred
     (-1, 13, 13, -1)/24, the first interval's (9, 19, -5, 1)/24 and Adams-Bashforth's
     extrapolation (-9, 37, -59, 55)/24; with fewer nodes the parabola's and the trapezoid."""
-    three = pair_rows._three
+    three = stencils.step_weights
     assert np.allclose(three(4, 1)[0] * 24, [-1, 13, 13, -1])
     assert np.allclose(three(4, 0)[0] * 24, [9, 19, -5, 1])
     assert np.allclose(three(4, 3)[0] * 24, [-9, 37, -59, 55])
@@ -157,3 +157,27 @@ def test_the_pair_costs_no_doStep(monkeypatch):
     calls.clear()
     master.simulate(*with_experiment(graph, estimate="none"))
     assert with_pair == len(calls) == 200
+
+
+@pytest.mark.parametrize("name", ["quadratic", "gauss-seidel"])
+def test_a_short_last_step_is_weighed_on_its_own_nodes(name):
+    """The circle to 9.97 s at 0.05 s: its last step is 0.02 s; the estimate stays within 3x
+    of the closed form's error (x = 1 - cos t, y = sin t), at the end too."""
+    found, results = _method(SCENARIOS / "circle.yaml", name, stop_time=9.97)
+    assert results.time[-1] == 9.97 and results.time[-2] == pytest.approx(9.95)
+    assert found["error_estimate_method"].startswith("the embedded pair")
+    t = results.time
+    for axis, truth in (("x", 1 - np.cos(t)), ("y", np.sin(t))):
+        error = np.abs(results[f"pose.{axis}"] - truth)
+        e = found["error_estimate"][f"pose.{axis}"]
+        for which, true in (("max", error.max()), ("end", error[-1])):
+            assert true / 3 <= e[which] <= 3 * true, (axis, which, e, true)
+
+
+def test_a_short_last_step_under_jacobi():
+    found, results = _method(SCENARIOS / "circle.yaml", "jacobi", stop_time=9.97)
+    t = results.time
+    error = np.abs(results["pose.y"] - np.sin(t))
+    e = found["error_estimate"]["pose.y"]
+    assert error.max() / 3 <= e["max"] <= 3 * error.max()
+    assert error[-1] / 3 <= e["end"] <= 3 * error[-1]

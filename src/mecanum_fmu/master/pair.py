@@ -55,59 +55,72 @@ class PairPlan:
     groups: list[Group]
     lagged: list[tuple[str, int, int]]      # (output, column, lag): Jacobi's late outputs
     covered: dict[str, tuple[int, int]]     # output -> (group, index in its model's outputs)
-    exact: list[str]
     hold: str                    # "zoh", "trapezoidal", "quadratic" ; jacobi: "frozen"
 
 
 def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
-    """The pair's plan for this graph's fixed-step master, or why it has none.
+    """The pair's plan for this graph's fixed-step master, or why it has none: in step
+    order, each FMU's outputs are exact (Jacobi: late by a lag), or an error model's, or
+    (an FMU with a state and no model) exact if its held inputs do not move.
     `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives)."""
     how = master_entry(graph.scenario.experiment.master)
-    frozen = how.freezes_inputs
     position = {inst.name: i for i, inst in enumerate(graph.instances)}
-    into = {inst.name: [l for l in graph.links if l.target.ref.instance == inst.name]
-            for inst in graph.instances}
-    models = dict(graph.error_models)
     lag: dict[str, int] = {}        # the FMUs whose outputs are exact (Jacobi: late by lag)
     slots: dict[int, int] = {}
-    groups, failed = [], None
+    groups: list[Group] = []
     col = lambda port: slots.setdefault(real_slots[port], len(slots))   # noqa: E731
     for inst in graph.instances:
-        links = into[inst.name]
-        late = [l for l in links if position[l.source.ref.instance] >= position[inst.name]]
-        if late:
-            return (f"{inst.name}'s input {late[0].target.ref.variable} closes a feedback "
-                    "loop, whose error the pair does not follow")
-        fed = sorted({l.source.ref.instance for l in links} - set(lag))
-        if fed:
-            return (f"{inst.name} is fed by {fed[0]}'s outputs, whose error the pair does "
-                    f"not carry through {inst.name}")
-        lags = {lag[l.source.ref.instance] for l in links}
-        if len(lags) > 1:
-            return f"{inst.name}'s inputs arrive with different lags under Jacobi"
-        d = lags.pop() if lags else 0
+        links = [l for l in graph.links if l.target.ref.instance == inst.name]
+        d = _lag_in(inst, links, position, lag)
+        if isinstance(d, str):
+            return d
         if not links or not has_state(inst):
-            lag[inst.name] = d + 1 if frozen and links else d
+            lag[inst.name] = d + 1 if how.freezes_inputs and links else d
             continue
-        if any(l.target.type != "Real" for l in links):
-            return f"{inst.name} has a state and an input that is not Real"
-        names = [l.target.ref.variable for l in links]
-        model = models.get(inst.name)
-        client = model.batch(names, inst) if model is not None else None
-        state_only = state_only_inputs(inst)
-        roles = np.array(["state" if how.hold != "zoh" and n in state_only else "direct"
-                          for n in names])
-        groups.append(Group(inst.name, np.array([col(l.source) for l in links]), roles, d,
-                            client))
-        if client is None:
-            lag[inst.name] = 0      # exact, if its inputs are held exactly (PairTap checks)
-    return _outputs(graph, lag, groups, slots, col, "frozen" if frozen else how.hold)
+        group = _group(graph, how, inst, links, d, col)
+        if isinstance(group, str):
+            return group
+        groups.append(group)
+        if group.model is None:
+            lag[inst.name] = 0      # exact, if its inputs are held exactly (PairRows checks)
+    return _outputs(graph, lag, groups, slots, col,
+                    "frozen" if how.freezes_inputs else how.hold)
+
+
+def _lag_in(inst, links: list, position: dict, lag: dict) -> int | str:
+    """The lag of inst's inputs (0 but under Jacobi), or why the pair cannot follow them."""
+    late = [l for l in links if position[l.source.ref.instance] >= position[inst.name]]
+    if late:
+        return (f"{inst.name}'s input {late[0].target.ref.variable} closes a feedback "
+                "loop, whose error the pair does not follow")
+    fed = sorted({l.source.ref.instance for l in links} - set(lag))
+    if fed:
+        return (f"{inst.name} is fed by {fed[0]}'s outputs, whose error the pair does "
+                f"not carry through {inst.name}")
+    lags = {lag[l.source.ref.instance] for l in links}
+    if len(lags) > 1:
+        return f"{inst.name}'s inputs arrive with different lags under Jacobi"
+    return lags.pop() if lags else 0
+
+
+def _group(graph: Graph, how, inst, links: list, d: int, col) -> Group | str:
+    """The held inputs of an FMU with a state, with its error model's batch form (or None)."""
+    if any(l.target.type != "Real" for l in links):
+        return f"{inst.name} has a state and an input that is not Real"
+    names = [l.target.ref.variable for l in links]
+    model = dict(graph.error_models).get(inst.name)
+    state_only = state_only_inputs(inst)
+    roles = np.array(["state" if how.hold != "zoh" and n in state_only else "direct"
+                      for n in names])
+    return Group(inst.name, np.array([col(l.source) for l in links]), roles, d,
+                 model.batch(names, inst) if model is not None else None)
 
 
 def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hold: str
              ) -> PairPlan | str:
-    """The plan's recorded outputs: exact, late (Jacobi) or covered by a model."""
-    covered, lagged, exact = {}, [], []
+    """The plan's recorded outputs: late (Jacobi) or covered by a model (the others are
+    exact)."""
+    covered, lagged = {}, []
     by_name = {g.name: (i, g) for i, g in enumerate(groups) if g.model is not None}
     for port in graph.recorded:
         if port.type != "Real":
@@ -121,10 +134,8 @@ def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hol
             covered[name] = (i, list(g.model.outputs).index(port.ref.variable))
         elif lag.get(owner, 0) > 0:
             lagged.append((name, col(port), lag[owner]))
-        else:
-            exact.append(name)
     order = np.array(sorted(slots, key=slots.get), dtype=np.intp)
-    return PairPlan(order, groups, lagged, covered, exact, hold)
+    return PairPlan(order, groups, lagged, covered, hold)
 
 
 @dataclass(frozen=True)

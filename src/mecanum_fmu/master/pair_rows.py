@@ -9,64 +9,32 @@ from __future__ import annotations
 
 import copy
 import time as _time
-from functools import lru_cache
 
 import numpy as np
 
-from numpy.polynomial import polynomial as P
-
 from .pair import Group, PairPlan, pieces
+from .stencils import FOUR, means, values, weight_table
 
 _FLOOR = 8 * np.finfo(float).eps     # per step and unit of size: results.round_off's
 
 
-@lru_cache(maxsize=64)
-def _basis(nodes: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """The Lagrange basis polynomials through `nodes` (positions in steps, relative to a
-    step's start), as coefficient columns, and their antiderivatives."""
-    columns = []
-    for i, x in enumerate(nodes):
-        others = [y for j, y in enumerate(nodes) if j != i]
-        columns.append(P.polyfromroots(others) / np.prod([x - y for y in others])
-                       if others else np.array([1.0]))
-    values = np.column_stack(columns)
-    return values, np.column_stack([P.polyint(c) for c in values.T])
-
-
-def _means(nodes: tuple[float, ...], lo, hi) -> np.ndarray:
-    """Per node, its basis polynomial's integral over [lo, hi] (arrays of bounds: shape
-    (bounds, nodes))."""
-    whole = _basis(nodes)[1]
-    return (P.polyval(np.asarray(hi, dtype=float), whole)
-            - P.polyval(np.asarray(lo, dtype=float), whole)).T
-
-
-def _values(nodes: tuple[float, ...], x) -> np.ndarray:
-    """Per node, its basis polynomial's value at x (shape (x, nodes))."""
-    return P.polyval(np.asarray(x, dtype=float), _basis(nodes)[0]).T
-
-
-_FOUR = np.arange(4)
-
-
-@lru_cache(maxsize=None)
-def _table(offsets: int) -> np.ndarray:
-    """_three's weights for m = 1 .. 4 nodes and offsets 0 .. offsets - 1, at
-    (m - 1) offsets + o, padded with zeros to four nodes: one gather and one product a
-    batch."""
-    table = np.zeros((4 * offsets, 3, 4))
-    for m in range(1, 5):
-        for o in range(offsets):
-            table[(m - 1) * offsets + o, :, :m] = _three(m, o)
-    return table
-
-
-@lru_cache(maxsize=None)
-def _three(m: int, o: int) -> np.ndarray:
-    """For the nodes 0 .. m-1 one step apart: the weights of the mean over [o, o + 1] and of
-    the values at o and o + 1, as rows."""
-    nodes = tuple(float(i) for i in range(m))
-    return np.vstack((_means(nodes, [o], [o + 1.0]), _values(nodes, [o, o + 1.0])))
+def _columns(plan: PairPlan) -> tuple[dict, list, list]:
+    """Per lag, the columns whose true values the stencils rebuild once per batch (the held
+    inputs', the late outputs'); where each group's are among them; and Jacobi's late
+    outputs by lag: (lag, names, where their columns are among that lag's)."""
+    cols: dict[int, list] = {}
+    for g in plan.groups:
+        cols.setdefault(g.lag, []).extend(c for c in g.cols if c not in cols[g.lag])
+    for _, c, d in plan.lagged:
+        if c not in cols.setdefault(d, []):
+            cols[d].append(c)
+    at = [np.array([cols[g.lag].index(c) for c in g.cols]) for g in plan.groups]
+    by_lag: dict[int, list] = {}
+    for name, col, d in plan.lagged:
+        by_lag.setdefault(d, []).append((name, cols[d].index(col)))
+    lags = [(d, [n for n, _ in pairs], np.array([c for _, c in pairs]))
+            for d, pairs in by_lag.items()]
+    return {d: np.array(c, dtype=np.intp) for d, c in cols.items()}, at, lags
 
 
 class PairRows:
@@ -83,22 +51,7 @@ class PairRows:
         self.lo, self.k = 0, 0      # the row window[0] holds; the next step to work out
         lags = [g.lag for g in plan.groups] + [d for _, _, d in plan.lagged]
         self.reach = 4 + max(lags, default=0)   # an across step's right nodes
-        # per lag, the columns whose true values the stencils rebuild (held inputs, late
-        # outputs), once per batch; where each group's and each late output's are among them
-        cols: dict[int, list] = {}
-        for g in plan.groups:
-            cols.setdefault(g.lag, []).extend(c for c in g.cols if c not in cols[g.lag])
-        for _, c, d in plan.lagged:
-            if c not in cols.setdefault(d, []):
-                cols[d].append(c)
-        self.cols = {d: np.array(c, dtype=np.intp) for d, c in cols.items()}
-        self.at = [np.array([cols[g.lag].index(c) for c in g.cols]) for g in plan.groups]
-        by_lag: dict[int, list] = {}
-        for name, col, d in plan.lagged:
-            by_lag.setdefault(d, []).append((name, cols[d].index(col)))
-        # Jacobi's late outputs, by lag: (lag, names, where their columns are in cols[lag])
-        self.lags = [(d, [n for n, _ in pairs], np.array([c for _, c in pairs]))
-                     for d, pairs in by_lag.items()]
+        self.cols, self.at, self.lags = _columns(plan)
         self.worst = {name: 0.0 for name in (*plan.covered, *(n for n, _, _ in plan.lagged))}
         self.end = dict.fromkeys(self.worst, 0.0)
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
@@ -251,15 +204,16 @@ class PairRows:
         s = np.minimum(np.maximum(ks - 1, a), b - m + 1)
         offsets = 5 + self.lag
         key = (m - 1) * offsets + np.minimum(ks - s, offsets - 1)
-        rows = np.minimum(np.maximum(s[:, None] + _FOUR + d - self.lo, 0), len(self.window) - 1)
-        found = _table(offsets)[key] @ self.window[rows][:, :, cols]   # (steps, 3, columns)
+        rows = np.minimum(np.maximum(s[:, None] + FOUR + d - self.lo, 0), len(self.window) - 1)
+        found = weight_table(offsets)[key] @ self.window[rows][:, :, cols]   # (steps, 3, columns)
         out = [found[:, 0], found[:, 1], found[:, 2]]
         self._odd_steps(ks, d, cols, (a, b, s, m), out)
         return tuple(out)
 
     def _odd_steps(self, ks, d, cols, stencil, out) -> None:
         """The steps the uniform stencils do not fit: a step with a breakpoint inside (its
-        mean split between the pieces on either side), and the last one when shorter."""
+        mean split between the pieces on either side), and, where the last step is shorter,
+        those whose stencil reaches its end (node n is nearer than a step)."""
         a, b, s, m = stencil
         first, last = int(ks[0]), int(ks[-1])
         # (a step whose right node is past the run's last true value (Jacobi's last d steps)
@@ -271,13 +225,17 @@ class PairRows:
                          cols, out)
             self._kinked(self.across_k[lo:hi][~jump], self.across_f[lo:hi][~jump], first, d,
                          cols, out)
-        if last == self.n - 1 and abs(self.last - 1.0) > 1e-9 and last not in self.pieces.across:
-            i, k = last - first, last
-            nodes = tuple(float(j - k) if j < self.n else self.last
-                          for j in range(s[i], s[i] + m[i]))
-            values = self.window[np.arange(s[i], s[i] + m[i]) + d - self.lo][:, cols]
-            out[0][i] = (_means(nodes, [0.0], [self.last])[0] / self.last) @ values
-            out[1][i], out[2][i] = _values(nodes, [0.0, self.last]) @ values
+        if abs(self.last - 1.0) > 1e-9:     # a shorter last step: node n is nearer
+            for i in np.flatnonzero((s + m - 1 >= self.n) | (ks == self.n - 1)):
+                k = int(ks[i])
+                if k in self.pieces.across:
+                    continue
+                length = self.last if k == self.n - 1 else 1.0
+                nodes = tuple(float(j - k) if j < self.n else self.n - 1 - k + self.last
+                              for j in range(s[i], s[i] + m[i]))
+                known = self.window[np.arange(s[i], s[i] + m[i]) + d - self.lo][:, cols]
+                out[0][i] = (means(nodes, [0.0], [length])[0] / length) @ known
+                out[1][i], out[2][i] = values(nodes, [0.0, length]) @ known
 
     def _kinked(self, ks, fs, first: int, d: int, cols, out: list) -> None:
         """Steps with a kink at fraction f inside (the value is continuous there): the mean
@@ -322,7 +280,7 @@ class PairRows:
             rnodes = tuple(float(j) for j in range(1, mr + 1))
             lvals = self.window[k[:, None] + np.arange(1 - ml, 1) + d - self.lo][:, :, cols]
             rvals = self.window[k[:, None] + np.arange(1, mr + 1) + d - self.lo][:, :, cols]
-            mean[i] = (np.einsum("sn,snc->sc", _means(lnodes, np.zeros_like(f), f), lvals)
-                       + np.einsum("sn,snc->sc", _means(rnodes, f, np.ones_like(f)), rvals))
+            mean[i] = (np.einsum("sn,snc->sc", means(lnodes, np.zeros_like(f), f), lvals)
+                       + np.einsum("sn,snc->sc", means(rnodes, f, np.ones_like(f)), rvals))
             start[i] = lvals[:, -1]
             end[i] = rvals[:, 0]

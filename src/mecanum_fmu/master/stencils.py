@@ -1,0 +1,58 @@
+"""The weights of the polynomial through a few values one step apart (the embedded pair's
+stencils, pair_rows.py): its mean over a step and its values at the step's ends, as dot
+products with the values; exact for polynomials of the stencil's degree."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from numpy.polynomial import polynomial as P
+
+
+@lru_cache(maxsize=64)
+def _basis(nodes: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The Lagrange basis polynomials through `nodes` (positions in steps, relative to a
+    step's start), as coefficient columns, and their antiderivatives."""
+    columns = []
+    for i, x in enumerate(nodes):
+        others = [y for j, y in enumerate(nodes) if j != i]
+        columns.append(P.polyfromroots(others) / np.prod([x - y for y in others])
+                       if others else np.array([1.0]))
+    values = np.column_stack(columns)
+    return values, np.column_stack([P.polyint(c) for c in values.T])
+
+
+def means(nodes: tuple[float, ...], lo, hi) -> np.ndarray:
+    """Per node, its basis polynomial's integral over [lo, hi] (arrays of bounds: shape
+    (bounds, nodes))."""
+    whole = _basis(nodes)[1]
+    return (P.polyval(np.asarray(hi, dtype=float), whole)
+            - P.polyval(np.asarray(lo, dtype=float), whole)).T
+
+
+def values(nodes: tuple[float, ...], x) -> np.ndarray:
+    """Per node, its basis polynomial's value at x (shape (x, nodes))."""
+    return P.polyval(np.asarray(x, dtype=float), _basis(nodes)[0]).T
+
+
+FOUR = np.arange(4)     # a stencil's nodes
+
+
+@lru_cache(maxsize=None)
+def weight_table(offsets: int) -> np.ndarray:
+    """step_weights's weights for m = 1 .. 4 nodes and offsets 0 .. offsets - 1, at
+    (m - 1) offsets + o, padded with zeros to four nodes: one gather and one product a
+    batch."""
+    table = np.zeros((4 * offsets, 3, 4))
+    for m in range(1, 5):
+        for o in range(offsets):
+            table[(m - 1) * offsets + o, :, :m] = step_weights(m, o)
+    return table
+
+
+@lru_cache(maxsize=None)
+def step_weights(m: int, o: int) -> np.ndarray:
+    """For the nodes 0 .. m-1 one step apart: the weights of the mean over [o, o + 1] and of
+    the values at o and o + 1, as rows."""
+    nodes = tuple(float(i) for i in range(m))
+    return np.vstack((means(nodes, [o], [o + 1.0]), values(nodes, [o, o + 1.0])))
