@@ -26,6 +26,7 @@ from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .coarse import Start, coarse_runs
 from .estimate import coarse_plan, error_estimate, pair_tap
 from .instance import FmuCallError, RunningInstance
+from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
 from .recorder import Recorder, step_count
 from .stepping import NonFinite, StepFailure, check_finite, initialise, step_all
@@ -68,24 +69,20 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
-        pair = pair_tap(graph, experiment, buffers.real_slots, recorder.n_steps) \
-            if with_estimate else None
-        if not isinstance(pair, str) and pair is not None:
-            recorder.tap = pair
-        start = _start(graph, experiment, running, buffers, stack) \
-            if with_estimate and (not recorder.tap or pair.may_fail) else None
+        pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack)
+                       if with_estimate else (None, None))
         recorder.record()
         holds.prime()
         stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
         _run_loop(recorder, ctrl_c, buffers, stepper)
         results = recorder.results(True)
-        found = pair.finish() if recorder.tap else pair
         if with_estimate:
+            found = pair.finish() if isinstance(pair, PairRows) else pair
             results.extra["pair"] = {"graph": graph, "found": found}
-        if start is not None and not (isinstance(found, dict) and found["failed"] is None):
-            results.extra["coarse"] = coarse_runs(
-                graph, results, start, holds,
-                lambda rec: _stepper(how, running, rec, ctrl_c, None, holds)[0], ctrl_c)
+            if start is not None and not (isinstance(found, dict) and found["failed"] is None):
+                results.extra["coarse"] = coarse_runs(
+                    graph, results, start, holds,
+                    lambda rec: _stepper(how, running, rec, ctrl_c, None, holds)[0], ctrl_c)
         if counts:
             results.steps_taken, results.steps_rejected = (counts["steps_taken"],
                                                            counts["steps_rejected"])
@@ -116,6 +113,19 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
            else exp.relative_tolerance)
     return (lambda: step_adaptive(running, recorder, ctrl_c, progress, holds, tol, counts)
             ), counts
+
+
+def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance],
+                    buffers: Buffers, recorder: Recorder, stack: ExitStack) -> tuple:
+    """The estimate, set up before the run steps: the embedded pair's tap on the recorder
+    (PairRows, or why there is none: estimate.pair_tap), and the t0 Richardson's coarser
+    runs start from, where they may be needed (the pair does not apply, or may find after
+    the run that it does not)."""
+    pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps)
+    if isinstance(pair, PairRows):
+        recorder.tap = pair
+    needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
+    return pair, _start(graph, exp, running, buffers, stack) if needs_t0 else None
 
 
 def _start(graph: Graph, exp: Experiment, running: list[RunningInstance], buffers: Buffers,

@@ -109,7 +109,10 @@ class Recorder:
 
     def results(self, complete: bool) -> Results:
         """The rows recorded so far (t0 row included): every row, or the decimated ones plus
-        the exact last row."""
+        the exact last row. A run that did not complete gets no estimate: its tap is let go
+        first (what was recorded is the user's, whatever the tap would make of it)."""
+        if not complete:
+            self.tap = None
         self.flush()
         parts = [k for k in self.kept if len(k)]
         if self.last is not None and (self.flushed - 1) % self.stride:
