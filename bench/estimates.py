@@ -40,7 +40,7 @@ import numpy as np
 from accuracy import SCENARIOS as ACCURACY_SCENARIOS, with_experiment
 from mecanum_fmu import master
 from mecanum_fmu.errors import MecanumError
-from mecanum_fmu.master.estimate import coarse_factors
+from mecanum_fmu.master.richardson import coarse_factors
 from mecanum_fmu.masters import MASTERS, entry
 from mecanum_fmu.models.topology import topology
 from mecanum_fmu.report.ground_truth import ground_truth

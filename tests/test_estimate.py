@@ -10,7 +10,7 @@ import pytest
 from helpers import ROOT, with_experiment
 from mecanum_fmu import master, runner
 from mecanum_fmu.report.ground_truth import ground_truth
-from mecanum_fmu.master.estimate import UNRESOLVED, UNRESOLVED_END
+from mecanum_fmu.master.richardson import UNRESOLVED, UNRESOLVED_END
 from mecanum_fmu.results import BELOW_ROUND_OFF
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"

@@ -9,7 +9,7 @@ import pytest
 from helpers import ROOT, run_main, with_experiment
 from mecanum_fmu import master, runner
 from mecanum_fmu.errors import ScenarioError
-from mecanum_fmu.master.estimate import coarse_factors
+from mecanum_fmu.master.richardson import coarse_factors
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
 

@@ -213,6 +213,8 @@ def _failure(r: RunningInstance, function: str, status: int, when: float,
 
 
 def estimate_error(graph: Graph, results: Results) -> dict:
-    """The run's coupling error, for summary.json (master/estimate.py): the graph stepped
-    again at two coarser steps (3/2 h and 3 h, or a pair that keeps the breakpoints)."""
+    """The run's coupling error, for summary.json (master/estimate.py): the embedded pair
+    from the run's own rows (pair.py), or where it does not apply the graph stepped again at
+    two coarser steps (richardson.py), or the adaptive master's own. A run made without
+    with_estimate=True is made again for it."""
     return error_estimate(graph, results, simulate)

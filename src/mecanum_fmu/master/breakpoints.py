@@ -2,7 +2,7 @@
 master (the graph carries them; this module knows no model). The
 adaptive master ends its steps on the twist tables' (Stops, master/adaptive.py); the fixed-step
 masters cut the step that ends on a jump (step_cuts); the error estimate keeps all of them on
-its coarser grids (master/estimate.py)."""
+its coarser grids (master/richardson.py)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -22,7 +22,7 @@ def graph_breaks(graph: Graph) -> Breaks:
 
 
 NEAR = 1e-3     # [steps] a breakpoint this close to a communication point is on it (as
-                # master/estimate.py's _on_grid: a recorded 0.049999872 s is on the 0.05 s grid)
+                # master/richardson.py's _on_grid: a recorded 0.049999872 s is on the 0.05 s grid)
 CUT = 1e-9      # [steps] the piece of a step between the left value and a jump on its end
 
 

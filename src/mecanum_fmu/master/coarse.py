@@ -2,7 +2,7 @@
 
 Every FMU's state at t0 (fmi2GetFMUstate after initialisation) is restored, the values at t0
 are put back into the buffers and the holds primed again, then the same master steps at r h
-(estimate.py chooses r and keeps the rows it compares). No reset, no instantiation, no
+(richardson.py chooses r and keeps the rows it compares). No reset, no instantiation, no
 initialisation: the set-up is one fmi2SetFMUstate per FMU, where a fresh run re-creates every
 slave. Each coarser run steps from the same t0 state, so its values are those of a run made
 afresh (tests/test_estimate.py compares the two).
@@ -21,7 +21,8 @@ from ..errors import Interrupted
 from ..results import Results
 from ..runtime import STATUS
 from ..scenario.graph import Graph
-from .estimate import coarse_experiment, coarse_rows, coarse_sink, recorded_outputs
+from .estimate import recorded_outputs
+from .richardson import coarse_experiment, coarse_rows, coarse_sink
 from .instance import RunningInstance
 from .plan import Buffers, Holds
 from .recorder import Recorder, step_count

@@ -17,7 +17,7 @@ An FMU's error model (Graph.error_models' batch form: the PoseIntegrator's) carr
 errors into its outputs. The outputs of an FMU without a state (every output depends on an
 input) read their inputs exactly: no error, or under Jacobi the lag d, row k against row
 k + d. An FMU with a state and no error model must see no error at all (its inputs held
-exactly: constants), else the estimate falls back to Richardson (estimate.py), as it does
+exactly: constants), else the estimate falls back to Richardson (richardson.py), as it does
 where the pair cannot follow an error: a feedback loop, an FMU fed by another's error.
 """
 from __future__ import annotations

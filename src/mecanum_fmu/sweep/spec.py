@@ -18,7 +18,6 @@ R + dRi <= 0) makes that run a failed row with the reason, the rest of the study
 """
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
