@@ -33,7 +33,7 @@ from .plan import has_state, state_only_inputs
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
           "through its nearest values in the same smooth piece (no extra doStep), carried "
-          "into the outputs by the FMUs' error models ({models}); outputs of FMUs without a "
+          "into the outputs by their FMUs' error models ({models}); outputs of FMUs without a "
           "state read their inputs exactly{lag}")
 
 
@@ -47,6 +47,7 @@ class Group:
     roles: np.ndarray
     lag: int
     model: object | None
+    model_name: str = ""        # the FMU's model (its modelName), for the method's words
 
 
 @dataclass
@@ -113,7 +114,7 @@ def _group(graph: Graph, how, inst, links: list, d: int, col) -> Group | str:
     roles = np.array(["state" if how.hold != "zoh" and n in state_only else "direct"
                       for n in names])
     return Group(inst.name, np.array([col(l.source) for l in links]), roles, d,
-                 model.batch(names, inst) if model is not None else None)
+                 model.batch(names, inst) if model is not None else None, inst.model_name)
 
 
 def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hold: str

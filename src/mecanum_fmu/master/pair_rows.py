@@ -104,7 +104,8 @@ class PairRows:
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
                 "seconds": self.seconds, "failed": self._moved(), "lagged": bool(self.lag),
-                "models": [f"{g.name}'s" for g in self.plan.groups if g.model is not None]}
+                "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
+                           if g.model is not None]}
 
     def _tail(self) -> None:
         """The steps left."""
