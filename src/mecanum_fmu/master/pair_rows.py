@@ -88,7 +88,8 @@ class PairRows:
         there (the estimate's third value per output; estimate.py words an end the two do not
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
-        self._steps(self.n - 2 - self.reach)
+        if self.lag:            # the steps before the extrapolated tail, once
+            self._steps(self.n - 2 - self.reach)
         before = self._state() if self.lag else None
         self._tail()
         if before is not None:

@@ -12,14 +12,18 @@ from numpy.polynomial import polynomial as P
 @lru_cache(maxsize=64)
 def _basis(nodes: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
     """The Lagrange basis polynomials through `nodes` (positions in steps, relative to a
-    step's start), as coefficient columns, and their antiderivatives."""
+    step's start), as coefficient columns (lowest power first), and their antiderivatives;
+    expanded in plain floats (at most four nodes: microseconds)."""
     columns = []
     for i, x in enumerate(nodes):
-        others = [y for j, y in enumerate(nodes) if j != i]
-        columns.append(P.polyfromroots(others) / np.prod([x - y for y in others])
-                       if others else np.array([1.0]))
-    values = np.column_stack(columns)
-    return values, np.column_stack([P.polyint(c) for c in values.T])
+        poly = [1.0]
+        for j, y in enumerate(nodes):
+            if j != i:      # poly * (t - y) / (x - y)
+                poly = [(a - y * b) / (x - y) for a, b in zip([0.0] + poly, poly + [0.0])]
+        columns.append(poly)
+    values = np.array(columns).T
+    whole = np.array([[0.0] + [c / (k + 1) for k, c in enumerate(poly)] for poly in columns]).T
+    return values, whole
 
 
 def means(nodes: tuple[float, ...], lo, hi) -> np.ndarray:
@@ -56,10 +60,11 @@ def step_weights(m: int, o: int) -> np.ndarray:
     the values at o and o + 1, as rows (Horner's rule on the basis: a few microseconds, where
     polyval's array set-up took a millisecond for the table)."""
     basis, whole = _basis(tuple(float(i) for i in range(m)))
+
+    def at(x: int) -> list[float]:      # a node's own value exactly: its unit vector
+        return [float(i == x) if x < m else _horner(basis[:, i], float(x)) for i in range(m)]
     return np.array([[_horner(whole[:, i], o + 1.0) - _horner(whole[:, i], float(o))
-                      for i in range(m)],
-                     [_horner(basis[:, i], float(o)) for i in range(m)],
-                     [_horner(basis[:, i], o + 1.0) for i in range(m)]])
+                      for i in range(m)], at(o), at(o + 1)])
 
 
 def _horner(coefficients: np.ndarray, x: float) -> float:
