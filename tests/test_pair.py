@@ -181,3 +181,25 @@ def test_a_short_last_step_under_jacobi():
     e = found["error_estimate"]["pose.y"]
     assert error.max() / 3 <= e["max"] <= 3 * error.max()
     assert error[-1] / 3 <= e["end"] <= 3 * error[-1]
+
+
+def test_the_pairs_window_stays_a_few_rows_long(monkeypatch):
+    """Memory stays flat: over a 20,000-step run (five chunks of rows) the pair keeps no more
+    than a chunk and the few rows its stencils reach back to, and its estimate is the one it
+    makes of the same run at once (the estimate of a run does not depend on its chunks)."""
+    from mecanum_fmu.master import pair_rows, recorder
+    longest = []
+    call = pair_rows.PairRows.__call__
+
+    def watch(rows_tap, rows, first):
+        call(rows_tap, rows, first)
+        longest.append(len(rows_tap.window))
+    monkeypatch.setattr(pair_rows.PairRows, "__call__", watch)
+    found, results = _method(SCENARIOS / "circle.yaml", "gauss-seidel", step_size=5e-4)
+    assert len(longest) == 5 and max(longest) <= recorder.CHUNK_ROWS + 10
+    monkeypatch.setattr(recorder, "CHUNK_ROWS", 30_000)      # all rows in one chunk
+    whole, _ = _method(SCENARIOS / "circle.yaml", "gauss-seidel", step_size=5e-4)
+    for name in ("pose.x", "pose.y"):
+        for which in ("max", "end"):
+            assert found["error_estimate"][name][which] == pytest.approx(
+                whole["error_estimate"][name][which], rel=1e-9)
