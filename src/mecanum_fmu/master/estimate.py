@@ -58,19 +58,14 @@ SHORT_PIECES = ("a table's rows are closer than two steps: the values the run se
                 "tell its input between them")
 
 
-def pair_of(graph: Graph, exp, real_slots: dict) -> PairPlan | str | None:
-    """The embedded pair's plan for this run (pair.py), or why the pair does not apply
-    (Richardson then estimates), or None where the run gets no pair: an estimate other than
-    auto, the adaptive master, no recorded Real output."""
+def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | str | None:
+    """The recorder's tap of the pair for this run (pair_rows.py), or why the pair does not
+    apply (Richardson then estimates), or None where the run gets no pair: an estimate other
+    than auto, the adaptive master, no recorded Real output."""
     if exp.estimate != "auto" or master_entry(exp.master).adaptive or not any(
             p.type == "Real" for p in graph.recorded):
         return None
-    return pair_plan(graph, real_slots)
-
-
-def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | str | None:
-    """The recorder's tap of the pair for this run (pair_rows.py), or why there is none."""
-    plan = pair_of(graph, exp, real_slots)
+    plan = pair_plan(graph, real_slots)
     if not isinstance(plan, PairPlan):
         return plan
     if n_steps < 4:

@@ -69,6 +69,7 @@ def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
     lag: dict[str, int] = {}        # the FMUs whose outputs are exact (Jacobi: late by lag)
     slots: dict[int, int] = {}
     groups: list[Group] = []
+    models = dict(graph.error_models)
     col = lambda port: slots.setdefault(real_slots[port], len(slots))   # noqa: E731
     for inst in graph.instances:
         links = [l for l in graph.links if l.target.ref.instance == inst.name]
@@ -78,7 +79,7 @@ def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
         if not links or not has_state(inst):
             lag[inst.name] = d + 1 if how.freezes_inputs and links else d
             continue
-        group = _group(graph, how, inst, links, d, col)
+        group = _group(how, inst, links, d, col, models.get(inst.name))
         if isinstance(group, str):
             return group
         groups.append(group)
@@ -104,12 +105,12 @@ def _lag_in(inst, links: list, position: dict, lag: dict) -> int | str:
     return lags.pop() if lags else 0
 
 
-def _group(graph: Graph, how, inst, links: list, d: int, col) -> Group | str:
-    """The held inputs of an FMU with a state, with its error model's batch form (or None)."""
+def _group(how, inst, links: list, d: int, col, model) -> Group | str:
+    """The held inputs of an FMU with a state, with its error model's batch form (None
+    without a model, or where it does not take these inputs)."""
     if any(l.target.type != "Real" for l in links):
         return f"{inst.name} has a state and an input that is not Real"
     names = [l.target.ref.variable for l in links]
-    model = dict(graph.error_models).get(inst.name)
     state_only = state_only_inputs(inst)
     roles = np.array(["state" if how.hold != "zoh" and n in state_only else "direct"
                       for n in names])

@@ -12,10 +12,10 @@ import time as _time
 
 import numpy as np
 
+from ..results import round_off
 from .pair import Group, PairPlan, pieces
 from .stencils import FOUR, means, values, weight_table
 
-_FLOOR = 8 * np.finfo(float).eps     # per step and unit of size: results.round_off's
 
 
 def _columns(plan: PairPlan) -> tuple[dict, list, list]:
@@ -49,8 +49,9 @@ class PairRows:
         self.across_jump = np.array([self.pieces.across[k][1] for k in self.across_k], dtype=bool)
         self.window = np.empty((0, len(plan.slots)))
         self.lo, self.k = 0, 0      # the row window[0] holds; the next step to work out
-        lags = [g.lag for g in plan.groups] + [d for _, _, d in plan.lagged]
-        self.reach = 4 + max(lags, default=0)   # an across step's right nodes
+        self.lag = max([g.lag for g in plan.groups] + [d for _, _, d in plan.lagged],
+                       default=0)
+        self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
         self.worst = {name: 0.0 for name in (*plan.covered, *(n for n, _, _ in plan.lagged))}
         self.end = dict.fromkeys(self.worst, 0.0)
@@ -62,7 +63,6 @@ class PairRows:
         self.covers = [([n for n, (j, _) in plan.covered.items() if j == i],
                         [k for n, (j, k) in plan.covered.items() if j == i])
                        for i in range(len(plan.groups))]
-        self.lag = max(lags, default=0)
 
     @property
     def may_fail(self) -> bool:
@@ -88,29 +88,25 @@ class PairRows:
         there (the estimate's third value per output; estimate.py words an end the two do not
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
-        if self.lag:            # the steps before the extrapolated tail, once
+        parabola = self.end
+        if self.lag:            # the steps before the extrapolated tail, once; the tail twice
             self._steps(self.n - 2 - self.reach)
-        before = self._state() if self.lag else None
-        self._tail()
-        if before is not None:
+            before = self._state()
+            self._steps(self.n - 1)
             after = self._state()
             self._restore(before)
             self.highest = 3
-            self._tail()
+            self._steps(self.n - 1)
             parabola = dict(self.end)
             self._restore(after)
             self.highest = 4
         else:
-            parabola = self.end
+            self._steps(self.n - 1)
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
                 "seconds": self.seconds, "failed": self._moved(), "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
                            if g.model is not None]}
-
-    def _tail(self) -> None:
-        """The steps left."""
-        self._steps(self.n - 1)
 
     def _state(self) -> tuple:
         """What the tail changes (the models' running totals are replaced, not changed in
@@ -128,7 +124,7 @@ class PairRows:
         """Why the pair does not hold: an FMU with a state and no error model whose held
         inputs moved within the steps (beyond their round-off)."""
         for g, moved in zip(self.plan.groups, self.moved):
-            floor = _FLOOR * np.maximum(1.0, self.size[g.cols]) * max(self.n, 1)
+            floor = np.array([round_off([size], self.n) for size in self.size[g.cols]])
             if g.model is None and (moved > floor).any():
                 return (f"{g.name} has a state and no error model, and its held inputs move "
                         "within the steps")
@@ -209,14 +205,14 @@ class PairRows:
         rows = np.minimum(np.maximum(s[:, None] + FOUR + d - self.lo, 0), len(self.window) - 1)
         found = weight_table(offsets)[key] @ self.window[rows][:, :, cols]   # (steps, 3, columns)
         out = [found[:, 0], found[:, 1], found[:, 2]]
-        self._odd_steps(ks, d, cols, (a, b, s, m), out)
+        self._odd_steps(ks, d, cols, (s, m), out)
         return tuple(out)
 
     def _odd_steps(self, ks, d, cols, stencil, out) -> None:
         """The steps the uniform stencils do not fit: a step with a breakpoint inside (its
         mean split between the pieces on either side), and, where the last step is shorter,
         those whose stencil reaches its end (node n is nearer than a step)."""
-        a, b, s, m = stencil
+        s, m = stencil
         first, last = int(ks[0]), int(ks[-1])
         # (a step whose right node is past the run's last true value (Jacobi's last d steps)
         # keeps the left piece's polynomial)
@@ -239,6 +235,14 @@ class PairRows:
                 out[0][i] = (means(nodes, [0.0], [length])[0] / length) @ known
                 out[1][i], out[2][i] = values(nodes, [0.0, length]) @ known
 
+    def _sides(self, ks: np.ndarray, d: int) -> tuple[np.ndarray, np.ndarray]:
+        """For steps with a breakpoint inside: the first node of the piece on their left
+        and the last usable node of the one on their right (values late by d rows)."""
+        pc = self.pieces
+        a = pc.starts[np.searchsorted(pc.starts, ks, side="right") - 1]
+        right = np.searchsorted(pc.starts, ks + 1, side="right") - 1
+        return a, np.minimum(pc.ends[right], self.n - d)
+
     def _kinked(self, ks, fs, first: int, d: int, cols, out: list) -> None:
         """Steps with a kink at fraction f inside (the value is continuous there): the mean
         of the two lines from u_k and u_k+1 to the value at the kink, the lines through two
@@ -246,10 +250,7 @@ class PairRows:
         chord where neither has)."""
         if not len(ks):
             return
-        pc = self.pieces
-        a = pc.starts[np.searchsorted(pc.starts, ks, side="right") - 1]
-        b = np.minimum(pc.ends[np.searchsorted(pc.starts, ks + 1, side="right") - 1],
-                       self.n - d)
+        a, b = self._sides(ks, d)
         row = lambda j: self.window[np.clip(j + d - self.lo, 0, len(self.window) - 1)][:, cols]  # noqa
         u0, u1 = row(ks), row(ks + 1)
         f = fs[:, None]
@@ -269,11 +270,9 @@ class PairRows:
         (from node k + 1) over [f, 1]; their values at k and k + 1."""
         if not len(ks):
             return
-        pc = self.pieces
-        a = pc.starts[np.searchsorted(pc.starts, ks, side="right") - 1]
-        right = np.searchsorted(pc.starts, ks + 1, side="right") - 1
+        a, b = self._sides(ks, d)
         m_left = np.clip(ks - a + 1, 1, 3)
-        m_right = np.clip(np.minimum(pc.ends[right], self.n - d) - ks, 1, 3)
+        m_right = np.clip(b - ks, 1, 3)
         mean, start, end = out
         for ml, mr in set(zip(m_left.tolist(), m_right.tolist())):
             sel = (m_left == ml) & (m_right == mr)
