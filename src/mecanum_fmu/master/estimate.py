@@ -25,6 +25,8 @@ ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, o
                    "of the run is the embedded pair's two halves), where an FMU has an error "
                    "model its own (a PoseIntegrator's: the hold's next term, the frame's "
                    "turning, the heading's lever arm, the error of the twist it is fed)")
+
+
 def recorded_outputs(graph: Graph, results: Results) -> list[str]:
     """Every recorded Real output (the scenario's `outputs:`, by default every output of
     every FMU): what the estimate covers, for any FMUs."""
@@ -43,7 +45,7 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
     on the run's own instances; error_estimate words the reason."""
     if exp.estimate == "none":
         return TURNED_OFF
-    if master_entry(exp.master).adaptive or not any(p.type == "Real" for p in graph.recorded):
+    if not _fixed_with_reals(graph, exp):
         return None
     if graph.sampled:
         return (f"{', '.join(graph.sampled)} sample at their own period: a coarser step moves "
@@ -58,12 +60,18 @@ SHORT_PIECES = ("a table's rows are closer than two steps: the values the run se
                 "tell its input between them")
 
 
+def _fixed_with_reals(graph: Graph, exp) -> bool:
+    """A fixed-step master and some recorded Real output: a run that gets a pair or coarser
+    runs (the adaptive master estimates its own; without a Real output there is nothing)."""
+    return not master_entry(exp.master).adaptive and any(p.type == "Real"
+                                                         for p in graph.recorded)
+
+
 def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | str | None:
     """The recorder's tap of the pair for this run (pair_rows.py), or why the pair does not
     apply (Richardson then estimates), or None where the run gets no pair: an estimate other
     than auto, the adaptive master, no recorded Real output."""
-    if exp.estimate != "auto" or master_entry(exp.master).adaptive or not any(
-            p.type == "Real" for p in graph.recorded):
+    if exp.estimate != "auto" or not _fixed_with_reals(graph, exp):
         return None
     plan = pair_plan(graph, real_slots)
     if not isinstance(plan, PairPlan):
@@ -76,8 +84,9 @@ def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | st
 
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     """summary.json's `error_estimate` (per recorded Real output {"max", "end"}, in its unit,
-    or None)
-    and `error_estimate_method` (how it was made, or why there is none). The coarser runs
+    or None) and `error_estimate_method` (how it was made, or why there is none): the pair's
+    where it applies (results.extra["pair"], or the run made again), else Richardson's. The
+    coarser runs
     are those master.simulate stepped after the run (results.extra["coarse"], by factor),
     else made here with `simulate` (master.simulate, passed in: this module sits below it)."""
     names = recorded_outputs(graph, results)
