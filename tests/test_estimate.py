@@ -50,10 +50,14 @@ def test_circle_estimate_is_within_3x_of_the_closed_form(name, factor, estimate)
                                                      "end": BELOW_ROUND_OFF}
 
 
+# omni_field_circle's heading loop: the pair (theta carries no error around it) and Richardson
 @pytest.mark.parametrize("name", ["quadratic", "gauss-seidel"])
-def test_turning_estimate_is_within_3x_of_the_ground_truth(name):
+@pytest.mark.parametrize("estimate", ["auto", "richardson"])
+def test_turning_estimate_is_within_3x_of_the_ground_truth(name, estimate):
     graph, results, found = _at_step(ROOT / "scenarios" / "chassis" / "omni_field_circle.yaml",
-                                     name, 1)
+                                     name, 1, estimate)
+    assert found["error_estimate_method"].startswith(
+        "the embedded pair" if estimate == "auto" else "Richardson")
     truth = ground_truth(graph, results.time)
     assert len(truth.time) == len(results.time)
     for k in ("x", "y"):
@@ -125,11 +129,13 @@ def test_table_estimate_keeps_the_rows(name):
 
 
 # ends where the error's leading term changes sign between the step sizes (the brief's misses
-# at 0.04x to 0.2x): jacobi at the scenario's step, trapezoidal and gauss-seidel at 4x
+# at 0.04x to 0.2x): jacobi at the scenario's step, trapezoidal and gauss-seidel at 4x;
+# Richardson's end (two error terms) and the pair's
 @pytest.mark.parametrize("name,factor", [("jacobi", 1), ("trapezoidal", 4), ("gauss-seidel", 4)])
-def test_turning_end_point_with_two_error_terms(name, factor):
+@pytest.mark.parametrize("estimate", ["auto", "richardson"])
+def test_turning_end_point_with_two_error_terms(name, factor, estimate):
     _within_3x_of_the_truth(ROOT / "scenarios" / "chassis" / "omni_field_circle.yaml", name,
-                            factor, axes=("x", "y"))
+                            factor, axes=("x", "y"), estimate=estimate)
 
 
 def test_no_number_where_the_coarser_runs_are_out_of_range():
@@ -149,13 +155,15 @@ def test_no_number_where_the_coarser_runs_are_out_of_range():
 # step sizes (jacobi; read with the end's own order they were 4x and 9x low), and the
 # quadratic master at 2x and 4x of a 20 Hz table, whose corners fall inside its steps (its
 # error is O(h^2) there: read as h^3 the max was 3.6x low, and the end was above the max)
-@pytest.mark.parametrize("path,name,factor", [
-    ("chassis/omni_field_circle.yaml", "jacobi", 2),
-    ("profiles/quiet_then_busy.yaml", "jacobi", 1),
-    ("profiles/joystick.yaml", "quadratic", 2),
-    ("profiles/joystick.yaml", "quadratic", 4)])
-def test_estimate_where_the_error_turns_or_the_table_is_stepped_across(path, name, factor):
-    _within_3x_of_the_truth(ROOT / "scenarios" / path, name, factor)
+@pytest.mark.parametrize("path,name,factor,estimate", [
+    ("chassis/omni_field_circle.yaml", "jacobi", 2, "richardson"),
+    ("chassis/omni_field_circle.yaml", "jacobi", 2, "auto"),
+    ("profiles/quiet_then_busy.yaml", "jacobi", 1, "auto"),
+    ("profiles/joystick.yaml", "quadratic", 2, "auto"),
+    ("profiles/joystick.yaml", "quadratic", 4, "auto")])
+def test_estimate_where_the_error_turns_or_the_table_is_stepped_across(path, name, factor,
+                                                                       estimate):
+    _within_3x_of_the_truth(ROOT / "scenarios" / path, name, factor, estimate=estimate)
 
 
 def test_no_end_where_the_coarser_runs_are_far_off():

@@ -55,14 +55,16 @@ def test_the_cubics_weights_are_the_classical_ones():
     assert np.allclose(three(2, 1)[2], [-1, 2])
 
 
-def _held(monkeypatch, path, name, factor=1):
-    """(what the pair rebuilt as the pose's held twist, what the master fed it) per step."""
+def _held(monkeypatch, path, name, factor=1, corrector=False):
+    """(what the pair rebuilt as the pose's held twist, what the master fed it) per step
+    (`corrector`: where the master rolls back, what it fed in the corrector's pass)."""
     fed, rebuilt = [], []
     fill = plan._Blend.fill
 
     def spy(blend):
         fill(blend)
-        fed.append(blend.staging.copy())
+        if not corrector or blend.holds.mode == blend.holds.CORRECT or name != "quadratic":
+            fed.append(blend.staging.copy())
     monkeypatch.setattr(plan._Blend, "fill", spy)
     steps = pose_error.PoseBatch.steps
 
@@ -98,19 +100,54 @@ def test_the_rebuilt_hold_at_jumps_is_the_left_values_one(monkeypatch):
     assert np.abs(rebuilt - np.array(per_step)).max() < 1e-13
 
 
-def _method(path, name="quadratic", **changes):
-    graph = runner.prepare(path, master_name=name)
+def _method(path, name="quadratic", parameters=None, **changes):
+    graph = runner.prepare(path, master_name=name, parameters=parameters)
     graph, exp = with_experiment(graph, **changes)
     results = master.simulate(graph, exp, with_estimate=True)
     return master.estimate_error(graph, results), results
 
 
-def test_a_feedback_loop_hands_over_to_richardson_and_says_why():
-    found, results = _method(SCENARIOS / "chassis" / "omni_field_circle.yaml")
+def test_a_loop_that_carries_an_error_hands_over_to_richardson_and_says_why():
+    """track_circle: the follower reads the pose, whose error the pair would have to carry
+    through the follower's response; Richardson's coarser runs are stepped on the run's own
+    instances, as where the pair never applied."""
+    found, results = _method(SCENARIOS / "closed_loop" / "track_circle.yaml")
     assert found["error_estimate_method"].startswith("Richardson")
     assert "the embedded pair does not apply" in found["error_estimate_method"]
-    assert "closes a feedback loop" in found["error_estimate_method"]
-    assert len(results.extra["coarse"]["runs"]) == 2       # stepped on the run's instances
+    assert "pose.x carries an error into follower" in found["error_estimate_method"]
+    assert len(results.extra["coarse"]["runs"]) == 2       # stepped on the run's own instances
+
+
+OMNI = SCENARIOS / "chassis" / "omni_field_circle.yaml"
+
+
+@pytest.mark.parametrize("name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
+def test_a_loop_whose_fed_back_heading_is_exact_keeps_the_pair(name):
+    """omni_field_circle: the heading comes back to FieldToBody, and w is constant: theta
+    carries no error, the loop carries none around, and the pair holds (no coarser run)."""
+    found, results = _method(OMNI, name)
+    assert found["error_estimate_method"].startswith("the embedded pair")
+    assert "coarse" not in results.extra
+    assert found["error_estimate"]["pose.theta"]["max"] == "below round-off"
+    assert all(isinstance(found["error_estimate"][f"pose.{k}"]["max"], float) for k in "xy")
+
+
+def test_a_heading_with_an_error_in_the_loop_hands_over():
+    """The same loop turning at w = 0.5 + 0.1 t^2: the holds' start-up steps leave theta an
+    error (4e-6 rad), which FieldToBody would turn into the body twist."""
+    found, results = _method(OMNI, parameters={"command.w_expr": "0.5 + 0.1*t*t"})
+    assert found["error_estimate_method"].startswith("Richardson")
+    assert "pose.theta carries an error into field" in found["error_estimate_method"]
+
+
+@pytest.mark.parametrize("name", ["trapezoidal", "quadratic"])
+def test_the_rebuilt_hold_in_a_loop_is_the_one_the_master_fed(monkeypatch, name):
+    """The twist that closes omni_field_circle's loop into the pose: extrapolated by the
+    trapezoidal master, the corrector's parabola through the predicted end value by the
+    quadratic one (its predictor's fills are left out)."""
+    rebuilt, fed = _held(monkeypatch, OMNI, name, corrector=True)
+    assert len(rebuilt) == len(fed) == 200
+    assert np.abs(rebuilt - fed).max() < 1e-13
 
 
 def test_an_fmu_with_a_state_held_exactly_keeps_the_pair():

@@ -18,11 +18,23 @@ errors into its outputs. The outputs of an FMU without a state (every output dep
 input) read their inputs exactly: no error, or under Jacobi the lag d, row k against row
 k + d. An FMU with a state and no error model must see no error at all (its inputs held
 exactly: constants), else the estimate falls back to Richardson (richardson.py), as it does
-where the pair cannot follow an error: a feedback loop, an FMU fed by another's error.
+where the pair cannot follow an error.
+
+An FMU may read an error model's outputs (a loop closing back through a PoseIntegrator's
+heading, any FMU downstream of one): the pair then holds only where those outputs carry no
+error at all (below their round-off), which it checks after the run, as it checks an FMU with a
+state and no model. Such an error would have to be carried through the FMU that reads it
+(around the loop), which takes that FMU's response. The input that closes a loop into an FMU's
+state is held as the master holds it: its value of t_k (Gauss-Seidel, Jacobi), extrapolated
+(the trapezoidal master, and the quadratic one where it cannot roll back), or, where the
+quadratic master predicts, rolls back and corrects, the limited parabola through the
+predicted end value. That is the run's own where the loop carries no error, but for the steps
+whose predictor's extrapolation misses a corner (the start, a kink, a jump): one step's
+error in the loop's predicted value, not carried on (the corrector steps from the run's state).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -40,8 +52,10 @@ METHOD = ("the embedded pair: per step, each held input's hold against the mean 
 @dataclass
 class Group:
     """One FMU's held Real inputs: their columns in the tapped rows, their roles ("state":
-    blended by the trapezoidal and quadratic holds; "direct": the newest value), the lag of
-    their values (Jacobi: steps late), and the FMU's error model (None: it must see none)."""
+    blended by the trapezoidal and quadratic holds; "direct": the newest value; with
+    "_ahead" or "fed_back": the same, closing a loop, their value of t_k+1 unknown when the
+    FMU steps), the lag of their values (Jacobi: steps late), and the FMU's error model
+    (None: it must see none)."""
     name: str
     cols: np.ndarray
     roles: np.ndarray
@@ -57,12 +71,17 @@ class PairPlan:
     lagged: list[tuple[str, int, int]]      # (output, column, lag): Jacobi's late outputs
     covered: dict[str, tuple[int, int]]     # output -> (group, index in its model's outputs)
     hold: str                    # "zoh", "trapezoidal", "quadratic" ; jacobi: "frozen"
+    # the error models' outputs that other FMUs read: (output, group, index in its model's
+    # outputs, column, the FMUs that read it); the pair holds where they carry no error
+    fed: list = field(default_factory=list)
+    rolled_back: bool = False    # the quadratic master predicts, rolls back, corrects a loop
 
 
 def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
     """The pair's plan for this graph's fixed-step master, or why it has none: in step
     order, each FMU's outputs are exact (Jacobi: late by a lag), or an error model's, or
-    (an FMU with a state and no model) exact if its held inputs do not move.
+    (an FMU with a state and no model) exact if its held inputs do not move; an FMU that
+    reads a model's outputs (or closes a loop) holds them exact if they carry no error.
     `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives)."""
     how = master_entry(graph.scenario.experiment.master)
     position = {inst.name: i for i, inst in enumerate(graph.instances)}
@@ -70,52 +89,101 @@ def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
     slots: dict[int, int] = {}
     groups: list[Group] = []
     models = dict(graph.error_models)
+    modelled: dict[str, int] = {}   # the FMUs with an error model -> their group
     col = lambda port: slots.setdefault(real_slots[port], len(slots))   # noqa: E731
     for inst in graph.instances:
         links = [l for l in graph.links if l.target.ref.instance == inst.name]
-        d = _lag_in(inst, links, position, lag)
+        loop = [l for l in links if position[l.source.ref.instance] >= position[inst.name]]
+        if loop and not has_state(inst):
+            return (f"{inst.name}'s input {loop[0].target.ref.variable} closes a feedback "
+                    "loop through an FMU without a state, whose error the pair does not follow")
+        d = _lag_in(inst, [l for l in links if l not in loop], lag)
         if isinstance(d, str):
             return d
         if not links or not has_state(inst):
             lag[inst.name] = d + 1 if how.freezes_inputs and links else d
             continue
-        group = _group(how, inst, links, d, col, models.get(inst.name))
+        group = _group(how, inst, links, set(map(id, loop)), d, col, models.get(inst.name))
         if isinstance(group, str):
             return group
         groups.append(group)
-        if group.model is None:
-            lag[inst.name] = 0      # exact, if its inputs are held exactly (PairRows checks)
-    return _outputs(graph, lag, groups, slots, col,
-                    "frozen" if how.freezes_inputs else how.hold)
+        lag[inst.name] = 0          # exact, or its model's (PairRows checks those fed on)
+        if group.model is not None:
+            modelled[inst.name] = len(groups) - 1
+    why = _loop_lags(graph, groups, lag, position)
+    if why:
+        return why
+    fed = _fed(graph, groups, modelled, col)
+    if isinstance(fed, str):
+        return fed
+    plan = _outputs(graph, lag, groups, slots, col, "frozen" if how.freezes_inputs else how.hold)
+    if isinstance(plan, PairPlan):
+        plan.fed = fed
+        plan.rolled_back = how.rolls_back and any(
+            r.endswith("_ahead") or r == "fed_back" for g in groups for r in g.roles) and all(
+            inst.can_get_set_state for inst in graph.instances)
+    return plan
 
 
-def _lag_in(inst, links: list, position: dict, lag: dict) -> int | str:
-    """The lag of inst's inputs (0 but under Jacobi), or why the pair cannot follow them."""
-    late = [l for l in links if position[l.source.ref.instance] >= position[inst.name]]
-    if late:
-        return (f"{inst.name}'s input {late[0].target.ref.variable} closes a feedback "
-                "loop, whose error the pair does not follow")
-    fed = sorted({l.source.ref.instance for l in links} - set(lag))
-    if fed:
-        return (f"{inst.name} is fed by {fed[0]}'s outputs, whose error the pair does "
-                f"not carry through {inst.name}")
+def _lag_in(inst, links: list, lag: dict) -> int | str:
+    """The lag of inst's inputs from FMUs stepped before it (0 but under Jacobi), or why the
+    pair cannot follow them."""
     lags = {lag[l.source.ref.instance] for l in links}
     if len(lags) > 1:
         return f"{inst.name}'s inputs arrive with different lags under Jacobi"
     return lags.pop() if lags else 0
 
 
-def _group(how, inst, links: list, d: int, col, model) -> Group | str:
+def _loop_lags(graph: Graph, groups: list[Group], lag: dict, position: dict) -> str | None:
+    """The lag of the groups whose inputs close a loop, now that their sources' are known
+    (under Jacobi, a loop's input is late by its feedthrough FMUs), or why they differ."""
+    for g in groups:
+        links = [l for l in graph.links if l.target.ref.instance == g.name]
+        lags = {lag[l.source.ref.instance] for l in links}
+        if len(lags) > 1:
+            return f"{g.name}'s inputs arrive with different lags under Jacobi"
+        g.lag = lags.pop()
+    return None
+
+
+def _fed(graph: Graph, groups: list[Group], modelled: dict, col) -> list | str:
+    """The error models' outputs that other FMUs read (PairPlan.fed), or why one cannot be
+    checked (its model does not cover it)."""
+    readers: dict[str, list] = {}
+    for l in graph.links:
+        owner = l.source.ref.instance
+        if owner not in modelled:
+            continue
+        model = groups[modelled[owner]].model
+        if l.source.ref.variable not in model.outputs or l.source.type != "Real":
+            return (f"{l.target.ref.instance} reads {l.source.ref}, which {owner}'s error "
+                    "model does not cover")
+        readers.setdefault(str(l.source.ref), [l]).append(l.target.ref.instance)
+    return [(name, modelled[first.source.ref.instance],
+             list(groups[modelled[first.source.ref.instance]].model.outputs).index(
+                 first.source.ref.variable), col(first.source), sorted(set(who)))
+            for name, (first, *who) in readers.items()]
+
+
+def _group(how, inst, links: list, loop: set, d: int, col, model) -> Group | str:
     """The held inputs of an FMU with a state, with its error model's batch form (None
-    without a model, or where it does not take these inputs)."""
+    without a model, or where it does not take these inputs); `loop`: the ids of the links
+    that close a loop into it."""
     if any(l.target.type != "Real" for l in links):
         return f"{inst.name} has a state and an input that is not Real"
     names = [l.target.ref.variable for l in links]
     state_only = state_only_inputs(inst)
-    roles = np.array(["state" if how.hold != "zoh" and n in state_only else "direct"
-                      for n in names])
+    roles = np.array([_role(how.hold != "zoh" and n in state_only, id(l) in loop)
+                      for n, l in zip(names, links)])
     return Group(inst.name, np.array([col(l.source) for l in links]), roles, d,
                  model.batch(names, inst) if model is not None else None, inst.model_name)
+
+
+def _role(blended: bool, ahead: bool) -> str:
+    """An input's role in the pair's rebuilt hold (Group.roles)."""
+    if blended:
+        return "state_ahead" if ahead else "state"
+    return "fed_back" if ahead else "direct"
 
 
 def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hold: str

@@ -63,15 +63,21 @@ class PairRows:
         self.covers = [([n for n, (j, _) in plan.covered.items() if j == i],
                         [k for n, (j, k) in plan.covered.items() if j == i])
                        for i in range(len(plan.groups))]
+        # the models' outputs other FMUs read: their largest |error|
+        self.fed = {name: 0.0 for name, *_ in plan.fed}
+        self.failed: str | None = None
 
     @property
     def may_fail(self) -> bool:
         """Whether the pair may find, after the run, that it does not hold (an FMU with a
-        state and no error model): the run then keeps its t0 for Richardson's coarser runs."""
-        return any(g.model is None for g in self.plan.groups)
+        state and no error model, a model's output that another FMU reads): the run then
+        keeps its t0 for Richardson's coarser runs."""
+        return bool(self.plan.fed) or any(g.model is None for g in self.plan.groups)
 
     def __call__(self, rows: np.ndarray, first: int) -> None:
         """A chunk of whole buffer rows, the first being row `first` of the run."""
+        if self.failed:         # the pair does not hold: Richardson estimates
+            return
         tick = _time.perf_counter()
         new = rows[:, self.plan.slots]
         self.window = np.concatenate((self.window, new))
@@ -89,7 +95,9 @@ class PairRows:
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
         parabola = self.end
-        if self.lag:            # the steps before the extrapolated tail, once; the tail twice
+        if self.failed:
+            pass
+        elif self.lag:            # the steps before the extrapolated tail, once; the tail twice
             self._steps(self.n - 2 - self.reach)
             before = self._state()
             self._steps(self.n - 1)
@@ -104,7 +112,8 @@ class PairRows:
             self._steps(self.n - 1)
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
-                "seconds": self.seconds, "failed": self._moved(), "lagged": bool(self.lag),
+                "seconds": self.seconds, "failed": self.failed or self._moved(),
+                "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
                            if g.model is not None]}
 
@@ -112,13 +121,15 @@ class PairRows:
         """What the tail changes (the models' running totals are replaced, not changed in
         place: a shallow copy keeps them; the window is sliced, never written)."""
         return ([copy.copy(g.model) for g in self.plan.groups], dict(self.worst),
-                dict(self.end), self.k, self.lo, self.window, [m.copy() for m in self.moved])
+                dict(self.end), self.k, self.lo, self.window, [m.copy() for m in self.moved],
+                dict(self.fed))
 
     def _restore(self, state: tuple) -> None:
-        models, worst, end, self.k, self.lo, self.window, moved = state
+        models, worst, end, self.k, self.lo, self.window, moved, fed = state
         for g, model in zip(self.plan.groups, models):
             g.model = copy.copy(model)
         self.worst, self.end, self.moved = dict(worst), dict(end), [m.copy() for m in moved]
+        self.fed = dict(fed)
 
     def _moved(self) -> str | None:
         """Why the pair does not hold: an FMU with a state and no error model whose held
@@ -129,6 +140,21 @@ class PairRows:
                 return (f"{g.name} has a state and no error model, and its held inputs move "
                         "within the steps")
         return None
+
+    def _fed_error(self) -> str | None:
+        """Why the pair does not hold: a model's output that another FMU reads carries an
+        error (beyond its round-off), which the pair would have to carry through that FMU."""
+        for name, _, _, c, readers in self.plan.fed:
+            if self.fed[name] > round_off([self.size[c]], self.n):
+                return (f"{name} carries an error into {', '.join(readers)}, which the "
+                        "pair cannot carry through them (it would take their response)")
+        return None
+
+    def _check_fed(self, i: int, signed: np.ndarray) -> None:
+        """Keep the largest |error| of group i's outputs that other FMUs read."""
+        for name, j, index, *_ in self.plan.fed:
+            if j == i and len(signed):
+                self.fed[name] = max(self.fed[name], float(np.max(np.abs(signed[:, index]))))
 
     def _keep(self, names: list[str], errors: np.ndarray) -> None:
         """The signed errors of outputs `names` (a column each) on a batch of rows."""
@@ -155,12 +181,14 @@ class PairRows:
             signed = g.model.steps(h, held, error, change)
             names, index = self.covers[i]
             self._keep(names, signed[:, index])
+            self._check_fed(i, signed)
         for d, names, at in self.lags:
             self._keep(names, self.window[ks - self.lo][:, self.cols[d][at]]
                        - stencils[d][1][:, at])
             if k_hi == self.n - 1:      # and the last row, against the last step's end
                 self._keep(names, self.window[[self.n - self.lo]][:, self.cols[d][at]]
                            - stencils[d][2][-1:, at])
+        self.failed = self._fed_error()
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
@@ -169,16 +197,39 @@ class PairRows:
         """(held, held - true mean, the true change over the step) per step and input, from
         the true input's (mean, start, end) per step (_stencils)."""
         mean, start, end = stencils
-        row = lambda shift: self.window[np.maximum(ks + shift - self.lo, 0)][:, g.cols]  # noqa
-        now = row(0)
+        now = self._row(g, ks, 0)
         if self.plan.hold == "frozen":      # Jacobi: the values of t_k, late by the lag
             return now, now - mean, end - start
-        seen = np.where(np.isin(ks + 1, self.pieces.cut)[:, None], end, row(1))
-        held = np.where(g.roles == "direct", seen, 0.5 * (now + seen))
+        seen = np.where(np.isin(ks + 1, self.pieces.cut)[:, None], end, self._row(g, ks, 1))
+        trapezoid = 0.5 * (now + seen)
         if self.plan.hold == "quadratic":
-            held = held - np.where(g.roles == "direct", 0.0,
-                                   self._parabola(ks, now, seen, row(-1), row(-2)))
+            trapezoid = trapezoid - self._parabola(ks, now, seen, self._row(g, ks, -1),
+                                                   self._row(g, ks, -2))
+        if self.plan.hold == "zoh":         # the newest value: of t_k where a loop closes
+            held = np.where(g.roles == "direct", seen, now)
+        elif self.plan.rolled_back:     # the corrector, on the predicted end: the run's
+            held = np.where(g.roles == "direct", seen, np.where(g.roles == "fed_back", seen,
+                                                                trapezoid))
+        else:
+            held = self._extrapolated(g, ks, now, np.where(g.roles == "direct", seen,
+                                                           trapezoid))
         return held, held - mean, end - start
+
+    def _row(self, g: Group, ks: np.ndarray, shift: int) -> np.ndarray:
+        """Group g's input values in the rows `shift` from each step's start."""
+        return self.window[np.maximum(ks + shift - self.lo, 0)][:, g.cols]
+
+    def _extrapolated(self, g: Group, ks: np.ndarray, now: np.ndarray, held: np.ndarray
+                      ) -> np.ndarray:
+        """`held` with a loop's inputs extrapolated from u_k-1 and u_k, as the trapezoidal
+        hold (plan.HOLDS) sets them where their end value is not known: the mean over the
+        step (1.5 u_k - 0.5 u_k-1; "fed_back": the end value, 2 u_k - u_k-1); after a
+        restart (the run's start, a jump), u_k alone."""
+        restarts = np.concatenate(([0], self.pieces.cut))
+        since = ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
+        slope = np.where((since >= 1)[:, None], now - self._row(g, ks, -1), 0.0)
+        return np.where(g.roles == "state_ahead", now + 0.5 * slope,
+                        np.where(g.roles == "fed_back", now + slope, held))
 
     def _parabola(self, ks, now, seen, before, older) -> np.ndarray:
         """The quadratic master's correction to the trapezoid (plan._Blend): the second
