@@ -240,3 +240,20 @@ def test_the_pairs_window_stays_a_few_rows_long(monkeypatch):
         for which in ("max", "end"):
             assert found["error_estimate"][name][which] == pytest.approx(
                 whole["error_estimate"][name][which], rel=1e-9)
+
+
+def test_a_run_made_without_its_estimate_is_made_again_once(monkeypatch):
+    """track_circle simulated without with_estimate: estimate_error makes the run again for
+    the pair, which fails on it (the loop carries an error); the coarser runs that run made
+    on its own instances are used, none is made afresh, and the estimate is the one of a
+    run made with it."""
+    from mecanum_fmu.master import estimate
+    made = []
+    monkeypatch.setattr(estimate, "coarse_run", lambda *a, **k: made.append(a) or "made")
+    path = SCENARIOS / "closed_loop" / "track_circle.yaml"
+    graph = runner.prepare(path)
+    found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
+    assert made == [] and found["error_estimate_method"].startswith("Richardson")
+    with_it, _ = _method(path)
+    found.pop("error_estimate_cost"), with_it.pop("error_estimate_cost")
+    assert found == with_it

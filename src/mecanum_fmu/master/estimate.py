@@ -102,15 +102,18 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "relative_tolerance": (DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance
                                        is None else exp.relative_tolerance),
                 "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
-    pair = results.extra.get("pair", {})
-    pair = pair.get("found") if pair.get("graph") is graph else _pair_afresh(graph, simulate)
+    pair, stepped = results.extra.get("pair", {}), results.extra.get("coarse", {})
+    if pair.get("graph") is graph:
+        pair = pair.get("found")
+    else:
+        pair, stepped = _pair_afresh(graph, results, simulate)
     if isinstance(pair, dict) and pair["failed"] is None:
         return _pair_estimate(graph, results, names, pair)
     marks = graph_breaks(graph).times()
     factors = coarse_plan(graph, exp, marks)
     if isinstance(factors, str):
         return _none(factors)
-    coarse, stepped = [], results.extra.get("coarse", {})
+    coarse = []
     stepped = stepped.get("runs", {}) if stepped.get("graph") is graph else {}
     for factor in factors:
         run = stepped.get(factor) or coarse_run(graph, coarse_experiment(exp, factor), names,
@@ -125,19 +128,24 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
     return found
 
 
-def _pair_afresh(graph: Graph, simulate) -> dict | str | None:
+def _pair_afresh(graph: Graph, results: Results, simulate) -> tuple:
     """The pair of a run made without it (master.simulate without with_estimate): the run
-    made again with it, or why the pair does not apply (None: the run gets none)."""
+    made again with it, or why the pair does not apply (None: the run gets none); and where
+    the pair fails on it, the coarser runs it stepped (results.extra["coarse"]; kept only
+    where `results` holds every row, the rows they keep being those of the run made again)."""
     from .plan import Buffers
     from .recorder import step_count
     exp = graph.scenario.experiment
-    tap = pair_tap(graph, exp, Buffers(graph, freeze=False).real_slots, step_count(exp))
+    n = step_count(exp)
+    tap = pair_tap(graph, exp, Buffers(graph, freeze=False).real_slots, n)
     if not isinstance(tap, PairRows):
-        return tap
+        return tap, {}
+    every = len(results.time) == n + 1
     try:
-        return simulate(graph, exp, keep_rows=2, with_estimate=True).extra["pair"]["found"]
+        again = simulate(graph, exp, keep_rows=None if every else 2, with_estimate=True)
     except SimulationError as err:
-        return f"the run made again for it failed ({err})"
+        return f"the run made again for it failed ({err})", {}
+    return again.extra["pair"]["found"], again.extra.get("coarse", {}) if every else {}
 
 
 def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict) -> dict:
