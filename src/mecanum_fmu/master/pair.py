@@ -110,7 +110,7 @@ def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
         lag[inst.name] = 0          # exact, or its model's (PairRows checks those fed on)
         if group.model is not None:
             modelled[inst.name] = len(groups) - 1
-    why = _loop_lags(graph, groups, lag, position)
+    why = _loop_lags(graph, groups, lag)
     if why:
         return why
     fed = _fed(graph, groups, modelled, col)
@@ -134,7 +134,7 @@ def _lag_in(inst, links: list, lag: dict) -> int | str:
     return lags.pop() if lags else 0
 
 
-def _loop_lags(graph: Graph, groups: list[Group], lag: dict, position: dict) -> str | None:
+def _loop_lags(graph: Graph, groups: list[Group], lag: dict) -> str | None:
     """The lag of the groups whose inputs close a loop, now that their sources' are known
     (under Jacobi, a loop's input is late by its feedthrough FMUs), or why they differ."""
     for g in groups:

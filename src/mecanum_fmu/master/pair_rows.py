@@ -95,9 +95,7 @@ class PairRows:
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
         parabola = self.end
-        if self.failed:
-            pass
-        elif self.lag:            # the steps before the extrapolated tail, once; the tail twice
+        if self.lag and not self.failed:    # the steps before the tail once, the tail twice
             self._steps(self.n - 2 - self.reach)
             before = self._state()
             self._steps(self.n - 1)
@@ -108,7 +106,7 @@ class PairRows:
             parabola = dict(self.end)
             self._restore(after)
             self.highest = 4
-        else:
+        elif not self.failed:
             self._steps(self.n - 1)
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
@@ -208,8 +206,7 @@ class PairRows:
         if self.plan.hold == "zoh":         # the newest value: of t_k where a loop closes
             held = np.where(g.roles == "direct", seen, now)
         elif self.plan.rolled_back:     # the corrector, on the predicted end: the run's
-            held = np.where(g.roles == "direct", seen, np.where(g.roles == "fed_back", seen,
-                                                                trapezoid))
+            held = np.where(np.isin(g.roles, ("direct", "fed_back")), seen, trapezoid)
         else:
             held = self._extrapolated(g, ks, now, np.where(g.roles == "direct", seen,
                                                            trapezoid))
