@@ -144,8 +144,8 @@ class PairRows:
         error (beyond its round-off), which the pair would have to carry through that FMU."""
         for name, _, _, c, readers in self.plan.fed:
             if self.fed[name] > round_off([self.size[c]], self.n):
-                return (f"{name} carries an error into {', '.join(readers)}, which the "
-                        "pair cannot carry through them (it would take their response)")
+                return (f"{name} carries an error into {', '.join(readers)}; the pair "
+                        "carries no error through an FMU (that would take its response)")
         return None
 
     def _check_fed(self, i: int, signed: np.ndarray) -> None:
