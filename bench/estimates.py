@@ -25,8 +25,11 @@ machine runs: compare the cost ratios within one run.
 With --adaptive: the adaptive master's own estimate against the true error instead, on the
 scenarios of bench/accuracy.py at TOL 1e-2 ... 1e-6.
 
+With --loops: the closed loops (a PathFollower on a pose, no motors), whose coupling error has
+no ground truth, against the same graph stepped by the same master at 1/32 of the step.
+
 Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING] [--estimate richardson]
-     [--adaptive]
+     [--loops] [--adaptive]
 """
 from __future__ import annotations
 
@@ -52,11 +55,13 @@ FACTORS = (1, 2, 4)
 AXES = ("x", "y", "theta")
 FACTOR = 3.0
 FLOOR = 1e-9
+REFINE = 32         # --loops: the reference run's step, 1/REFINE of the run's
 DYNAMIC = ("DCMotor", "MecanumDynamics")     # a drive train: no coupling-error truth
 
 
-def scenarios() -> list[str]:
-    """The bundled scenarios whose single pose has a ground truth (open loop)."""
+def scenarios(loops: bool = False) -> list[str]:
+    """The bundled scenarios whose single pose has a ground truth (open loop), or with
+    `loops` the closed loops (a PathFollower, no motors, no sampled sensors)."""
     found = []
     for path in sorted((ROOT / "scenarios").rglob("*.yaml")):
         try:
@@ -64,11 +69,11 @@ def scenarios() -> list[str]:
         except MecanumError:
             continue                 # a sweep file, not a scenario
         drives = topology(graph).drives
-        if len(drives) != 1 or drives[0].model == "PathFollower" or graph.sampled or any(
-                i.model_name in DYNAMIC for i in graph.instances):
+        if len(drives) != 1 or (drives[0].model == "PathFollower") != loops or \
+                graph.sampled or any(i.model_name in DYNAMIC for i in graph.instances):
             continue
         exp = graph.scenario.experiment
-        if ground_truth(graph, np.array([exp.start_time, exp.stop_time])) is not None:
+        if loops or ground_truth(graph, np.array([exp.start_time, exp.stop_time])) is not None:
             found.append(str(path.relative_to(ROOT / "scenarios")))
     return found
 
@@ -86,6 +91,25 @@ def true_errors(graph, results) -> dict:
     for k in AXES:
         err = np.abs(np.asarray(results[f"{pose}.{k}"], dtype=float)[rows] - getattr(truth, k))
         out[f"{pose}.{k}"] = {"max": float(err.max()), "end": float(err[-1])}
+    return out
+
+
+def reference_errors(graph, results) -> dict:
+    """A closed loop's coupling error, whose ground truth is not known: |run - the same graph
+    stepped by the same master at 1/REFINE of the step| on the run's times (the reference's
+    own error is REFINE^p times smaller: 3% of the run's for a first-order master)."""
+    exp = graph.scenario.experiment
+    fine, fexp = with_experiment(graph, step_size=exp.step_size / REFINE, estimate="none")
+    reference = master.simulate(fine, fexp)
+    rows = np.round((results.time - exp.start_time) / fexp.step_size).astype(np.int64)
+    at = np.searchsorted(np.round((reference.time - exp.start_time) / fexp.step_size), rows)
+    pose = next(n[:-len(".theta")] for n in results.names if n.endswith(".theta"))
+    out = {}
+    for k in AXES:
+        name = f"{pose}.{k}"
+        err = np.abs(np.asarray(results[name], dtype=float)
+                     - np.asarray(reference[name], dtype=float)[at])
+        out[name] = {"max": float(err.max()), "end": float(err[-1])}
     return out
 
 
@@ -112,13 +136,13 @@ def calls(graph, exp, steps: int, found: dict) -> float:
     return sum(math.ceil(steps / float(r) - 1e-9) for r in factors) / steps if factors else 0.0
 
 
-def measure(scenario: str, name: str, factor: int, estimate: str = "auto"
-            ) -> tuple[list[str], int, tuple]:
+def measure(scenario: str, name: str, factor: int, estimate: str = "auto",
+            loops: bool = False) -> tuple[list[str], int, tuple]:
     graph, exp = at_step(prepare(ROOT / "scenarios" / scenario, estimate=estimate), name,
                          factor)
     results = master.simulate(graph, exp, with_estimate=True)     # as `run` makes it
     found = master.estimate_error(graph, results)
-    truth = true_errors(graph, results)
+    truth = (reference_errors if loops else true_errors)(graph, results)
     estimate = found.get("error_estimate")
     lines, misses, withheld = [], 0, 0
     cost = float(found.get("error_estimate_cost", float("nan")))
@@ -204,6 +228,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--estimate", default="auto", choices=("auto", "richardson"),
                         help="the estimate to measure (auto: the embedded pair where it "
                              "applies)")
+    parser.add_argument("--loops", action="store_true",
+                        help="the closed loops instead, against a run at 1/32 of the step")
     parser.add_argument("--adaptive", action="store_true",
                         help="the adaptive master's own estimate at TOL 1e-2 ... 1e-6, on the "
                              "scenarios of bench/accuracy.py")
@@ -213,15 +239,17 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "
           f"{'estimate':>16} {'est/true':>10} {'calls':>5} {'wall':>5}")
     total, misses, withheld, costs = 0, 0, 0, []
-    for scenario in [s for s in scenarios() if args.only in s]:
+    names = [s for s in scenarios(args.loops) if args.only in s]
+    for scenario in names:
         for name in args.master or FIXED:
             for factor in FACTORS[:1] if args.quick else FACTORS:
-                lines, missed, cost = measure(scenario, name, factor, args.estimate)
+                lines, missed, cost = measure(scenario, name, factor, args.estimate,
+                                              args.loops)
                 print("\n".join(lines), flush=True)
                 total, misses, withheld = (total + len(lines), misses + missed[0],
                                            withheld + missed[1])
                 costs.append(cost)
-    cost_table([s for s in scenarios() if args.only in s], args.estimate)
+    cost_table(names, args.estimate)
     steps, walls = np.array(costs).T
     print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth), "
           f"{withheld} WITHHELD (no number: the coarser runs out of the h^p range)")

@@ -8,7 +8,7 @@ import pytest
 from helpers import ROOT, with_experiment
 from mecanum_fmu import master, runner
 from mecanum_fmu.master import plan, stencils, stepping
-from mecanum_fmu.master.estimate import LATE_END, SHORT_PIECES
+from mecanum_fmu.master.estimate import LATE_END, LONE_PIECES, SHORT_PIECES
 from mecanum_fmu.master.pair import pieces
 from mecanum_fmu.models import pose_error
 from mecanum_fmu.scenario.tables import Breaks
@@ -164,6 +164,17 @@ def test_a_table_stepped_coarser_than_its_rows_hands_over():
     found, _ = _method(SCENARIOS / "profiles" / "joystick.yaml", step_size=0.04)
     assert found["error_estimate_method"].startswith("Richardson")
     assert SHORT_PIECES in found["error_estimate_method"]
+
+
+def test_a_loop_on_a_table_that_jumps_at_every_step_hands_over():
+    """recorded_path at 0.1 s: the follower's feed-forward jumps at every row, every step;
+    between two jumps the pose's twist moves with the loop, and one value per piece cannot
+    tell how (the pair read "below round-off" where the error is 6e-3 m)."""
+    found, _ = _method(SCENARIOS / "closed_loop" / "recorded_path.yaml", "gauss-seidel",
+                       step_size=0.1)
+    assert found["error_estimate_method"].startswith("Richardson")
+    assert LONE_PIECES in found["error_estimate_method"]
+    assert found["error_estimate"]["pose.x"]["max"] != "below round-off"
 
 
 def test_jacobis_extrapolated_end_is_unresolved_where_the_two_extrapolations_disagree():

@@ -58,6 +58,8 @@ LATE_END = ("unresolved (under Jacobi the last steps' true inputs lie past the r
             "extrapolated by the cubic and by the parabola, they disagree)")
 SHORT_PIECES = ("a table's rows are closer than two steps: the values the run sees do not "
                 "tell its input between them")
+LONE_PIECES = ("a table jumps at every step, and a held input may move between the jumps (a "
+               "loop, an FMU with a state): its one value between two jumps does not tell how")
 
 
 def _fixed_with_reals(graph: Graph, exp) -> bool:
@@ -79,7 +81,9 @@ def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | st
     if n_steps < 4:
         return FEW_STEPS
     rows = PairRows(plan, exp, n_steps, graph_breaks(graph))
-    return SHORT_PIECES if rows.pieces.short else rows
+    if rows.pieces.short:
+        return SHORT_PIECES
+    return LONE_PIECES if rows.may_fail and rows.pieces.lone else rows
 
 
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:

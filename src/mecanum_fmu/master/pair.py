@@ -222,6 +222,10 @@ class Pieces:
     # a piece with a kink at an end holds fewer than two nodes: the steps are longer than
     # the table's rows, and the values the run sees do not tell the input between them
     short: bool = False
+    # some piece holds one node (a hold table's rows as close as the steps): its one value
+    # says it all where the input is constant between the jumps, not where it may move (a
+    # loop, an FMU with a state: estimate.LONE_PIECES)
+    lone: bool = False
 
 
 _RANK = {"kink": 0, "across kink": 1, "across jump": 2, "jump": 3}
@@ -258,4 +262,5 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     short = any(k and e - j < 1 for j, e, k in zip(starts, ends, kinked))
     cut = sorted(j for j, kind in bounds.items() if kind == "jump")
     return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
-                  np.array(cut, dtype=np.int64), across, short)
+                  np.array(cut, dtype=np.int64), across, short,
+                  any(e - j < 1 for j, e in zip(starts, ends)))
