@@ -259,8 +259,9 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     kinks = ("kink", "across kink")
     kinked = [bounds.get(j) in kinks or bounds.get(nxt) in kinks
               for j, nxt in zip(starts, starts[1:] + [None])]
-    short = any(k and e - j < 1 for j, e, k in zip(starts, ends, kinked))
+    # (a piece that starts on the last node holds no step: a table's row at the stop time)
+    short = any(k and e - j < 1 and j < n for j, e, k in zip(starts, ends, kinked))
     cut = sorted(j for j, kind in bounds.items() if kind == "jump")
     return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
                   np.array(cut, dtype=np.int64), across, short,
-                  any(e - j < 1 for j, e in zip(starts, ends)))
+                  any(e - j < 1 and j < n for j, e in zip(starts, ends)))

@@ -41,6 +41,13 @@ ONE = Fraction(1)
 CANDIDATES = tuple((Fraction(a), Fraction(b)) for a, b in (
     ("3/2", "3"), ("5/4", "5/2"), ("5/3", "5"), ("2", "4"), ("2", "10"), ("5/2", "5"),
     ("5", "10"), ("5", "25")))
+# where no pair of CANDIDATES steps on the run's breakpoints: one coarser run, at the first of
+# these that does (doStep calls 1/r), with p the master's order: one difference cannot tell
+# the order (a recorded path whose rows fall every second step: only 2 h steps on them all)
+SINGLE = tuple(Fraction(r) for r in ("2", "3", "4", "5"))
+SINGLE_METHOD = ("Richardson extrapolation: the run repeated at {r1} h, e ~ (y_h - y_r1h)/"
+                 "(r1^p - 1) with p = {order}, the master's order (no second coarser step "
+                 "steps on the run's breakpoints, and one difference does not tell the order)")
 _END = np.iinfo(np.int64).max
 # the coarser runs' differences growing more than this times as fast as the master's order
 # allows: they are out of the range where the error goes as h^p, and no number is given
@@ -76,13 +83,14 @@ def _on_grid(k: np.ndarray, r: float) -> np.ndarray:
 
 
 def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
-                   ) -> tuple[Fraction, Fraction] | None:
-    """The two coarser steps (r1 h, r2 h) of the estimate: the first pair of CANDIDATES whose
+                   ) -> tuple[Fraction, ...] | None:
+    """The coarser steps (r1 h, r2 h) of the estimate: the first pair of CANDIDATES whose
     grids step on the same breakpoints (of tables and segments) as the run's own grid, with
-    room for 2 steps of r2 h (2h and 4h when none does). A coarser run that steps over a
-    breakpoint the run steps on (or the reverse) has an error of another kind there (a jump
-    inside a step): comparing the two says nothing of the run's. None when the run has fewer
-    than 4 steps. `marks`: graph_breaks(graph).times(), when known."""
+    room for 2 steps of r2 h; else the first one of SINGLE that does (r1 h alone); else 2h
+    and 4h. A coarser run that steps over a breakpoint the run steps on (or the reverse) has
+    an error of another kind there (a jump inside a step): comparing the two says nothing of
+    the run's. None when the run has fewer than 4 steps. `marks`:
+    graph_breaks(graph).times(), when known."""
     h, span = exp.step_size, exp.stop_time - exp.start_time
     if span < 4 * h * (1 - 1e-9):
         return None
@@ -91,8 +99,10 @@ def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
     k = k[k > 0.5]          # the stop time too: a short last step is an error of its own
     mine = _on_grid(k, 1.0)
     kept = lambda r: bool(np.array_equal(_on_grid(k, float(r)), mine))  # noqa: E731
-    return next((pair for pair in CANDIDATES if all(map(kept, pair))
-                 and 2 * pair[1] * h <= span * (1 + 1e-9)), (Fraction(2), Fraction(4)))
+    room = lambda r: 2 * r * h <= span * (1 + 1e-9)     # noqa: E731
+    return next((pair for pair in CANDIDATES if all(map(kept, pair)) and room(pair[1])),
+                next(((r,) for r in SINGLE if kept(r) and room(r)),
+                     (Fraction(2), Fraction(4))))
 
 
 def coarse_experiment(exp, factor: Fraction):
@@ -245,6 +255,17 @@ def _grows(r1: float, r2: float, p: float) -> float:
     return (r2 ** p - r1 ** p) / (r1 ** p - 1.0)
 
 
+def _single(exp, steps: int, r: float, values: tuple, rows: list, p: int) -> dict:
+    """{"max", "end"} of one output from the run and one coarser run (SINGLE), at order p."""
+    fine, mid = values
+    d1 = fine[rows[0]] - mid[rows[1]]
+    if float(np.max(np.abs(d1))) <= (floor := round_off(fine[rows[0]], steps)):
+        return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
+    e = np.abs(d1) / (r ** p - 1.0)
+    end = float(e[-1])
+    return {"max": float(e.max()), "end": end if end > floor else BELOW_ROUND_OFF}
+
+
 def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
                coarse: list, marks: np.ndarray) -> dict:
     """summary.json's estimate from the coarser runs (coarse_rows' per factor), `marks` the
@@ -252,12 +273,18 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
     exp = graph.scenario.experiment
     order = master_entry(exp.master).order
     orders = (order, min(order, ACROSS_ORDER) if steps_across(marks, exp) else order)
-    rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
-    estimate = {n: _richardson(exp, results.steps, factors, (np.asarray(
-        results[n], dtype=float), coarse[0][2][n], coarse[1][2][n]), rows, orders)
-        for n in names}
+    if len(factors) == 1:
+        rows = _common(exp, float(_shared(ONE, factors[0])) * exp.step_size, results.time,
+                       coarse[0][1])
+        estimate = {n: _single(exp, results.steps, float(factors[0]), (np.asarray(
+            results[n], dtype=float), coarse[0][2][n]), rows, orders[1]) for n in names}
+        method = SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1])
+    else:
+        rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
+        estimate = {n: _richardson(exp, results.steps, factors, (np.asarray(
+            results[n], dtype=float), coarse[0][2][n], coarse[1][2][n]), rows, orders)
+            for n in names}
+        method = METHOD.format(r1=str(factors[0]), r2=str(factors[1]), order=orders[1])
     cost = sum(c[0] for c in coarse) / max(results.wall_time, 1e-12)
-    return {"error_estimate": estimate,
-            "error_estimate_method": METHOD.format(r1=str(factors[0]), r2=str(factors[1]),
-                                                   order=orders[1]),
+    return {"error_estimate": estimate, "error_estimate_method": method,
             "error_estimate_cost": round(cost, 3)}
