@@ -8,9 +8,10 @@ a coarser run that steps over a jump the run steps on makes an error of another 
 times the three runs share, d1 = y_h - y_r1h and d2 = y_r1h - y_r2h; the observed order p,
 from max|d2| / max|d1| and bounded to [1, the master's order] (to 2 where the run steps
 across a table's corner), gives the error of the run, e_h ~ d1 / (r1^p - 1), on the times
-the run shares with the r1 h run: their max. At the end, where the leading term may cancel (a
-path that closes, an error that turns), two terms of the error, a h^p + b h^(p+1), are
-fitted to the end's d1 and d2 (p the end's own order where the end's difference is a small
+the run shares with the r1 h run: their max (where no pair of coarser steps steps on the
+run's breakpoints but one step does, that one run alone, p the master's order: SINGLE). At
+the end, where the leading term may cancel (a path that closes, an error that turns), two
+terms of the error, a h^p + b h^(p+1), are fitted to the end's d1 and d2 (p the end's own order where the end's difference is a small
 share of the largest and falls faster), and the end is at most the max (docs/masters.md,
 "The error estimate"). A difference that is within the round-off of the outputs is reported
 as "below round-off", never as a made-up number; coarser runs out of the h^p range give
@@ -255,7 +256,7 @@ def _grows(r1: float, r2: float, p: float) -> float:
     return (r2 ** p - r1 ** p) / (r1 ** p - 1.0)
 
 
-def _single(exp, steps: int, r: float, values: tuple, rows: list, p: int) -> dict:
+def _single(steps: int, r: float, values: tuple, rows: list, p: int) -> dict:
     """{"max", "end"} of one output from the run and one coarser run (SINGLE), at order p."""
     fine, mid = values
     d1 = fine[rows[0]] - mid[rows[1]]
@@ -276,7 +277,7 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
     if len(factors) == 1:
         rows = _common(exp, float(_shared(ONE, factors[0])) * exp.step_size, results.time,
                        coarse[0][1])
-        estimate = {n: _single(exp, results.steps, float(factors[0]), (np.asarray(
+        estimate = {n: _single(results.steps, float(factors[0]), (np.asarray(
             results[n], dtype=float), coarse[0][2][n]), rows, orders[1]) for n in names}
         method = SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1])
     else:
