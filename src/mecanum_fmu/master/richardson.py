@@ -11,9 +11,9 @@ across a table's corner), gives the error of the run, e_h ~ d1 / (r1^p - 1), on 
 the run shares with the r1 h run: their max (where no pair of coarser steps steps on the
 run's breakpoints but one step does, that one run alone, p the master's order: SINGLE). At
 the end, where the leading term may cancel (a path that closes, an error that turns), two
-terms of the error, a h^p + b h^(p+1), are fitted to the end's d1 and d2 (p the end's own order where the end's difference is a small
-share of the largest and falls faster), and the end is at most the max (docs/masters.md,
-"The error estimate"). A difference that is within the round-off of the outputs is reported
+terms of the error, a h^p + b h^(p+1), are fitted to the end's d1 and d2 (p the end's own
+order where the end's difference is a small share of the largest and falls faster), and the
+end is at most the max (docs/masters.md, "The error estimate"). A difference that is within the round-off of the outputs is reported
 as "below round-off", never as a made-up number; coarser runs out of the h^p range give
 "unresolved" (the end alone when the coarsest is off by most of the output's range); where
 the coarser runs cannot be made (fewer than four steps, a coarser run that fails) the
