@@ -2,22 +2,23 @@
 embedded pair does not apply (pair.py), and by name (--estimate richardson).
 
 The same graph is stepped again by the same master at r1 h and r2 h: 3/2 h and 3 h (1.0x the
-run's doStep calls), or the first pair of CANDIDATES whose grids step on the same breakpoints
-as the run's (table rows, segments, the times an expression compares t with, the stop time):
-a coarser run that steps over a jump the run steps on makes an error of another kind. On the
-times the three runs share, d1 = y_h - y_r1h and d2 = y_r1h - y_r2h; the observed order p,
-from max|d2| / max|d1| and bounded to [1, the master's order] (to 2 where the run steps
-across a table's corner), gives the error of the run, e_h ~ d1 / (r1^p - 1), on the times
-the run shares with the r1 h run: their max (where no pair of coarser steps steps on the
-run's breakpoints but one step does, that one run alone, p the master's order: SINGLE). At
-the end, where the leading term may cancel (a path that closes, an error that turns), two
-terms of the error, a h^p + b h^(p+1), are fitted to the end's d1 and d2 (p the end's own
-order where the end's difference is a small share of the largest and falls faster), and the
-end is at most the max (docs/masters.md, "The error estimate"). A difference that is within the round-off of the outputs is reported
-as "below round-off", never as a made-up number; coarser runs out of the h^p range give
-"unresolved" (the end alone when the coarsest is off by most of the output's range); where
-the coarser runs cannot be made (fewer than four steps, a coarser run that fails) the
-estimate says why and gives no number.
+run's doStep calls), or the first pair of CANDIDATES whose grids step on the same
+breakpoints as the run's (table rows, segments, the times an expression compares t with, the
+stop time): a coarser run that steps over a jump the run steps on makes an error of another
+kind. On the times the three runs share, d1 = y_h - y_r1h and d2 = y_r1h - y_r2h; the
+observed order p, from max|d2| / max|d1| and bounded to [1, the master's order] (to 2 where
+the run steps across a table's corner), gives the error of the run, e_h ~ d1 / (r1^p - 1),
+on the times the run shares with the r1 h run: their max (where no pair of coarser steps
+steps on the run's breakpoints but one step does, that one run alone, p the master's order:
+SINGLE). At the end, where the leading term may cancel (a path that closes, an error that
+turns), two terms of the error, a h^p + b h^(p+1), are fitted to the end's d1 and d2 (p the
+end's own order where the end's difference is a small share of the largest and falls
+faster), and the end is at most the max (docs/masters.md, "The error estimate"). A
+difference that is within the round-off of the outputs is reported as "below round-off",
+never as a made-up number; coarser runs out of the h^p range give "unresolved" (the end
+alone when the coarsest is off by most of the output's range); where the coarser runs cannot
+be made (fewer than four steps, a coarser run that fails) the estimate says why and gives no
+number.
 """
 from __future__ import annotations
 
