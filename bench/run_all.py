@@ -49,6 +49,8 @@ LONG = (
      "(bench/estimates.py)", lambda: estimates.main([])),
     ("the adaptive master's own estimate against the truth (bench/estimates.py --adaptive)",
      lambda: estimates.main(["--adaptive"])),
+    ("the closed loops' estimate against a run at 1/32 of the step (bench/estimates.py "
+     "--loops)", lambda: estimates.main(["--loops"])),
     ("peak memory against run length (bench/memory.py)", memory.main),
     ("sweeps on Dask, the whole 1000-sample study (bench/sweep.py)", lambda: sweep.main([])),
     ("command-line turnaround, 7 repetitions (bench/turnaround.py)", turnaround.main),
