@@ -86,12 +86,7 @@ def at_step(graph, name: str, factor: int):
 def true_errors(graph, results) -> dict:
     truth = ground_truth(graph, results.time)
     rows = np.searchsorted(results.time, truth.time)
-    pose = next(n[:-len(".theta")] for n in results.names if n.endswith(".theta"))
-    out = {}
-    for k in AXES:
-        err = np.abs(np.asarray(results[f"{pose}.{k}"], dtype=float)[rows] - getattr(truth, k))
-        out[f"{pose}.{k}"] = {"max": float(err.max()), "end": float(err[-1])}
-    return out
+    return pose_errors(results, rows, lambda k: getattr(truth, k))
 
 
 def reference_errors(graph, results) -> dict:
@@ -103,13 +98,21 @@ def reference_errors(graph, results) -> dict:
     reference = master.simulate(fine, fexp)
     rows = np.round((results.time - exp.start_time) / fexp.step_size).astype(np.int64)
     at = np.searchsorted(np.round((reference.time - exp.start_time) / fexp.step_size), rows)
-    pose = next(n[:-len(".theta")] for n in results.names if n.endswith(".theta"))
-    out = {}
+    return pose_errors(results, slice(None), lambda k: np.asarray(
+        reference[f"{pose_of(results)}.{k}"], dtype=float)[at])
+
+
+def pose_of(results) -> str:
+    """The name of the run's pose (the instance whose theta it records)."""
+    return next(n[:-len(".theta")] for n in results.names if n.endswith(".theta"))
+
+
+def pose_errors(results, rows, other) -> dict:
+    """Per pose output, the max and end of |the run's values at `rows` - other(axis)|."""
+    pose, out = pose_of(results), {}
     for k in AXES:
-        name = f"{pose}.{k}"
-        err = np.abs(np.asarray(results[name], dtype=float)
-                     - np.asarray(reference[name], dtype=float)[at])
-        out[name] = {"max": float(err.max()), "end": float(err[-1])}
+        err = np.abs(np.asarray(results[f"{pose}.{k}"], dtype=float)[rows] - other(k))
+        out[f"{pose}.{k}"] = {"max": float(err.max()), "end": float(err[-1])}
     return out
 
 

@@ -69,7 +69,8 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
-        pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack)
+        pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack,
+                                       _rolls_back_loops(how, running, holds))
                        if with_estimate else (None, None))
         recorder.record()
         holds.prime()
@@ -98,7 +99,7 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
     if not how.adaptive:
         freeze = recorder.buffers.freeze if recorder.buffers.frozen else None
         return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
-                                 holds.ahead and how.rolls_back and rollback)), {}
+                                 _rolls_back_loops(how, running, holds))), {}
     if not rollback:
         raise ScenarioError([Problem(recorder.graph.scenario.label, "experiment.master",
                                      f"the {how.name} master rejects and retakes steps with "
@@ -115,13 +116,22 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
             ), counts
 
 
+def _rolls_back_loops(how: Master, running: list[RunningInstance], holds: Holds) -> bool:
+    """Whether a fixed-step run predicts, rolls back and corrects each step: its master does
+    so in a loop, some input's next value is unknown when its FMU steps, and every FMU can
+    get and set its state."""
+    return holds.ahead and how.rolls_back and all(r.can_roll_back for r in running)
+
+
 def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance],
-                    buffers: Buffers, recorder: Recorder, stack: ExitStack) -> tuple:
+                    buffers: Buffers, recorder: Recorder, stack: ExitStack,
+                    rolled_back: bool) -> tuple:
     """The estimate, set up before the run steps: the embedded pair's tap on the recorder
     (PairRows, or why there is none: estimate.pair_tap), and the t0 Richardson's coarser
     runs start from, where they may be needed (the pair does not apply, or may find after
-    the run that it does not)."""
-    pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps)
+    the run that it does not). `rolled_back`: _rolls_back_loops, how the pair rebuilds the
+    hold of a loop's inputs."""
+    pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back)
     if isinstance(pair, PairRows):
         recorder.tap = pair
     needs_t0 = not isinstance(pair, PairRows) or pair.may_fail

@@ -69,13 +69,15 @@ def _fixed_with_reals(graph: Graph, exp) -> bool:
                                                          for p in graph.recorded)
 
 
-def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int) -> PairRows | str | None:
+def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int, rolled_back: bool
+             ) -> PairRows | str | None:
     """The recorder's tap of the pair for this run (pair_rows.py), or why the pair does not
     apply (Richardson then estimates), or None where the run gets no pair: an estimate other
-    than auto, the adaptive master, no recorded Real output."""
+    than auto, the adaptive master, no recorded Real output. `rolled_back`: the run predicts,
+    rolls back and corrects each step (master._rolls_back_loops)."""
     if exp.estimate != "auto" or not _fixed_with_reals(graph, exp):
         return None
-    plan = pair_plan(graph, real_slots)
+    plan = pair_plan(graph, real_slots, rolled_back)
     if not isinstance(plan, PairPlan):
         return plan
     if n_steps < 4:
@@ -141,7 +143,8 @@ def _pair_afresh(graph: Graph, results: Results, simulate) -> tuple:
     from .recorder import step_count
     exp = graph.scenario.experiment
     n = step_count(exp)
-    tap = pair_tap(graph, exp, Buffers(graph, freeze=False).real_slots, n)
+    # (whether the pair applies does not depend on the hold it rebuilds: rolled_back False)
+    tap = pair_tap(graph, exp, Buffers(graph, freeze=False).real_slots, n, False)
     if not isinstance(tap, PairRows):
         return tap, {}
     every = len(results.time) == n + 1

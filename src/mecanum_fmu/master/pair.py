@@ -77,12 +77,13 @@ class PairPlan:
     rolled_back: bool = False    # the quadratic master predicts, rolls back, corrects a loop
 
 
-def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
+def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
     """The pair's plan for this graph's fixed-step master, or why it has none: in step
     order, each FMU's outputs are exact (Jacobi: late by a lag), or an error model's, or
     (an FMU with a state and no model) exact if its held inputs do not move; an FMU that
     reads a model's outputs (or closes a loop) holds them exact if they carry no error.
-    `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives)."""
+    `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives);
+    `rolled_back`: the run predicts, rolls back and corrects each step (PairPlan.rolled_back)."""
     how = master_entry(graph.scenario.experiment.master)
     position = {inst.name: i for i, inst in enumerate(graph.instances)}
     lag: dict[str, int] = {}        # the FMUs whose outputs are exact (Jacobi: late by lag)
@@ -91,91 +92,79 @@ def pair_plan(graph: Graph, real_slots: dict) -> PairPlan | str:
     models = dict(graph.error_models)
     modelled: dict[str, int] = {}   # the FMUs with an error model -> their group
     col = lambda port: slots.setdefault(real_slots[port], len(slots))   # noqa: E731
+    into = {inst.name: [l for l in graph.links if l.target.ref.instance == inst.name]
+            for inst in graph.instances}
     for inst in graph.instances:
-        links = [l for l in graph.links if l.target.ref.instance == inst.name]
+        links = into[inst.name]
         loop = [l for l in links if position[l.source.ref.instance] >= position[inst.name]]
         if loop and not has_state(inst):
             return (f"{inst.name}'s input {loop[0].target.ref.variable} closes a feedback "
                     "loop through an FMU without a state, whose error the pair does not follow")
-        d = _lag_in(inst, [l for l in links if l not in loop], lag)
-        if isinstance(d, str):
-            return d
         if not links or not has_state(inst):
+            d = _lag_in(inst, links, lag)
+            if isinstance(d, str):
+                return d
             lag[inst.name] = d + 1 if how.freezes_inputs and links else d
             continue
-        group = _group(how, inst, links, set(map(id, loop)), d, col, models.get(inst.name))
+        group = _group(how, inst, links, set(map(id, loop)), col, models.get(inst.name))
         if isinstance(group, str):
             return group
         groups.append(group)
         lag[inst.name] = 0          # exact, or its model's (PairRows checks those fed on)
         if group.model is not None:
             modelled[inst.name] = len(groups) - 1
-    why = _loop_lags(graph, groups, lag)
-    if why:
-        return why
+    for g in groups:        # their inputs' lags, now that every source's is known
+        g.lag = _lag_in(g, into[g.name], lag)
+        if isinstance(g.lag, str):
+            return g.lag
     fed = _fed(graph, groups, modelled, col)
     if isinstance(fed, str):
         return fed
     plan = _outputs(graph, lag, groups, slots, col, "frozen" if how.freezes_inputs else how.hold)
     if isinstance(plan, PairPlan):
-        plan.fed = fed
-        plan.rolled_back = how.rolls_back and any(
-            r.endswith("_ahead") or r == "fed_back" for g in groups for r in g.roles) and all(
-            inst.can_get_set_state for inst in graph.instances)
+        plan.fed, plan.rolled_back = fed, rolled_back
     return plan
 
 
-def _lag_in(inst, links: list, lag: dict) -> int | str:
-    """The lag of inst's inputs from FMUs stepped before it (0 but under Jacobi), or why the
-    pair cannot follow them."""
+def _lag_in(fmu, links: list, lag: dict) -> int | str:
+    """The lag of an FMU's inputs (0 but under Jacobi: an FMU with a state, whose inputs may
+    close a loop, once its sources' are known), or why the pair cannot follow them."""
     lags = {lag[l.source.ref.instance] for l in links}
     if len(lags) > 1:
-        return f"{inst.name}'s inputs arrive with different lags under Jacobi"
+        return f"{fmu.name}'s inputs arrive with different lags under Jacobi"
     return lags.pop() if lags else 0
-
-
-def _loop_lags(graph: Graph, groups: list[Group], lag: dict) -> str | None:
-    """The lag of the groups whose inputs close a loop, now that their sources' are known
-    (under Jacobi, a loop's input is late by its feedthrough FMUs), or why they differ."""
-    for g in groups:
-        links = [l for l in graph.links if l.target.ref.instance == g.name]
-        lags = {lag[l.source.ref.instance] for l in links}
-        if len(lags) > 1:
-            return f"{g.name}'s inputs arrive with different lags under Jacobi"
-        g.lag = lags.pop()
-    return None
 
 
 def _fed(graph: Graph, groups: list[Group], modelled: dict, col) -> list | str:
     """The error models' outputs that other FMUs read (PairPlan.fed), or why one cannot be
     checked (its model does not cover it)."""
-    readers: dict[str, list] = {}
+    fed: dict[str, tuple] = {}      # output -> (group, index in its model, column, readers)
     for l in graph.links:
         owner = l.source.ref.instance
         if owner not in modelled:
             continue
-        model = groups[modelled[owner]].model
-        if l.source.ref.variable not in model.outputs or l.source.type != "Real":
+        outputs = list(groups[modelled[owner]].model.outputs)
+        if l.source.ref.variable not in outputs or l.source.type != "Real":
             return (f"{l.target.ref.instance} reads {l.source.ref}, which {owner}'s error "
                     "model does not cover")
-        readers.setdefault(str(l.source.ref), [l]).append(l.target.ref.instance)
-    return [(name, modelled[first.source.ref.instance],
-             list(groups[modelled[first.source.ref.instance]].model.outputs).index(
-                 first.source.ref.variable), col(first.source), sorted(set(who)))
-            for name, (first, *who) in readers.items()]
+        entry = fed.setdefault(str(l.source.ref), (modelled[owner], outputs.index(
+            l.source.ref.variable), col(l.source), set()))
+        entry[3].add(l.target.ref.instance)
+    return [(name, i, index, c, sorted(readers))
+            for name, (i, index, c, readers) in fed.items()]
 
 
-def _group(how, inst, links: list, loop: set, d: int, col, model) -> Group | str:
+def _group(how, inst, links: list, loop: set, col, model) -> Group | str:
     """The held inputs of an FMU with a state, with its error model's batch form (None
     without a model, or where it does not take these inputs); `loop`: the ids of the links
-    that close a loop into it."""
+    that close a loop into it. Its lag is set once every source's is known (pair_plan)."""
     if any(l.target.type != "Real" for l in links):
         return f"{inst.name} has a state and an input that is not Real"
     names = [l.target.ref.variable for l in links]
     state_only = state_only_inputs(inst)
     roles = np.array([_role(how.hold != "zoh" and n in state_only, id(l) in loop)
                       for n, l in zip(names, links)])
-    return Group(inst.name, np.array([col(l.source) for l in links]), roles, d,
+    return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0,
                  model.batch(names, inst) if model is not None else None, inst.model_name)
 
 

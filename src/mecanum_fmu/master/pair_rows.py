@@ -222,9 +222,8 @@ class PairRows:
         hold (plan.HOLDS) sets them where their end value is not known: the mean over the
         step (1.5 u_k - 0.5 u_k-1; "fed_back": the end value, 2 u_k - u_k-1); after a
         restart (the run's start, a jump), u_k alone."""
-        restarts = np.concatenate(([0], self.pieces.cut))
-        since = ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
-        slope = np.where((since >= 1)[:, None], now - self._row(g, ks, -1), 0.0)
+        slope = np.where((self._since_restart(ks) >= 1)[:, None],
+                         now - self._row(g, ks, -1), 0.0)
         return np.where(g.roles == "state_ahead", now + 0.5 * slope,
                         np.where(g.roles == "fed_back", now + slope, held))
 
@@ -232,12 +231,16 @@ class PairRows:
         """The quadratic master's correction to the trapezoid (plan._Blend): the second
         difference over the step, limited (minmod) by the one before, from the second step
         after a restart (the run's start, a jump) on."""
-        restarts = np.concatenate(([0], self.pieces.cut))
-        since = ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
         a = (seen - now - now + before) * (1 / 12)
         b = (now - before - before + older) * (1 / 12)
         limited = np.minimum(np.maximum(b, np.minimum(a, 0.0)), np.maximum(a, 0.0))
-        return np.where((since >= 2)[:, None], limited, 0.0)
+        return np.where((self._since_restart(ks) >= 2)[:, None], limited, 0.0)
+
+    def _since_restart(self, ks: np.ndarray) -> np.ndarray:
+        """Per step, the steps since the holds last restarted (the run's start, a cut at a
+        jump): the history the master's blends have behind them."""
+        restarts = np.concatenate(([0], self.pieces.cut))
+        return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
 
     def _stencils(self, ks: np.ndarray, d: int, cols: np.ndarray) -> tuple:
         """Per step: the true value's mean over it, and its values at its start and end,
