@@ -85,7 +85,7 @@ def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int, rolled_back: boo
     rows = PairRows(plan, exp, n_steps, graph_breaks(graph))
     if rows.pieces.short:
         return SHORT_PIECES
-    return LONE_PIECES if rows.may_fail and rows.pieces.lone else rows
+    return LONE_PIECES if rows.held_move and rows.pieces.lone else rows
 
 
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:

@@ -75,6 +75,33 @@ class PairPlan:
     # outputs, column, the FMUs that read it); the pair holds where they carry no error
     fed: list = field(default_factory=list)
     rolled_back: bool = False    # the quadratic master predicts, rolls back, corrects a loop
+    loop: "Loop | None" = None   # a model's error carried through FMUs without a state
+
+
+@dataclass
+class Through:
+    """An FMU without a state that the pair carries an error through: its response (Graph.
+    responses), the columns of its linked inputs' sources (in the response's order) and of
+    its outputs."""
+    name: str
+    response: object
+    ins: np.ndarray
+    outs: np.ndarray
+
+
+@dataclass
+class Loop:
+    """One error model's outputs carried through FMUs without a state (in step order), and
+    back into its own held inputs where they close a loop: per row, the error of each
+    carried value is its sensitivity to the model's outputs (the chain's Jacobians) times
+    their error."""
+    origin: int                     # the group whose model's outputs carry the error
+    starts: list                    # (column, index in the model's outputs) of those read
+    chain: list[Through]
+    recorded: list                  # the chain's recorded outputs: (name, column)
+    # carried values read by an FMU the pair cannot carry them through: (name, column, its
+    # readers); the pair holds where they carry no error (as PairPlan.fed)
+    checked: list
 
 
 def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
@@ -120,10 +147,66 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
     fed = _fed(graph, groups, modelled, col)
     if isinstance(fed, str):
         return fed
+    loop = None if how.freezes_inputs else _loop(graph, groups, fed, col, real_slots, into)
     plan = _outputs(graph, lag, groups, slots, col, "frozen" if how.freezes_inputs else how.hold)
     if isinstance(plan, PairPlan):
-        plan.fed, plan.rolled_back = fed, rolled_back
+        plan.fed, plan.rolled_back, plan.loop = fed, rolled_back, loop
+        if loop is not None:        # its model's outputs are checked where the loop is
+            plan.fed = [f for f in fed if f[1] != loop.origin]
     return plan
+
+
+def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, into: dict
+          ) -> Loop | None:
+    """The Loop of the one model whose outputs other FMUs read (None: no such model, or
+    several, or no FMU to carry them through): in step order, each FMU without a state that reads a carried value and has a
+    response covering its inputs carries it on; any other reader (but the model's own FMU,
+    where the loop closes) is checked."""
+    origins = {f[1] for f in fed}
+    if len(origins) != 1:
+        return None
+    origin = origins.pop()
+    carried = {name: c for name, _, _, c, _ in fed}
+    starts = [(c, index) for _, _, index, c, _ in fed]
+    ports = {str(p.ref): p for p in real_slots}
+    responses = dict(graph.responses)
+    stateful = {g.name for g in groups}
+    chain, checked = [], {}
+    for inst in graph.instances:
+        links = [l for l in into[inst.name] if l.target.type == "Real"]
+        hot = [l for l in links if str(l.source.ref) in carried]
+        if not hot or inst.name == groups[origin].name:
+            continue
+        through = None if inst.name in stateful or inst.name not in responses else \
+            _through(inst, links, responses[inst.name], col, ports)
+        if through is None:
+            for l in hot:
+                checked.setdefault(str(l.source.ref), (carried[str(l.source.ref)], set()))[
+                    1].add(inst.name)
+            continue
+        chain.append(through)
+        carried.update({f"{inst.name}.{n}": c for n, c in zip(through.response.outputs,
+                                                                through.outs)})
+    if not chain:           # nothing to carry through: the model's outputs are checked (fed)
+        return None
+    members = {t.name for t in chain}
+    recorded = [(str(p.ref), carried[str(p.ref)]) for p in graph.recorded
+                if p.ref.instance in members and str(p.ref) in carried]
+    return Loop(origin, starts, chain, recorded,
+                [(name, c, sorted(readers)) for name, (c, readers) in checked.items()])
+
+
+def _through(inst, links: list, factory, col, ports: dict) -> Through | None:
+    """The Through of an FMU without a state, or None: its response does not cover its
+    linked inputs, or an output it reads has no slot (neither linked nor recorded)."""
+    response = factory([l.target.ref.variable for l in links], inst)
+    if response is None:
+        return None
+    outs = [ports.get(f"{inst.name}.{n}") for n in response.outputs]
+    if any(p is None for p in outs):
+        return None
+    return Through(inst.name, response, np.array([col(l.source) for l in links]),
+                   np.array([col(p) for p in outs]))
 
 
 def _lag_in(fmu, links: list, lag: dict) -> int | str:

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..results import round_off
 from .pair import Group, PairPlan, pieces
+from .pair_loop import LoopCarry
 from .stencils import FOUR, means, values, weight_table
 
 
@@ -53,7 +54,10 @@ class PairRows:
                        default=0)
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
-        self.worst = {name: 0.0 for name in (*plan.covered, *(n for n, _, _ in plan.lagged))}
+        loop = plan.loop
+        self.carry = LoopCarry(loop, plan.groups[loop.origin]) if loop is not None else None
+        self.worst = {name: 0.0 for name in (*plan.covered, *(n for n, _, _ in plan.lagged),
+                                             *(n for n, _ in (loop.recorded if loop else ())))}
         self.end = dict.fromkeys(self.worst, 0.0)
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
         self.size = np.zeros(len(plan.slots))
@@ -64,7 +68,7 @@ class PairRows:
                         [k for n, (j, k) in plan.covered.items() if j == i])
                        for i in range(len(plan.groups))]
         # the models' outputs other FMUs read: their largest |error|
-        self.fed = {name: 0.0 for name, *_ in plan.fed}
+        self.fed = {name: 0.0 for name, *_ in (*plan.fed, *(loop.checked if loop else ()))}
         self.failed: str | None = None
 
     @property
@@ -72,7 +76,14 @@ class PairRows:
         """Whether the pair may find, after the run, that it does not hold (an FMU with a
         state and no error model, a model's output that another FMU reads): the run then
         keeps its t0 for Richardson's coarser runs."""
-        return bool(self.plan.fed) or any(g.model is None for g in self.plan.groups)
+        return bool(self.plan.fed or (self.plan.loop and self.plan.loop.checked)) or any(
+            g.model is None for g in self.plan.groups)
+
+    @property
+    def held_move(self) -> bool:
+        """Whether a held input may move between two jumps of a table (a loop, an FMU with a
+        state): estimate.LONE_PIECES."""
+        return self.may_fail or self.plan.loop is not None
 
     def __call__(self, rows: np.ndarray, first: int) -> None:
         """A chunk of whole buffer rows, the first being row `first` of the run."""
@@ -142,7 +153,8 @@ class PairRows:
     def _fed_error(self) -> str | None:
         """Why the pair does not hold: a model's output that another FMU reads carries an
         error (beyond its round-off), which the pair would have to carry through that FMU."""
-        for name, _, _, c, readers in self.plan.fed:
+        checked = self.plan.loop.checked if self.plan.loop else ()
+        for name, c, readers in [(f[0], f[3], f[4]) for f in self.plan.fed] + list(checked):
             if self.fed[name] > round_off([self.size[c]], self.n):
                 return (f"{name} carries an error into {', '.join(readers)}; the pair "
                         "carries no error through an FMU (that would take its response)")
@@ -153,6 +165,20 @@ class PairRows:
         for name, j, index, *_ in self.plan.fed:
             if j == i and len(signed):
                 self.fed[name] = max(self.fed[name], float(np.max(np.abs(signed[:, index]))))
+
+    def _carried(self, g: Group, ks: np.ndarray, h: np.ndarray, hold: tuple) -> np.ndarray:
+        """Group g's signed errors with the loop's carried in (pair_loop.py); the chain's
+        recorded outputs' and the checked values' errors kept."""
+        predicted = self._extrapolated(g, ks, self._row(g, ks, 0), hold[0]) \
+            if self.plan.rolled_back else None
+        rows = self.window[np.arange(ks[0], ks[-1] + 2) - self.lo]
+        signed = self.carry.steps(g, h, hold, rows, predicted)
+        errors = self.carry.errors
+        for name, c in self.plan.loop.recorded:
+            self._keep([name], errors[c][:, None])
+        for name, c, _ in self.plan.loop.checked:
+            self.fed[name] = max(self.fed[name], float(np.max(np.abs(errors[c]))))
+        return signed
 
     def _keep(self, names: list[str], errors: np.ndarray) -> None:
         """The signed errors of outputs `names` (a column each) on a batch of rows."""
@@ -176,7 +202,10 @@ class PairRows:
             if g.model is None:
                 np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
                 continue
-            signed = g.model.steps(h, held, error, change)
+            if self.carry is not None and i == self.plan.loop.origin:
+                signed = self._carried(g, ks, h, (held, error, change))
+            else:
+                signed = g.model.steps(h, held, error, change)
             names, index = self.covers[i]
             self._keep(names, signed[:, index])
             self._check_fed(i, signed)

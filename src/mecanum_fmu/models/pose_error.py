@@ -133,15 +133,9 @@ class PoseBatch:
 
     def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
               ) -> np.ndarray:
-        ivx, ivy, iw = self.index
-        vx, vy, w = held[:, ivx], held[:, ivy], held[:, iw]
-        ux, uy, uw = vx - error[:, ivx], vy - error[:, ivy], w - error[:, iw]
-        dvx, dvy, dw = change[:, ivx], change[:, ivy], change[:, iw]
-        run = _displacement(h, vx, vy, w)
-        tx, ty = (uw * dvx - dw * ux) * h * h / 12, (uw * dvy - dw * uy) * h * h / 12
-        true = _displacement(h, ux, uy, uw)
-        true = (true[0] - ty, true[1] + tx)
-        turned = self.theta + np.cumsum(h * w)
+        iw = self.index[2]
+        run, true = self._displacements(h, held, error, change)
+        turned = self.theta + np.cumsum(h * held[:, iw])
         heading = self.heading + np.cumsum(h * error[:, iw])
         before = np.concatenate(([self.theta], turned[:-1]))
         lag = np.concatenate(([self.heading], heading[:-1]))
@@ -152,6 +146,43 @@ class PoseBatch:
         e = self.e + np.cumsum(np.column_stack((c * bx - s * by, s * bx + c * by)), axis=0)
         self.theta, self.e, self.heading = float(turned[-1]), e[-1].copy(), float(heading[-1])
         return np.column_stack((e, heading))
+
+    def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The steps linearised in the error, instead of steps() where a loop feeds the error
+        back (master/pair_loop.py): E_k+1 = A_k E_k + made_k + B_k (the held inputs' further
+        error), E = (x, y, theta). A: a heading error turns the step's world displacement d
+        (adds e_theta J d); made: the error the step makes from an exact start (as steps());
+        B: an error of the twist moved h along the heading at mid-step."""
+        ivx, ivy, iw = self.index
+        w = held[:, iw]
+        run, true = self._displacements(h, held, error, change)
+        turned = self.theta + np.cumsum(h * w)
+        before = np.concatenate(([self.theta], turned[:-1]))
+        c, s = np.cos(before), np.sin(before)
+        rows = len(h)
+        a = np.broadcast_to(np.eye(3), (rows, 3, 3)).copy()
+        a[:, 0, 2], a[:, 1, 2] = -(s * run[0] + c * run[1]), c * run[0] - s * run[1]
+        bx, by = run[0] - true[0], run[1] - true[1]
+        made = np.column_stack((c * bx - s * by, s * bx + c * by, h * error[:, iw]))
+        c, s = np.cos(before + 0.5 * h * w), np.sin(before + 0.5 * h * w)
+        b = np.zeros((rows, 3, held.shape[1]))
+        b[:, 0, ivx], b[:, 0, ivy], b[:, 1, ivx], b[:, 1, ivy] = h * c, -h * s, h * s, h * c
+        b[:, 2, iw] = h
+        self.theta = float(turned[-1])
+        return a, b, made
+
+    def _displacements(self, h, held, error, change) -> tuple:
+        """Per step, the body-frame displacement of the run (the held twist on SE(2)) and of
+        the truth (the true mean twist, less the frame turning within the step, J (w dv - dw
+        v) h^2 / 12: docs/masters.md)."""
+        ivx, ivy, iw = self.index
+        vx, vy, w = held[:, ivx], held[:, ivy], held[:, iw]
+        ux, uy, uw = vx - error[:, ivx], vy - error[:, ivy], w - error[:, iw]
+        dvx, dvy, dw = change[:, ivx], change[:, ivy], change[:, iw]
+        tx, ty = (uw * dvx - dw * ux) * h * h / 12, (uw * dvy - dw * uy) * h * h / 12
+        true = _displacement(h, ux, uy, uw)
+        return _displacement(h, vx, vy, w), (true[0] - ty, true[1] + tx)
 
 
 def _displacement(h, vx, vy, w) -> tuple[np.ndarray, np.ndarray]:

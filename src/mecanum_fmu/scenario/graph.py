@@ -19,6 +19,7 @@ from . import plausibility
 from ..models import library as fmu_library
 from ..models.catalog import SAMPLED_MODELS, bundled_model
 from ..models.pose_error import pose_batch, pose_error
+from ..models.responses import has_response, response
 from ..errors import Problem, ScenarioError
 from ..masters import DEFAULT, entry as master_entry
 from ..values import is_finite
@@ -78,6 +79,10 @@ class Graph:
     # per instance name, an error model the masters hand its held inputs to (the
     # PoseIntegrator's, models/pose_error.py): what the master cannot see on its own
     error_models: tuple[tuple[str, "ErrorModel"], ...] = ()
+    # per instance name, the response of an FMU without a state (the Jacobian of its outputs
+    # in its inputs, models/responses.py: a factory of (its linked inputs, the instance)),
+    # through which the fixed-step masters' pair carries an error around a loop
+    responses: tuple[tuple[str, Callable], ...] = ()
 
     def instance(self, name: str) -> Instance:
         return next(i for i in self.instances if i.name == name)
@@ -145,7 +150,8 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
     return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
                  tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
                        + _rollback_warning(scenario, order, links)
-                       + plausibility.warnings(scenario, order)), _error_models(order))
+                       + plausibility.warnings(scenario, order)), _error_models(order),
+                 _responses(order))
 
 
 def _table(comp, values: dict[str, Scalar], model_name: str) -> Table | None:
@@ -185,6 +191,12 @@ POSE_MODEL = ErrorModel(pose_error, pose_batch)
 def _error_models(order: list[Instance]) -> tuple[tuple[str, ErrorModel], ...]:
     """The bundled models' error models (Graph.error_models)."""
     return tuple((inst.name, POSE_MODEL) for inst in order if _role(inst) == "pose")
+
+
+def _responses(order: list[Instance]) -> tuple[tuple[str, Callable], ...]:
+    """The bundled models' responses (Graph.responses)."""
+    return tuple((inst.name, response) for inst in order
+                 if bundled_model(inst.model) is not None and has_response(inst.model_name))
 
 
 def _role(inst: Instance) -> str | None:
