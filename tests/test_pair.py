@@ -119,6 +119,7 @@ def _reference(graph, results, refine=32):
 
 
 LOOPS = ("track_circle", "track_figure_eight", "recorded_path")
+OMNI = SCENARIOS / "chassis" / "omni_field_circle.yaml"
 
 
 @pytest.mark.parametrize("scenario", LOOPS)
@@ -150,18 +151,15 @@ def test_the_loop_also_covers_the_chain_s_own_outputs():
         assert isinstance(found["error_estimate"][name]["max"], float), name
 
 
-def test_a_loop_under_jacobi_hands_over_to_richardson_and_says_why():
-    """Under Jacobi every FMU of the loop is a step late: the pair does not carry an error
-    around it; Richardson's coarser runs are stepped on the run's own instances, as where the
-    pair never applied."""
-    found, results = _method(SCENARIOS / "closed_loop" / "track_circle.yaml", "jacobi")
+def test_a_loop_the_pair_cannot_carry_through_hands_over_to_richardson_and_says_why():
+    """The omni field circle turning at w = 0.5 + 0.1 t^2: FieldToBody reads the pose's
+    heading, which carries an error, and has no known response; Richardson's coarser runs are
+    stepped on the run's own instances, as where the pair never applied."""
+    found, results = _method(OMNI, parameters={"command.w_expr": "0.5 + 0.1*t*t"})
     assert found["error_estimate_method"].startswith("Richardson")
     assert "the embedded pair does not apply" in found["error_estimate_method"]
-    assert "pose.x carries an error into follower" in found["error_estimate_method"]
+    assert "pose.theta carries an error into field" in found["error_estimate_method"]
     assert len(results.extra["coarse"]["runs"]) == 2       # stepped on the run's own instances
-
-
-OMNI = SCENARIOS / "chassis" / "omni_field_circle.yaml"
 
 
 @pytest.mark.parametrize("name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
@@ -173,14 +171,6 @@ def test_a_loop_whose_fed_back_heading_is_exact_keeps_the_pair(name):
     assert "coarse" not in results.extra
     assert found["error_estimate"]["pose.theta"]["max"] == "below round-off"
     assert all(isinstance(found["error_estimate"][f"pose.{k}"]["max"], float) for k in "xy")
-
-
-def test_a_heading_with_an_error_in_the_loop_hands_over():
-    """The same loop turning at w = 0.5 + 0.1 t^2: the holds' start-up steps leave theta an
-    error (4e-6 rad), which FieldToBody would turn into the body twist."""
-    found, results = _method(OMNI, parameters={"command.w_expr": "0.5 + 0.1*t*t"})
-    assert found["error_estimate_method"].startswith("Richardson")
-    assert "pose.theta carries an error into field" in found["error_estimate_method"]
 
 
 @pytest.mark.parametrize("name", ["trapezoidal", "quadratic"])
@@ -297,17 +287,32 @@ def test_the_pairs_window_stays_a_few_rows_long(monkeypatch):
 
 
 def test_a_run_made_without_its_estimate_is_made_again_once(monkeypatch):
-    """track_circle under Jacobi simulated without with_estimate: estimate_error makes the run
-    again for the pair, which fails on it (the loop carries an error); the coarser runs that
-    run made on its own instances are used, none is made afresh, and the estimate is the one
-    of a run made with it."""
+    """The turning omni field circle simulated without with_estimate: estimate_error makes the
+    run again for the pair, which fails on it (the heading carries an error into FieldToBody);
+    the coarser runs that run made on its own instances are used, none is made afresh, and the
+    estimate is the one of a run made with it."""
     from mecanum_fmu.master import estimate
     made = []
     monkeypatch.setattr(estimate, "coarse_run", lambda *a, **k: made.append(a) or "made")
-    path = SCENARIOS / "closed_loop" / "track_circle.yaml"
-    graph = runner.prepare(path, master_name="jacobi")
+    turning = {"command.w_expr": "0.5 + 0.1*t*t"}
+    graph = runner.prepare(OMNI, parameters=turning)
     found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
     assert made == [] and found["error_estimate_method"].startswith("Richardson")
-    with_it, _ = _method(path, "jacobi")
+    with_it, _ = _method(OMNI, parameters=turning)
     found.pop("error_estimate_cost"), with_it.pop("error_estimate_cost")
     assert found == with_it
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 200, 4097])
+def test_the_loop_s_recurrence_by_doubling_is_the_step_by_step_one(n):
+    """pair_loop._recurrence (log2 n NumPy rounds) against e_k+1 = p_k e_k + q_k stepped one
+    step at a time."""
+    from mecanum_fmu.master.pair_loop import _recurrence
+    rng = np.random.default_rng(n)
+    p = np.eye(3) + 0.02 * rng.standard_normal((n, 3, 3))
+    q, e = rng.standard_normal((n, 3)), rng.standard_normal(3)
+    start, expected = e.copy(), []
+    for k in range(n):
+        e = p[k] @ e + q[k]
+        expected.append(e)
+    assert np.allclose(_recurrence(p, q, start), expected, rtol=1e-10, atol=1e-10)

@@ -82,11 +82,12 @@ class PairPlan:
 class Through:
     """An FMU without a state that the pair carries an error through: its response (Graph.
     responses), the columns of its linked inputs' sources (in the response's order) and of
-    its outputs."""
+    its outputs, and (Jacobi) its lag behind the model's outputs."""
     name: str
     response: object
     ins: np.ndarray
     outs: np.ndarray
+    lag: int = 0        # under Jacobi: its outputs' row r comes from its inputs' row r - 1
 
 
 @dataclass
@@ -147,7 +148,7 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
     fed = _fed(graph, groups, modelled, col)
     if isinstance(fed, str):
         return fed
-    loop = None if how.freezes_inputs else _loop(graph, groups, fed, col, real_slots, into)
+    loop = _loop(graph, groups, fed, col, real_slots, into, lag)
     plan = _outputs(graph, lag, groups, slots, col, "frozen" if how.freezes_inputs else how.hold)
     if isinstance(plan, PairPlan):
         plan.fed, plan.rolled_back, plan.loop = fed, rolled_back, loop
@@ -156,8 +157,8 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
     return plan
 
 
-def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, into: dict
-          ) -> Loop | None:
+def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, into: dict,
+          lag: dict) -> Loop | None:
     """The Loop of the one model whose outputs other FMUs read (None: no such model, or
     several, or no FMU to carry them through): in step order, each FMU without a state that reads a carried value and has a
     response covering its inputs carries it on; any other reader (but the model's own FMU,
@@ -178,7 +179,7 @@ def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, i
         if not hot or inst.name == groups[origin].name:
             continue
         through = None if inst.name in stateful or inst.name not in responses else \
-            _through(inst, links, responses[inst.name], col, ports)
+            _through(inst, links, responses[inst.name], col, ports, lag[inst.name])
         if through is None:
             for l in hot:
                 checked.setdefault(str(l.source.ref), (carried[str(l.source.ref)], set()))[
@@ -196,7 +197,7 @@ def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, i
                 [(name, c, sorted(readers)) for name, (c, readers) in checked.items()])
 
 
-def _through(inst, links: list, factory, col, ports: dict) -> Through | None:
+def _through(inst, links: list, factory, col, ports: dict, lag: int) -> Through | None:
     """The Through of an FMU without a state, or None: its response does not cover its
     linked inputs, or an output it reads has no slot (neither linked nor recorded)."""
     response = factory([l.target.ref.variable for l in links], inst)
@@ -206,7 +207,7 @@ def _through(inst, links: list, factory, col, ports: dict) -> Through | None:
     if any(p is None for p in outs):
         return None
     return Through(inst.name, response, np.array([col(l.source) for l in links]),
-                   np.array([col(p) for p in outs]))
+                   np.array([col(p) for p in outs]), lag)
 
 
 def _lag_in(fmu, links: list, lag: dict) -> int | str:

@@ -28,16 +28,23 @@ _END_WEIGHT = {"state_ahead": 0.5, "fed_back": 1.0}
 
 
 class LoopCarry:
-    """The carried error of one run, batch by batch (its running totals carried on)."""
+    """The carried error of one run, batch by batch (its running totals carried on). Under
+    Jacobi (`frozen`) an FMU's output row r comes from its inputs' row r - 1: a value d FMUs
+    down the chain (its `depth`) at row r carries S_r E_(r-d)."""
 
-    def __init__(self, loop: Loop, group: Group):
-        self.loop, self.n = loop, len(group.model.outputs)
+    def __init__(self, loop: Loop, group: Group, frozen: bool):
+        self.loop, self.n, self.frozen = loop, len(group.model.outputs), frozen
         self.error = np.zeros(self.n)       # the model's outputs' error at the last node
         self.end_weight = np.array([_END_WEIGHT.get(r, 0.0) for r in group.roles])
-        self.errors: dict[int, np.ndarray] = {}     # per carried column, this batch's errors
+        self.depth = {c: 0 for c, _ in loop.starts}
+        for t in loop.chain:
+            self.depth.update({c: t.lag for c in t.outs})
+        self.sens: dict[int, np.ndarray] = {}   # this batch's, on rows first .. (sensitivities)
+        self.first, self.nodes, self.at_nodes = 0, 0, np.zeros((1, self.n))
 
     def sensitivities(self, rows: np.ndarray) -> dict[int, np.ndarray]:
-        """Per carried column, d value / d (the model's outputs) at each row, (rows, n)."""
+        """Per carried column, d value / d (the model's outputs) at each of `rows` (the run's
+        rows in order; under Jacobi the first row's inputs stand for the row before it)."""
         sens = {}
         for c, index in self.loop.starts:
             unit = np.zeros((len(rows), self.n))
@@ -45,36 +52,64 @@ class LoopCarry:
             sens[c] = unit
         zero = np.zeros((len(rows), self.n))
         for t in self.loop.chain:
-            jac = t.response.jacobian(rows[:, t.ins], rows[:, t.outs])
+            ins = rows[:, t.ins]
             s_in = np.stack([sens.get(c, zero) for c in t.ins], axis=1)
-            s_out = jac @ s_in
+            if self.frozen:             # the inputs of the row before
+                ins = np.vstack((ins[:1], ins[:-1]))
+                s_in = np.concatenate((s_in[:1], s_in[:-1]))
+            s_out = t.response.jacobian(ins, rows[:, t.outs]) @ s_in
             for k, c in enumerate(t.outs):
                 sens[c] = s_out[:, k]
         return sens
 
-    def steps(self, g: Group, h: np.ndarray, hold: tuple, rows: np.ndarray,
+    def carried(self, cols: list[int], nodes: np.ndarray) -> np.ndarray:
+        """The errors that columns `cols` carry at `nodes` (this batch's: the steps' starts
+        through the last one's end), (nodes, cols): S at the node + the column's depth (at
+        most the last row) times E at the node."""
+        stacked = np.stack([self.sens[c] for c in cols], axis=1)      # (rows, cols, n)
+        rows = np.minimum(nodes[:, None] + np.array([self.depth[c] for c in cols])
+                          - self.first, len(stacked) - 1)
+        return np.einsum("kmn,kn->km", stacked[rows, np.arange(len(cols))],
+                         self.at_nodes[nodes - self.nodes])
+
+    def steps(self, g: Group, h: np.ndarray, hold: tuple, ks: np.ndarray, window,
               predicted: np.ndarray | None) -> np.ndarray:
         """The signed error of the model's outputs after each step (as its model's steps),
-        the loop's share included. `hold`: the pair's (held, error, change) per step;
-        `rows`: the run's rows at nodes k .. k_last + 1; `predicted`: the predictor's hold
-        where the run rolls back (else None)."""
+        the loop's share included. `hold`: the pair's (held, error, change) per step; `ks`
+        the steps; window(first, last) the run's rows first .. last (clipped to those it
+        has); `predicted`: the predictor's hold where the run rolls back (else None)."""
         held, error, change = hold
-        sens = self.sensitivities(rows)
+        d = g.lag
+        reach = max(self.depth.values())
+        self.first = int(ks[0]) - reach
+        rows = window(self.first, int(ks[-1]) + d + 1)
+        self.sens = self.sensitivities(rows)
         zero = np.zeros((len(rows), self.n))
-        c = np.stack([sens.get(col, zero) for col in g.cols], axis=1)     # (nodes, in, n)
+        c = np.stack([self.sens.get(col, zero) for col in g.cols], axis=1)  # (rows, in, n)
+        c0, c1 = c[ks + d - self.first], c[ks + d + 1 - self.first]
         a, b, made = g.model.linear(h, held, error, change)
         if predicted is not None:       # the predicted end values the corrector held
             delta = np.einsum("kni,ki->kn", b, predicted - held)
-            extra = self.end_weight * np.einsum("kin,kn->ki", c[1:], delta)
+            extra = self.end_weight * np.einsum("kin,kn->ki", c1, delta)
             made = made + np.einsum("kni,ki->kn", b, extra)
-        bc0, bc1 = b @ c[:-1], b @ c[1:]
+        bc0, bc1 = b @ c0, b @ c1
         p = a + 0.5 * bc0 + 0.5 * bc1 @ (a + bc0)
         q = made + 0.5 * np.einsum("kmn,kn->km", bc1, made)
-        total = np.empty_like(made)
-        now = self.error
-        for k in range(len(made)):
-            now = p[k] @ now + q[k]
-            total[k] = now
-        self.error = now
-        self.errors = {col: np.einsum("kn,kn->k", s[1:], total) for col, s in sens.items()}
+        self.nodes = int(ks[0])
+        total = _recurrence(p, q, self.error)
+        self.at_nodes = np.vstack((self.error, total))
+        self.error = total[-1]
         return total
+
+
+def _recurrence(p: np.ndarray, q: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """e_k+1 = p_k e_k + q_k from e_0 = start, for k = 0 .. len(p) - 1: the rows e_1 ...
+    By doubling (a scan of the affine maps: after the round of offset m, map k takes e_k-2m+1
+    to e_k+1), log2 of the steps NumPy calls rather than one per step."""
+    p, q = p.copy(), q.copy()
+    m = 1
+    while m < len(p):
+        q[m:] = np.einsum("kij,kj->ki", p[m:], q[:-m]) + q[m:]
+        p[m:] = np.einsum("kij,kjl->kil", p[m:], p[:-m])
+        m *= 2
+    return np.einsum("kij,j->ki", p, start) + q

@@ -55,7 +55,14 @@ class PairRows:
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
         loop = plan.loop
-        self.carry = LoopCarry(loop, plan.groups[loop.origin]) if loop is not None else None
+        self.carry = LoopCarry(loop, plan.groups[loop.origin], plan.hold == "frozen") \
+            if loop is not None else None
+        # Jacobi's late outputs of the loop's chain: their lag's error and the carried one
+        self.late = {name: c for name, c, _ in plan.lagged} if loop is not None else {}
+        self.in_chain = {name for name, _ in loop.recorded} if loop is not None else set()
+        # the chain's recorded outputs that are not late: their names and columns
+        early = [(n, c) for n, c in (loop.recorded if loop else ()) if n not in self.late]
+        self.chain_recorded = ([n for n, _ in early], [c for _, c in early])
         self.worst = {name: 0.0 for name in (*plan.covered, *(n for n, _, _ in plan.lagged),
                                              *(n for n, _ in (loop.recorded if loop else ())))}
         self.end = dict.fromkeys(self.worst, 0.0)
@@ -131,10 +138,11 @@ class PairRows:
         place: a shallow copy keeps them; the window is sliced, never written)."""
         return ([copy.copy(g.model) for g in self.plan.groups], dict(self.worst),
                 dict(self.end), self.k, self.lo, self.window, [m.copy() for m in self.moved],
-                dict(self.fed))
+                dict(self.fed), copy.copy(self.carry))
 
     def _restore(self, state: tuple) -> None:
-        models, worst, end, self.k, self.lo, self.window, moved, fed = state
+        models, worst, end, self.k, self.lo, self.window, moved, fed, carry = state
+        self.carry = copy.copy(carry)
         for g, model in zip(self.plan.groups, models):
             g.model = copy.copy(model)
         self.worst, self.end, self.moved = dict(worst), dict(end), [m.copy() for m in moved]
@@ -168,17 +176,39 @@ class PairRows:
 
     def _carried(self, g: Group, ks: np.ndarray, h: np.ndarray, hold: tuple) -> np.ndarray:
         """Group g's signed errors with the loop's carried in (pair_loop.py); the chain's
-        recorded outputs' and the checked values' errors kept."""
+        recorded outputs' (but Jacobi's late ones: _steps) and the checked values' errors
+        kept."""
         predicted = self._extrapolated(g, ks, self._row(g, ks, 0), hold[0]) \
             if self.plan.rolled_back else None
-        rows = self.window[np.arange(ks[0], ks[-1] + 2) - self.lo]
-        signed = self.carry.steps(g, h, hold, rows, predicted)
-        errors = self.carry.errors
-        for name, c in self.plan.loop.recorded:
-            self._keep([name], errors[c][:, None])
-        for name, c, _ in self.plan.loop.checked:
-            self.fed[name] = max(self.fed[name], float(np.max(np.abs(errors[c]))))
+        signed = self.carry.steps(g, h, hold, ks, self._rows, predicted)
+        names, cols = self.chain_recorded
+        if names:
+            self._keep(names, self.carry.carried(cols, ks + 1))
+        checked = self.plan.loop.checked
+        if checked:
+            worst = np.max(np.abs(self.carry.carried([c for _, c, _ in checked], ks + 1)),
+                           axis=0)
+            for (name, _, _), w in zip(checked, worst.tolist()):
+                self.fed[name] = max(self.fed[name], w)
         return signed
+
+    def _late_carried(self, names: list[str], nodes: np.ndarray) -> np.ndarray | float:
+        """The error the loop carries into Jacobi's late outputs `names` at `nodes` (0 for
+        those outside the loop's chain): the true value at node j is the run's d rows later,
+        less the error that row carries."""
+        chain = [n for n in names if n in self.in_chain]
+        if not chain:
+            return 0.0
+        out = np.zeros((len(nodes), len(names)))
+        out[:, [names.index(n) for n in chain]] = self.carry.carried(
+            [self.late[n] for n in chain], nodes)
+        return out
+
+    def _rows(self, first: int, last: int) -> np.ndarray:
+        """The run's rows first .. last, those before the first or past the last it has
+        standing in for them (the first row; the last: node n)."""
+        rows = np.clip(np.arange(first, last + 1), max(self.lo, 0), self.lo + len(self.window) - 1)
+        return self.window[rows - self.lo]
 
     def _keep(self, names: list[str], errors: np.ndarray) -> None:
         """The signed errors of outputs `names` (a column each) on a batch of rows."""
@@ -211,10 +241,10 @@ class PairRows:
             self._check_fed(i, signed)
         for d, names, at in self.lags:
             self._keep(names, self.window[ks - self.lo][:, self.cols[d][at]]
-                       - stencils[d][1][:, at])
+                       - stencils[d][1][:, at] + self._late_carried(names, ks))
             if k_hi == self.n - 1:      # and the last row, against the last step's end
                 self._keep(names, self.window[[self.n - self.lo]][:, self.cols[d][at]]
-                           - stencils[d][2][-1:, at])
+                           - stencils[d][2][-1:, at] + self._late_carried(names, ks[-1:] + 1))
         self.failed = self._fed_error()
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)

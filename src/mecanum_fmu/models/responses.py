@@ -37,6 +37,8 @@ class Response:
         self.fixed = np.array([_number(inst, n) for n in inputs])
 
     def jacobian(self, ins: np.ndarray, outs: np.ndarray) -> np.ndarray:
+        if self.order == list(range(len(self.fixed))):     # every input linked, in order
+            return self.full(ins, outs)
         values = np.broadcast_to(self.fixed, (len(ins), len(self.fixed))).copy()
         values[:, self.order] = ins
         return self.full(values, outs)[:, :, self.order]
@@ -90,9 +92,9 @@ def _center2wheel(inst):
     w_max = _number(inst, "w_max")
 
     def full(ins, outs):
-        j = np.broadcast_to(m, (len(ins), 4, 3)).copy()
         if not w_max > 0.0:
-            return j
+            return np.broadcast_to(m, (len(ins), 4, 3))
+        j = np.broadcast_to(m, (len(ins), 4, 3)).copy()
         speeds = ins @ m.T
         i = np.argmax(np.abs(speeds), axis=1)
         peak = np.abs(speeds[np.arange(len(ins)), i])
@@ -115,15 +117,14 @@ def _wheel2center(inst):
 
     def full(ins, outs):
         rows = len(ins)
-        j = np.zeros((rows, 5, 4))
+        j = np.empty((rows, 5, 4))
         j[:, :3] = n
         vx, vy, w = outs[:, 0], outs[:, 1], outs[:, 2]
-        has = np.abs(w) >= ICR_TOLERANCE
-        safe = np.where(has, w, 1.0)
-        icr = np.zeros((rows, 2, 3))            # d (icr_x, icr_y) / d (vx, vy, w)
-        icr[:, 0, 1], icr[:, 0, 2] = -1.0 / safe, vy / safe ** 2
-        icr[:, 1, 0], icr[:, 1, 2] = 1.0 / safe, -vx / safe ** 2
-        j[:, 3:] = np.where(has[:, None, None], icr @ n, 0.0)
+        # d (icr_x, icr_y) = (-dvy / w + vy dw / w^2, dvx / w - vx dw / w^2), 0 where no ICR
+        inverse = np.where(np.abs(w) >= ICR_TOLERANCE, 1.0 / np.where(w == 0.0, 1.0, w), 0.0)
+        r = inverse[:, None]
+        j[:, 3] = r * (-n[1] + (vy * inverse)[:, None] * n[2])
+        j[:, 4] = r * (n[0] - (vx * inverse)[:, None] * n[2])
         return j
     return full
 
