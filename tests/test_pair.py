@@ -143,6 +143,20 @@ def test_a_loop_carries_the_error_around_through_the_fmus_responses(scenario, na
             assert true / 3 <= estimate[which] <= 3 * true, (output, which, estimate, true)
 
 
+@pytest.mark.parametrize("scenario", LOOPS)
+def test_a_loop_under_jacobi_carries_the_error_a_row_late_per_fmu(scenario):
+    """Under Jacobi each FMU of the chain hands its value on a step late: the pair carries the
+    error with those lags; the max of x, y and theta within 3x of the error against h/32 (the
+    end rests on the last steps' extrapolated inputs: track_circle's y end reads 0.31x)."""
+    path = SCENARIOS / "closed_loop" / f"{scenario}.yaml"
+    found, results = _method(path, "jacobi")
+    assert found["error_estimate_method"].startswith("the embedded pair")
+    graph = runner.prepare(path, master_name="jacobi")
+    for output, error in _reference(graph, results).items():
+        if error.max() > 1e-9:
+            assert error.max() / 3 <= found["error_estimate"][output]["max"] <= 3 * error.max()
+
+
 def test_the_loop_also_covers_the_chain_s_own_outputs():
     """The follower's, the wheels' and Wheel2Center's recorded outputs get their carried error
     (S E: each one's sensitivity to the pose's error), not "below round-off"."""
