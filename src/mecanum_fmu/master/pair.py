@@ -21,10 +21,11 @@ exactly: constants), else the estimate falls back to Richardson (richardson.py),
 where the pair cannot follow an error.
 
 An FMU may read an error model's outputs (a loop closing back through a PoseIntegrator's
-heading, any FMU downstream of one): the pair then holds only where those outputs carry no
-error at all (below their round-off), which it checks after the run, as it checks an FMU with a
-state and no model. Such an error would have to be carried through the FMU that reads it
-(around the loop), which takes that FMU's response. The input that closes a loop into an FMU's
+heading, any FMU downstream of one). Where the readers are FMUs without a state whose response
+is known (Graph.responses: their Jacobians), the error is carried through them and around the
+loop (Loop, pair_loop.py). Any other reader holds only where those outputs carry no error at
+all (below their round-off), which the pair checks after the run, as it checks an FMU with a
+state and no model: the error would have to go through that FMU's response. The input that closes a loop into an FMU's
 state is held as the master holds it: its value of t_k (Gauss-Seidel, Jacobi), extrapolated
 (the trapezoidal master, and the quadratic one where it cannot roll back), or, where the
 quadratic master predicts, rolls back and corrects, the limited parabola through the
@@ -160,9 +161,9 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
 def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, into: dict,
           lag: dict) -> Loop | None:
     """The Loop of the one model whose outputs other FMUs read (None: no such model, or
-    several, or no FMU to carry them through): in step order, each FMU without a state that reads a carried value and has a
-    response covering its inputs carries it on; any other reader (but the model's own FMU,
-    where the loop closes) is checked."""
+    several, or no FMU to carry them through): in step order, each FMU without a state that
+    reads a carried value and has a response covering its inputs carries it on; any other
+    reader (but the model's own FMU, where the loop closes) is checked."""
     origins = {f[1] for f in fed}
     if len(origins) != 1:
         return None

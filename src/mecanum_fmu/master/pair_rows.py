@@ -3,7 +3,8 @@
 Every chunk of rows the recorder flushes passes through PairRows, which keeps the columns the
 plan needs and works out each step's errors as soon as the values its stencil reads are in:
 the rows of a window a few steps long, so that memory stays flat for any run length. The
-cost is a few NumPy operations per chunk of 4096 rows, not per step.
+cost is a few NumPy operations per chunk of 4096 rows, not per step; around a loop
+(pair_loop.py) a few more, log2 of the chunk's steps of them.
 """
 from __future__ import annotations
 
@@ -165,7 +166,8 @@ class PairRows:
         for name, c, readers in [(f[0], f[3], f[4]) for f in self.plan.fed] + list(checked):
             if self.fed[name] > round_off([self.size[c]], self.n):
                 return (f"{name} carries an error into {', '.join(readers)}; the pair "
-                        "carries no error through an FMU (that would take its response)")
+                        "carries an error only through FMUs without a state whose response "
+                        "it knows")
         return None
 
     def _check_fed(self, i: int, signed: np.ndarray) -> None:
@@ -207,7 +209,7 @@ class PairRows:
     def _rows(self, first: int, last: int) -> np.ndarray:
         """The run's rows first .. last, those before the first or past the last it has
         standing in for them (the first row; the last: node n)."""
-        rows = np.clip(np.arange(first, last + 1), max(self.lo, 0), self.lo + len(self.window) - 1)
+        rows = np.clip(np.arange(first, last + 1), self.lo, self.lo + len(self.window) - 1)
         return self.window[rows - self.lo]
 
     def _keep(self, names: list[str], errors: np.ndarray) -> None:
