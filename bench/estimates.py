@@ -242,6 +242,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "
           f"{'estimate':>16} {'est/true':>10} {'calls':>5} {'wall':>5}")
     total, misses, withheld, costs = 0, 0, 0, []
+    by_method = {"the pair": [0, 0, 0, 0], "Richardson": [0, 0, 0, 0]}   # runs, values, ...
     names = [s for s in scenarios(args.loops) if args.only in s]
     for scenario in names:
         for name in args.master or FIXED:
@@ -252,10 +253,15 @@ def main(argv: list[str] | None = None) -> None:
                 total, misses, withheld = (total + len(lines), misses + missed[0],
                                            withheld + missed[1])
                 costs.append(cost)
+                counts = by_method["the pair" if cost[0] == 0 else "Richardson"]
+                for i, n in enumerate((1, len(lines), *missed)):
+                    counts[i] += n
     cost_table(names, args.estimate)
     steps, walls = np.array(costs).T
     print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth), "
           f"{withheld} WITHHELD (no number: the coarser runs out of the h^p range)")
+    print("; ".join(f"{method}: {runs} runs, {values} values, {m} MISS, {w} WITHHELD"
+                    for method, (runs, values, m, w) in by_method.items()))
     print(f"estimate's doStep calls / the run's: max {steps.max():.2f}, median "
           f"{np.median(steps):.2f}; its stepping time / the run's: max {np.nanmax(walls):.2f}, "
           f"median {np.nanmedian(walls):.2f} over {len(walls)} runs (wall: noisy, see above)")
