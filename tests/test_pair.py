@@ -107,15 +107,16 @@ def _method(path, name="quadratic", parameters=None, **changes):
     return master.estimate_error(graph, results), results
 
 
-def _reference(graph, results, refine=32):
+def _reference(graph, results, refine=32, names=None):
     """|the run - the same graph stepped by the same master at 1/refine of the step| on the
-    run's times: a closed loop's coupling error (its truth is the path asked for, not the
+    run's times, per output (`names`, by default the pose's): a closed loop's coupling error (its truth is the path asked for, not the
     pose the loop makes); the reference's own error is refine^p times smaller."""
     exp = graph.scenario.experiment
     fine, fexp = with_experiment(graph, step_size=exp.step_size / refine, estimate="none")
     reference = master.simulate(fine, fexp)
+    names = names or [n for n in results.names if n.startswith("pose.")]
     return {name: np.abs(np.asarray(results[name]) - np.asarray(reference[name])[::refine])
-            for name in results.names if name.startswith("pose.")}
+            for name in names}
 
 
 LOOPS = ("track_circle", "track_figure_eight", "recorded_path")
@@ -157,12 +158,19 @@ def test_a_loop_under_jacobi_carries_the_error_a_row_late_per_fmu(scenario):
             assert error.max() / 3 <= found["error_estimate"][output]["max"] <= 3 * error.max()
 
 
-def test_the_loop_also_covers_the_chain_s_own_outputs():
+@pytest.mark.parametrize("name", ["gauss-seidel", "jacobi"])
+def test_the_loop_also_covers_the_chain_s_own_outputs(name):
     """The follower's, the wheels' and Wheel2Center's recorded outputs get their carried error
-    (S E: each one's sensitivity to the pose's error), not "below round-off"."""
-    found, _ = _method(SCENARIOS / "closed_loop" / "track_circle.yaml", "gauss-seidel")
-    for name in ("follower.vx", "c2w.w1", "w2c.vy", "w2c.icr_x"):
-        assert isinstance(found["error_estimate"][name]["max"], float), name
+    (S E: each one's sensitivity to the pose's error; under Jacobi plus its lag), within 3x
+    of the error against h/32 at its max, not "below round-off" (the ICR, -vy/w with w near 0
+    on this path, is left out: its error means little there)."""
+    path = SCENARIOS / "closed_loop" / "track_circle.yaml"
+    found, results = _method(path, name)
+    graph = runner.prepare(path, master_name=name)
+    names = ("follower.vx", "follower.w", "c2w.w1", "w2c.vx", "w2c.w")
+    for output, error in _reference(graph, results, names=names).items():
+        assert error.max() / 3 <= found["error_estimate"][output]["max"] <= 3 * error.max(), (
+            output, found["error_estimate"][output], error.max())
 
 
 def test_a_loop_the_pair_cannot_carry_through_hands_over_to_richardson_and_says_why():
