@@ -39,8 +39,10 @@ class LoopCarry:
         self.depth = {c: 0 for c, _ in loop.starts}
         for t in loop.chain:
             self.depth.update({c: t.lag for c in t.outs})
+        self.where = {c: i for i, c in enumerate(self.depth)}    # a column's place in table
         self.sens: dict[int, np.ndarray] = {}   # this batch's, on rows first .. (sensitivities)
         self.first, self.nodes, self.at_nodes = 0, 0, np.zeros((1, self.n))
+        self.table = np.zeros((1, len(self.where)))     # this batch's carried errors (_table)
 
     def sensitivities(self, rows: np.ndarray) -> dict[int, np.ndarray]:
         """Per carried column, d value / d (the model's outputs) at each of `rows` (the run's
@@ -64,8 +66,13 @@ class LoopCarry:
 
     def carried(self, cols: list[int], nodes: np.ndarray) -> np.ndarray:
         """The errors that columns `cols` carry at `nodes` (this batch's: the steps' starts
-        through the last one's end), (nodes, cols): S at the node + the column's depth (at
-        most the last row) times E at the node."""
+        through the last one's end), (nodes, cols)."""
+        return self.table[nodes - self.nodes][:, [self.where[c] for c in cols]]
+
+    def _table(self, nodes: np.ndarray) -> np.ndarray:
+        """Every carried column's error at `nodes`, (nodes, columns in self.where's order): S
+        at the node + the column's depth (at most the last row) times E at the node."""
+        cols = list(self.where)
         stacked = np.stack([self.sens[c] for c in cols], axis=1)      # (rows, cols, n)
         rows = np.minimum(nodes[:, None] + np.array([self.depth[c] for c in cols])
                           - self.first, len(stacked) - 1)
@@ -99,6 +106,7 @@ class LoopCarry:
         total = _recurrence(p, q, self.error)
         self.at_nodes = np.vstack((self.error, total))
         self.error = total[-1]
+        self.table = self._table(np.arange(self.nodes, self.nodes + len(total) + 1))
         return total
 
 
