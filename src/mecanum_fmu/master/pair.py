@@ -104,6 +104,10 @@ class Loop:
     # carried values read by an FMU the pair cannot carry them through: (name, column, its
     # readers); the pair holds where they carry no error (as PairPlan.fed)
     checked: list
+    # the chain's recorded outputs that divide by another output (Response.divides): (name,
+    # the divisor's name, its column, the floor below which it does not divide); unresolved
+    # where the divisor's error is not small against it
+    divided: list = field(default_factory=list)
 
 
 def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
@@ -194,8 +198,12 @@ def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, i
     members = {t.name for t in chain}
     recorded = [(str(p.ref), carried[str(p.ref)]) for p in graph.recorded
                 if p.ref.instance in members and str(p.ref) in carried]
+    divided = [(name, f"{t.name}.{d}", carried[f"{t.name}.{d}"], floor) for t in chain
+               for out, (d, floor) in t.response.divides.items()
+               if (name := f"{t.name}.{out}") in dict(recorded)]
     return Loop(origin, starts, chain, recorded,
-                [(name, c, sorted(readers)) for name, (c, readers) in checked.items()])
+                [(name, c, sorted(readers)) for name, (c, readers) in checked.items()],
+                divided)
 
 
 def _through(inst, links: list, factory, col, ports: dict, lag: int) -> Through | None:

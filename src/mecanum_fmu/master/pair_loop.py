@@ -41,28 +41,38 @@ class LoopCarry:
             self.depth.update({c: t.lag for c in t.outs})
         self.where = {c: i for i, c in enumerate(self.depth)}    # a column's place in table
         self.sens: dict[int, np.ndarray] = {}   # this batch's, on rows first .. (sensitivities)
+        self.times: dict[int, np.ndarray] = {}  # Jacobi: the time's part, on the same rows
         self.first, self.nodes, self.at_nodes = 0, 0, np.zeros((1, self.n))
         self.table = np.zeros((1, len(self.where)))     # this batch's carried errors (_table)
 
-    def sensitivities(self, rows: np.ndarray) -> dict[int, np.ndarray]:
+    def sensitivities(self, rows: np.ndarray) -> tuple[dict, dict]:
         """Per carried column, d value / d (the model's outputs) at each of `rows` (the run's
-        rows in order; under Jacobi the first row's inputs stand for the row before it)."""
-        sens = {}
+        rows in order; under Jacobi the first row's inputs stand for the row before it), and
+        (Jacobi) the time's part of it: a late FMU's row r is f(inputs of row r - 1, t_r),
+        its true value at t_r-1 f(the same inputs, t_r-1), less its explicit change over the
+        step, out_r - out_r-1 - J (in_r-1 - in_r-2), carried on through the chain."""
+        sens, times = {}, {}
         for c, index in self.loop.starts:
             unit = np.zeros((len(rows), self.n))
             unit[:, index] = 1.0
             sens[c] = unit
-        zero = np.zeros((len(rows), self.n))
+        zero, still = np.zeros((len(rows), self.n)), np.zeros(len(rows))
         for t in self.loop.chain:
-            ins = rows[:, t.ins]
+            ins, outs = rows[:, t.ins], rows[:, t.outs]
             s_in = np.stack([sens.get(c, zero) for c in t.ins], axis=1)
-            if self.frozen:             # the inputs of the row before
-                ins = np.vstack((ins[:1], ins[:-1]))
-                s_in = np.concatenate((s_in[:1], s_in[:-1]))
-            s_out = t.response.jacobian(ins, rows[:, t.outs]) @ s_in
+            if not self.frozen:
+                s_out = t.response.jacobian(ins, outs) @ s_in
+            else:                       # the inputs of the row before
+                before = _late(ins)
+                jac = t.response.jacobian(before, outs)
+                s_out = jac @ _late(s_in)
+                tau_in = _late(np.column_stack([times.get(c, still) for c in t.ins]))
+                own = outs - _late(outs) - np.einsum("rij,rj->ri", jac, before - _late(before))
+                tau = own + np.einsum("rij,rj->ri", jac, tau_in)
+                times.update({c: tau[:, k] for k, c in enumerate(t.outs)})
             for k, c in enumerate(t.outs):
                 sens[c] = s_out[:, k]
-        return sens
+        return sens, times
 
     def carried(self, cols: list[int], nodes: np.ndarray) -> np.ndarray:
         """The errors that columns `cols` carry at `nodes` (this batch's: the steps' starts
@@ -76,8 +86,12 @@ class LoopCarry:
         stacked = np.stack([self.sens[c] for c in cols], axis=1)      # (rows, cols, n)
         rows = np.minimum(nodes[:, None] + np.array([self.depth[c] for c in cols])
                           - self.first, len(stacked) - 1)
-        return np.einsum("kmn,kn->km", stacked[rows, np.arange(len(cols))],
-                         self.at_nodes[nodes - self.nodes])
+        found = np.einsum("kmn,kn->km", stacked[rows, np.arange(len(cols))],
+                          self.at_nodes[nodes - self.nodes])
+        for i, c in enumerate(cols):
+            if c in self.times:
+                found[:, i] += self.times[c][rows[:, i]]
+        return found
 
     def steps(self, g: Group, h: np.ndarray, hold: tuple, ks: np.ndarray, window,
               predicted: np.ndarray | None) -> np.ndarray:
@@ -90,10 +104,13 @@ class LoopCarry:
         reach = max(self.depth.values())
         self.first = int(ks[0]) - reach
         rows = window(self.first, int(ks[-1]) + d + 1)
-        self.sens = self.sensitivities(rows)
+        self.sens, self.times = self.sensitivities(rows)
         zero = np.zeros((len(rows), self.n))
         c = np.stack([self.sens.get(col, zero) for col in g.cols], axis=1)  # (rows, in, n)
         c0, c1 = c[ks + d - self.first], c[ks + d + 1 - self.first]
+        if self.times:                  # Jacobi: the true input less the time's part too
+            tau = np.column_stack([self.times.get(col, np.zeros(len(rows))) for col in g.cols])
+            error = error + 0.5 * (tau[ks + d - self.first] + tau[ks + d + 1 - self.first])
         a, b, made = g.model.linear(h, held, error, change)
         if predicted is not None:       # the predicted end values the corrector held
             delta = np.einsum("kni,ki->kn", b, predicted - held)
@@ -121,3 +138,8 @@ def _recurrence(p: np.ndarray, q: np.ndarray, start: np.ndarray) -> np.ndarray:
         p[m:] = np.einsum("kij,kjl->kil", p[m:], p[:-m])
         m *= 2
     return np.einsum("kij,j->ki", p, start) + q
+
+
+def _late(values: np.ndarray) -> np.ndarray:
+    """The values of the row before each row (the first standing for its own)."""
+    return np.concatenate((values[:1], values[:-1]))

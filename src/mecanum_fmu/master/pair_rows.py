@@ -18,6 +18,9 @@ from .pair import Group, PairPlan, pieces
 from .pair_loop import LoopCarry
 from .stencils import FOUR, means, values, weight_table
 
+# a carried error over this share of the value an output divides by: its linearisation fails
+ILL = 0.1
+
 
 
 def _columns(plan: PairPlan) -> tuple[dict, list, list]:
@@ -77,6 +80,7 @@ class PairRows:
                        for i in range(len(plan.groups))]
         # the models' outputs other FMUs read: their largest |error|
         self.fed = {name: 0.0 for name, *_ in (*plan.fed, *(loop.checked if loop else ()))}
+        self.ill: dict[str, str] = {}      # the chain's outputs whose linearisation fails
         self.failed: str | None = None
 
     @property
@@ -129,6 +133,7 @@ class PairRows:
             self._steps(self.n - 1)
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
+                "unresolved": dict(self.ill),
                 "seconds": self.seconds, "failed": self.failed or self._moved(),
                 "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
@@ -186,6 +191,13 @@ class PairRows:
         names, cols = self.chain_recorded
         if names:
             self._keep(names, self.carry.carried(cols, ks + 1))
+        for name, divisor, c, floor in self.plan.loop.divided:
+            error = np.abs(self.carry.carried([c], ks + 1)[:, 0])
+            value = np.abs(self.window[ks + 1 - self.lo, c])
+            if name not in self.ill and np.any((error > ILL * value)
+                                               & (value + error >= floor)):
+                self.ill[name] = (f"unresolved (it divides by {divisor}, whose error is not "
+                                  f"small against it: over {ILL:g} of it)")
         checked = self.plan.loop.checked
         if checked:
             worst = np.max(np.abs(self.carry.carried([c for _, c, _ in checked], ks + 1)),

@@ -5,7 +5,9 @@ with them it carries a PoseIntegrator's error around a closed loop (pose -> Path
 Center2Wheel -> Wheel2Center -> pose) instead of handing the estimate over to Richardson.
 
 The response interface: `inputs` (the linked Real inputs it covers, in the pair's order),
-`outputs` (the Real outputs it covers), jacobian(ins, outs) -> d outputs / d inputs per row,
+`outputs` (the Real outputs it covers), `divides` (an output -> the output it is divided by
+and the floor below which it is not: that one's error must stay small against its value),
+jacobian(ins, outs) -> d outputs / d inputs per row,
 shape (rows, outputs, inputs), from the inputs' and outputs' values in those rows (arrays
 (rows, inputs) and (rows, outputs)). The kinematics' linear maps are read off their own
 functions (blocks/kinematics.py) at unit inputs: the equations keep one home.
@@ -31,8 +33,13 @@ class Response:
     full Jacobian (`full`, in the model's order of `inputs`) at the linked values, the others
     at their start values."""
 
-    def __init__(self, names: list[str], inputs: tuple, outputs: tuple, full, inst):
+    def __init__(self, names: list[str], inputs: tuple, outputs: tuple, full, inst,
+                 divides: dict):
         self.inputs, self.outputs, self.full = tuple(names), outputs, full
+        # output -> (the output it divides by where that one is at least a floor): its
+        # Jacobian holds only where that one's error is small against its value (the ICR,
+        # -vy/w for |w| >= its tolerance, where w nears 0)
+        self.divides = divides
         self.order = [inputs.index(n) for n in names]
         self.fixed = np.array([_number(inst, n) for n in inputs])
 
@@ -51,7 +58,7 @@ def response(names: list[str], inst) -> Response | None:
     if known is None or not set(names) <= set(known[0]):
         return None
     inputs, outputs, make = known
-    return Response(names, inputs, outputs, make(inst), inst)
+    return Response(names, inputs, outputs, make(inst), inst, _DIVIDES.get(inst.model_name, {}))
 
 
 def has_response(model_name: str) -> bool:
@@ -135,3 +142,4 @@ _RESPONSES = {
     "Center2Wheel": (_TWIST, _WHEELS, _center2wheel),
     "Wheel2Center": (_WHEELS, _TWIST + ("icr_x", "icr_y"), _wheel2center),
 }
+_DIVIDES = {"Wheel2Center": {"icr_x": ("w", ICR_TOLERANCE), "icr_y": ("w", ICR_TOLERANCE)}}
