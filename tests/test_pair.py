@@ -173,6 +173,36 @@ def test_the_loop_also_covers_the_chain_s_own_outputs(name):
             output, found["error_estimate"][output], error.max())
 
 
+TURNING = {"follower.theta_ref_expr": "0.5*t", "pose.theta0": 0.0}
+
+
+@pytest.mark.parametrize("name", ["quadratic", "gauss-seidel"])
+def test_the_icr_gets_a_number_where_w_stays_clear_of_0_and_none_where_it_nears_0(name):
+    """Wheel2Center's ICR is -vy/w: on track_circle turning at 0.5 rad/s from a heading on the
+    reference its carried error is within 3x of the error against h/32; on the bundled
+    track_circle, whose w decays to 0, it is unresolved (1/w^2 magnifies one row's error)."""
+    path = SCENARIOS / "closed_loop" / "track_circle.yaml"
+    found, results = _method(path, name, parameters=TURNING)
+    graph = runner.prepare(path, master_name=name, parameters=TURNING)
+    for output, error in _reference(graph, results, names=("w2c.icr_x", "w2c.icr_y")).items():
+        for which, true in (("max", error.max()), ("end", error[-1])):
+            assert true / 3 <= found["error_estimate"][output][which] <= 3 * true
+    found, _ = _method(path, name)
+    assert found["error_estimate"]["w2c.icr_x"]["max"].startswith("unresolved (it divides")
+
+
+def test_under_jacobi_a_late_follower_s_time_is_taken_out():
+    """Under Jacobi the follower's row k+1 is f(the pose of t_k, t_k+1): on a heading reference
+    of 0.5 t the run's heading ends 0.025 rad (0.5 rad/s x one step) ahead; the pair reads that
+    end within 3x (without the time's part it read 1e-9 rad)."""
+    path = SCENARIOS / "closed_loop" / "track_circle.yaml"
+    found, results = _method(path, "jacobi", parameters=TURNING)
+    graph = runner.prepare(path, master_name="jacobi", parameters=TURNING)
+    error = _reference(graph, results)["pose.theta"]
+    assert error[-1] > 0.02
+    assert error[-1] / 3 <= found["error_estimate"]["pose.theta"]["end"] <= 3 * error[-1]
+
+
 def test_a_loop_the_pair_cannot_carry_through_hands_over_to_richardson_and_says_why():
     """The omni field circle turning at w = 0.5 + 0.1 t^2: FieldToBody reads the pose's
     heading, which carries an error, and has no known response; Richardson's coarser runs are

@@ -20,6 +20,9 @@ from .stencils import FOUR, means, values, weight_table
 
 # a carried error over this share of the value an output divides by: its linearisation fails
 ILL = 0.1
+# a divisor that comes within this share of its largest |value| of 0: 1 / its square magnifies
+# one row's error (the ICR's max on a path whose w crosses 0 read 7x over)
+NEAR_ZERO = 0.01
 
 
 
@@ -81,6 +84,7 @@ class PairRows:
         # the models' outputs other FMUs read: their largest |error|
         self.fed = {name: 0.0 for name, *_ in (*plan.fed, *(loop.checked if loop else ()))}
         self.ill: dict[str, str] = {}      # the chain's outputs whose linearisation fails
+        self.divisors: dict[str, tuple] = {}    # their divisors' smallest and largest |value|
         self.failed: str | None = None
 
     @property
@@ -133,11 +137,23 @@ class PairRows:
             self._steps(self.n - 1)
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
-                "unresolved": dict(self.ill),
+                "unresolved": self._ill(),
                 "seconds": self.seconds, "failed": self.failed or self._moved(),
                 "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
                            if g.model is not None]}
+
+    def _ill(self) -> dict[str, str]:
+        """The chain's outputs whose estimate is unresolved: their divisor's error is not
+        small against it on some row, or it comes near 0 (within NEAR_ZERO of its largest
+        |value|), where 1 / its square magnifies the error of one row."""
+        ill = dict(self.ill)
+        for name, (low, high) in self.divisors.items():
+            if name not in ill and low < NEAR_ZERO * high:
+                divisor = next(d for n, d, *_ in self.plan.loop.divided if n == name)
+                ill[name] = (f"unresolved (it divides by {divisor}, which comes within "
+                             f"{NEAR_ZERO:g} of its largest value of 0)")
+        return ill
 
     def _state(self) -> tuple:
         """What the tail changes (the models' running totals are replaced, not changed in
@@ -194,10 +210,13 @@ class PairRows:
         for name, divisor, c, floor in self.plan.loop.divided:
             error = np.abs(self.carry.carried([c], ks + 1)[:, 0])
             value = np.abs(self.window[ks + 1 - self.lo, c])
-            if name not in self.ill and np.any((error > ILL * value)
-                                               & (value + error >= floor)):
+            near = (value + error >= floor)
+            if name not in self.ill and np.any((error > ILL * value) & near):
                 self.ill[name] = (f"unresolved (it divides by {divisor}, whose error is not "
                                   f"small against it: over {ILL:g} of it)")
+            low, high = self.divisors.get(name, (np.inf, 0.0))
+            self.divisors[name] = (min(low, float(np.min(value[near], initial=np.inf))),
+                                   max(high, float(np.max(value, initial=0.0))))
         checked = self.plan.loop.checked
         if checked:
             worst = np.max(np.abs(self.carry.carried([c for _, c, _ in checked], ks + 1)),
