@@ -7,10 +7,13 @@ run's own values at node k; the model's held inputs (through S = C) carry C E. T
 hold error of an input (held - the mean of the cubic through the run's values) is taken
 against the run's values, which carry that error: against the truth it adds the error's mean
 over the step, (C_k E_k + C_k+1 E_k+1) / 2. The model's step, linearised in its own error
-(PoseBatch.linear: E_k+1 = A_k E_k + B_k (input error)), then gives a linear recurrence
-E_k+1 = P_k E_k + q_k, E_k+1 predicted explicitly (the step with C_k E_k held): the
-model's own error, with the open-loop part kept as its model steps it (no linearisation of
-what it makes alone), and the loop's part D = E - O on top, one 3x3 product per step.
+(PoseBatch.linear: E_k+1 = A_k E_k + made_k + B_k (the input's further error)), then gives
+a linear recurrence E_k+1 = P_k E_k + q_k, E_k+1 predicted explicitly (the step with C_k E_k
+held), solved per chunk by doubling (_recurrence).
+
+Under Jacobi each FMU of the chain is a row late (its depth d: row r carries S_r E_r-d), and
+its row r is f(the inputs of row r - 1, t_r): its own change with t over the step is taken
+out of the "true" values too (LoopCarry.sensitivities' time part).
 
 Where the quadratic master predicts, rolls back and corrects, it holds the predicted end
 value of a loop's input, the carried values of the predicted outputs: those differ from the
