@@ -215,3 +215,15 @@ def test_one_coarser_run_where_only_one_step_keeps_the_rows(name):
         error = np.abs(results[f"pose.{k}"] - np.asarray(reference[f"pose.{k}"])[::32])
         e = found["error_estimate"][f"pose.{k}"]
         assert _close(e["max"], error.max()) and _close(e["end"], error[-1]), (k, e)
+
+
+def test_the_report_says_an_estimate_s_words_once_where_max_and_end_share_them():
+    """An output whose max and end are the same words (unresolved, below round-off) prints
+    them once; numbers print as before."""
+    from mecanum_fmu.results import error_estimate_lines
+    words = "unresolved (it divides by w2c.w, which comes within 0.01 of its largest value of 0)"
+    lines = error_estimate_lines({"error_estimate_method": "m", "error_estimate": {
+        "w2c.icr_x": {"max": words, "end": words},
+        "pose.x": {"max": 1.5e-3, "end": "below round-off"}}})
+    assert lines[1] == f"  w2c.icr_x: max and end {words}"
+    assert lines[2] == "  pose.x: max 1.50e-03, end below round-off"

@@ -80,7 +80,9 @@ def error_estimate_lines(summary: dict) -> list[str]:
         lines.insert(0, f"tolerance {summary['tolerance']:g}: {summary['steps_taken']} steps "
                         f"taken, {summary['steps_rejected']} rejected and rolled back")
     for name, e in estimate.items():
-        lines.append(f"  {name}: max {_show(e['max'])}, end {_show(e['end'])}")
+        lines.append(f"  {name}: max and end {e['max']}" if isinstance(e["max"], str)
+                     and e["max"] == e["end"] else
+                     f"  {name}: max {_show(e['max'])}, end {_show(e['end'])}")
     return lines
 
 

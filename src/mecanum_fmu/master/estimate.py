@@ -16,7 +16,7 @@ from ..scenario.graph import Graph
 from ..masters import DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, entry as master_entry
 from ..results import BELOW_ROUND_OFF, Results, round_off
 from .breakpoints import graph_breaks
-from .pair import METHOD as PAIR_METHOD, PairPlan, pair_plan
+from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, PairPlan, pair_plan
 from .pair_rows import PairRows
 from .richardson import coarse_experiment, coarse_factors, coarse_run, richardson
 
@@ -167,10 +167,13 @@ def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict)
         if name in pair.get("unresolved", {}):
             estimate[name] = dict.fromkeys(("max", "end"), pair["unresolved"][name])
     models = ", ".join(pair["models"]) or "none here"
+    through = pair.get("through", [])
     return {"error_estimate": estimate,
             "error_estimate_method": PAIR_METHOD.format(
-                models=models, lag=" (under Jacobi, a step late per FMU with direct "
-                "feedthrough)" if pair["lagged"] else ""),
+                models=models, loop=LOOP_METHOD.format(through=", ".join(through)) if through
+                else "", other="the other " if through else "",
+                lag=" (under Jacobi, a step late per FMU with direct feedthrough)"
+                if pair["lagged"] else ""),
             "error_estimate_cost": round(pair["seconds"] / max(results.wall_time, 1e-12), 3)}
 
 

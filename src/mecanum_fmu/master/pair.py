@@ -46,8 +46,10 @@ from .plan import has_state, state_only_inputs
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
           "through its nearest values in the same smooth piece (no extra doStep), carried "
-          "into the outputs by their FMUs' error models ({models}); outputs of FMUs without a "
-          "state read their inputs exactly{lag}")
+          "into the outputs by their FMUs' error models ({models}){loop}; outputs of {other}"
+          "FMUs without a state read their inputs exactly{lag}")
+LOOP_METHOD = (", and through the Jacobians of {through}, whose outputs carry it (around a "
+               "loop, back into the model's inputs)")
 
 
 @dataclass

@@ -141,7 +141,8 @@ class PairRows:
                 "seconds": self.seconds, "failed": self.failed or self._moved(),
                 "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
-                           if g.model is not None]}
+                           if g.model is not None],
+                "through": [t.name for t in self.plan.loop.chain] if self.plan.loop else []}
 
     def _ill(self) -> dict[str, str]:
         """The chain's outputs whose estimate is unresolved: their divisor's error is not
