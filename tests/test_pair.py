@@ -109,8 +109,9 @@ def _method(path, name="quadratic", parameters=None, **changes):
 
 def _reference(graph, results, refine=32, names=None):
     """|the run - the same graph stepped by the same master at 1/refine of the step| on the
-    run's times, per output (`names`, by default the pose's): a closed loop's coupling error (its truth is the path asked for, not the
-    pose the loop makes); the reference's own error is refine^p times smaller."""
+    run's times, per output (`names`, by default the pose's): a closed loop's coupling error
+    (its truth is the path asked for, not the pose the loop makes); the reference's own error
+    is refine^p times smaller."""
     exp = graph.scenario.experiment
     fine, fexp = with_experiment(graph, step_size=exp.step_size / refine, estimate="none")
     reference = master.simulate(fine, fexp)

@@ -25,13 +25,15 @@ heading, any FMU downstream of one). Where the readers are FMUs without a state 
 is known (Graph.responses: their Jacobians), the error is carried through them and around the
 loop (Loop, pair_loop.py). Any other reader holds only where those outputs carry no error at
 all (below their round-off), which the pair checks after the run, as it checks an FMU with a
-state and no model: the error would have to go through that FMU's response. The input that closes a loop into an FMU's
-state is held as the master holds it: its value of t_k (Gauss-Seidel, Jacobi), extrapolated
-(the trapezoidal master, and the quadratic one where it cannot roll back), or, where the
-quadratic master predicts, rolls back and corrects, the limited parabola through the
-predicted end value. That is the run's own where the loop carries no error, but for the steps
-whose predictor's extrapolation misses a corner (the start, a kink, a jump): one step's
-error in the loop's predicted value, not carried on (the corrector steps from the run's state).
+state and no model: the error would have to go through that FMU's response. The input that
+closes a loop into an FMU's state is held as the master holds it: its value of t_k
+(Gauss-Seidel, Jacobi), extrapolated (the trapezoidal master, and the quadratic one where it
+cannot roll back), or, where the quadratic master predicts, rolls back and corrects, the
+limited parabola through the predicted end value. That is the run's own where the loop
+carries no error, but for the steps whose predictor's extrapolation misses a corner (the
+start, a kink, a jump): one step's error in the loop's predicted value, not carried on (the
+corrector steps from the run's state); where the loop carries an error, pair_loop.py counts
+the predicted values' own.
 """
 from __future__ import annotations
 

@@ -42,6 +42,7 @@ class LoopCarry:
         self.depth = {c: 0 for c, _ in loop.starts}
         for t in loop.chain:
             self.depth.update({c: t.lag for c in t.outs})
+        self.reach = max(self.depth.values())   # the deepest: the rows before a step it reads
         self.where = {c: i for i, c in enumerate(self.depth)}    # a column's place in table
         self.sens: dict[int, np.ndarray] = {}   # this batch's, on rows first .. (sensitivities)
         self.times: dict[int, np.ndarray] = {}  # Jacobi: the time's part, on the same rows
@@ -104,8 +105,7 @@ class LoopCarry:
         has); `predicted`: the predictor's hold where the run rolls back (else None)."""
         held, error, change = hold
         d = g.lag
-        reach = max(self.depth.values())
-        self.first = int(ks[0]) - reach
+        self.first = int(ks[0]) - self.reach
         rows = window(self.first, int(ks[-1]) + d + 1)
         self.sens, self.times = self.sensitivities(rows)
         zero = np.zeros((len(rows), self.n))

@@ -135,9 +135,8 @@ class PoseBatch:
               ) -> np.ndarray:
         iw = self.index[2]
         run, true = self._displacements(h, held, error, change)
-        turned = self.theta + np.cumsum(h * held[:, iw])
+        turned, before = self._turned(h, held[:, iw])
         heading = self.heading + np.cumsum(h * error[:, iw])
-        before = np.concatenate(([self.theta], turned[:-1]))
         lag = np.concatenate(([self.heading], heading[:-1]))
         c, s = np.cos(lag), np.sin(lag)
         bx = run[0] - (c * true[0] + s * true[1])      # R(-heading error) turns the true step
@@ -157,8 +156,7 @@ class PoseBatch:
         ivx, ivy, iw = self.index
         w = held[:, iw]
         run, true = self._displacements(h, held, error, change)
-        turned = self.theta + np.cumsum(h * w)
-        before = np.concatenate(([self.theta], turned[:-1]))
+        turned, before = self._turned(h, w)
         c, s = np.cos(before), np.sin(before)
         rows = len(h)
         a = np.broadcast_to(np.eye(3), (rows, 3, 3)).copy()
@@ -171,6 +169,11 @@ class PoseBatch:
         b[:, 2, iw] = h
         self.theta = float(turned[-1])
         return a, b, made
+
+    def _turned(self, h: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The run's heading after each step and before it, from the heading it has now."""
+        turned = self.theta + np.cumsum(h * w)
+        return turned, np.concatenate(([self.theta], turned[:-1]))
 
     def _displacements(self, h, held, error, change) -> tuple:
         """Per step, the body-frame displacement of the run (the held twist on SE(2)) and of

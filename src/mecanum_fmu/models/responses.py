@@ -42,9 +42,10 @@ class Response:
         self.divides = divides
         self.order = [inputs.index(n) for n in names]
         self.fixed = np.array([_number(inst, n) for n in inputs])
+        self.whole = self.order == list(range(len(inputs)))  # every input linked, in order
 
     def jacobian(self, ins: np.ndarray, outs: np.ndarray) -> np.ndarray:
-        if self.order == list(range(len(self.fixed))):     # every input linked, in order
+        if self.whole:
             return self.full(ins, outs)
         values = np.broadcast_to(self.fixed, (len(ins), len(self.fixed))).copy()
         values[:, self.order] = ins
