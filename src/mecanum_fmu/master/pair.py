@@ -81,6 +81,7 @@ class PairPlan:
     fed: list = field(default_factory=list)
     rolled_back: bool = False    # the quadratic master predicts, rolls back, corrects a loop
     loop: "Loop | None" = None   # a model's error carried through FMUs without a state
+    network: "Network | None" = None    # FMUs with a state that feed one another
 
 
 @dataclass
@@ -112,6 +113,36 @@ class Loop:
     # the divisor's name, its column, the floor below which it does not divide); unresolved
     # where the divisor's error is not small against it
     divided: list = field(default_factory=list)
+
+
+@dataclass
+class Node:
+    """One FMU with a state in a Network: its group; the place and size of its state's error
+    in X (but its integrals') and of its integrals' in the network's integrals (the energies:
+    states no rate depends on and no other FMU reads; their places in its model's state are
+    `integral`, the others' `kept`); the columns of the outputs its model linearises about
+    (None: its model's outputs are its state, as the pose's); per model output its column
+    (None where the run keeps none)."""
+    group: int
+    offset: int
+    size: int
+    reads: np.ndarray | None
+    outs: list
+    kept: list = field(default_factory=list)
+    integral: list = field(default_factory=list)
+    first: int = 0          # its first integral's place among the network's
+
+
+@dataclass
+class Network:
+    """The FMUs with an error model, where some feed one another (pair_network.py), and the
+    FMUs without a state between them."""
+    nodes: list[Node]
+    steps: list             # in step order: ("node", Node) or ("through", Through)
+    recorded: list          # the recorded outputs it covers: (name, column)
+    checked: list           # its values read by FMUs outside it: (name, column, readers)
+    size: int               # the size of X (every node's state but the integrals)
+    integrals: list         # per integral: its output's name and column (None: not kept)
 
 
 def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
@@ -157,13 +188,87 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
     fed = _fed(graph, groups, modelled, col)
     if isinstance(fed, str):
         return fed
-    loop = _loop(graph, groups, fed, col, real_slots, into, lag)
+    network = _network(graph, groups, col, real_slots, into, how.freezes_inputs)
+    if isinstance(network, str):
+        return network
+    loop = None if network else _loop(graph, groups, fed, col, real_slots, into, lag)
     plan = _outputs(graph, lag, groups, slots, col, "frozen" if how.freezes_inputs else how.hold)
     if isinstance(plan, PairPlan):
-        plan.fed, plan.rolled_back, plan.loop = fed, rolled_back, loop
+        plan.fed, plan.rolled_back, plan.loop, plan.network = fed, rolled_back, loop, network
         if loop is not None:        # its model's outputs are checked where the loop is
             plan.fed = [f for f in fed if f[1] != loop.origin]
+        if network is not None:     # and every model's where the network is
+            plan.fed = []
     return plan
+
+
+def _network(graph: Graph, groups: list[Group], col, real_slots: dict, into: dict,
+             frozen: bool) -> "Network | str | None":
+    """The Network of every FMU with an error model, where one of them is linearised (its
+    model has `linearised`: the drive train's), else None; or why the pair cannot follow it.
+    In step order, an FMU without a state that reads a value the network makes and has a
+    response carries it on; any other reader is checked (Network.checked)."""
+    if not any(hasattr(g.model, "linearised") for g in groups):
+        return None
+    if frozen:
+        return (f"under Jacobi the pair does not follow the late values of FMUs with a state "
+                f"that feed one another ({', '.join(g.name for g in groups if g.model)})")
+    ports = {str(p.ref): p for p in real_slots}
+    nodes, made, offset, integrals = {}, {}, 0, []   # made: the values it makes -> column
+    for i, g in enumerate(groups):
+        if g.model is None:
+            continue
+        node = _node(g, i, col, ports, offset, integrals)
+        if isinstance(node, str):
+            return node
+        nodes[g.name], offset = node, offset + node.size
+        made.update({f"{g.name}.{o}": c for o, c in zip(g.model.outputs, node.outs)
+                     if c is not None})
+    read = {str(l.source.ref) for l in graph.links}
+    fed = [name for name, _ in integrals if name in read]
+    if fed:
+        return f"{fed[0]} is an integral of its FMU's error model, which the pair does not feed on"
+    stateful, responses = {g.name for g in groups}, dict(graph.responses)
+    steps, checked = [], {}
+    for inst in graph.instances:
+        if inst.name in nodes:
+            steps.append(("node", nodes[inst.name]))
+            continue
+        links = [l for l in into[inst.name] if l.target.type == "Real"]
+        hot = [str(l.source.ref) for l in links if str(l.source.ref) in made]
+        through = None if not hot or inst.name in stateful or inst.name not in responses else \
+            _through(inst, links, responses[inst.name], col, ports, 0)
+        if through is None:
+            for name in hot:
+                checked.setdefault(name, set()).add(inst.name)
+            continue
+        steps.append(("through", through))
+        made.update({f"{inst.name}.{n}": c for n, c in zip(through.response.outputs,
+                                                             through.outs)})
+    recorded = [(str(p.ref), made[str(p.ref)]) for p in graph.recorded if str(p.ref) in made]
+    return Network(list(nodes.values()), steps, recorded,
+                   [(name, made[name], sorted(r)) for name, r in checked.items()], offset,
+                   integrals)
+
+
+def _node(g: Group, i: int, col, ports: dict, offset: int, integrals: list) -> Node | str:
+    """Group i's Node at `offset` in X, its integrals appended to `integrals` (name, column),
+    or why the pair cannot linearise it (an output it reads is not kept)."""
+    model, name = g.model, g.name
+    column = lambda o: col(ports[f"{name}.{o}"]) if f"{name}.{o}" in ports else None  # noqa
+    outs = [column(o) for o in model.outputs]
+    if not hasattr(model, "linearised"):
+        return Node(i, offset, len(outs), None, outs)
+    missing = [r for r in model.reads if f"{name}.{r}" not in ports]
+    if missing:
+        return (f"{name}'s error model reads {name}.{missing[0]}, which the run does not keep "
+                "(add it to outputs:)")
+    integral = list(model.integrals.values())
+    kept = [k for k in range(model.states) if k not in integral]
+    node = Node(i, offset, len(kept), np.array([column(r) for r in model.reads]), outs, kept,
+                integral, len(integrals))
+    integrals.extend((f"{name}.{o}", column(o)) for o in model.integrals)
+    return node
 
 
 def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, into: dict,

@@ -16,6 +16,7 @@ import numpy as np
 from ..results import round_off
 from .pair import Group, PairPlan, pieces
 from .pair_loop import LoopCarry
+from .pair_network import CANCELS, NetworkCarry
 from .stencils import FOUR, means, values, weight_table
 
 # a carried error over this share of the value an output divides by: its linearisation fails
@@ -61,9 +62,10 @@ class PairRows:
                        default=0)
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
-        loop = plan.loop
+        loop, net = plan.loop, plan.network
         self.carry = LoopCarry(loop, plan.groups[loop.origin], plan.hold == "frozen") \
             if loop is not None else None
+        self.net = NetworkCarry(net, plan.groups) if net is not None else None
         # Jacobi's late outputs of the loop's chain: their lag's error and the carried one
         self.late = {name: c for name, c, _ in plan.lagged} if loop is not None else {}
         self.in_chain = {name for name, _ in loop.recorded} if loop is not None else set()
@@ -71,7 +73,8 @@ class PairRows:
         early = [(n, c) for n, c in (loop.recorded if loop else ()) if n not in self.late]
         self.chain_recorded = ([n for n, _ in early], [c for _, c in early])
         self.worst = {name: 0.0 for name in (*plan.covered, *(n for n, _, _ in plan.lagged),
-                                             *(n for n, _ in (loop.recorded if loop else ())))}
+                                             *(n for n, _ in (loop.recorded if loop else ())),
+                                             *(n for n, _ in (net.recorded if net else ())))}
         self.end = dict.fromkeys(self.worst, 0.0)
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
         self.size = np.zeros(len(plan.slots))
@@ -82,7 +85,8 @@ class PairRows:
                         [k for n, (j, k) in plan.covered.items() if j == i])
                        for i in range(len(plan.groups))]
         # the models' outputs other FMUs read: their largest |error|
-        self.fed = {name: 0.0 for name, *_ in (*plan.fed, *(loop.checked if loop else ()))}
+        self.fed = {name: 0.0 for name, *_ in (*plan.fed, *(loop.checked if loop else ()),
+                                                *(net.checked if net else ()))}
         self.ill: dict[str, str] = {}      # the chain's outputs whose linearisation fails
         self.divisors: dict[str, tuple] = {}    # their divisors' smallest and largest |value|
         self.failed: str | None = None
@@ -92,14 +96,15 @@ class PairRows:
         """Whether the pair may find, after the run, that it does not hold (an FMU with a
         state and no error model, a model's output that another FMU reads): the run then
         keeps its t0 for Richardson's coarser runs."""
-        return bool(self.plan.fed or (self.plan.loop and self.plan.loop.checked)) or any(
+        return bool(self.plan.fed or (self.plan.loop and self.plan.loop.checked) or (
+            self.plan.network and self.plan.network.checked)) or any(
             g.model is None for g in self.plan.groups)
 
     @property
     def held_move(self) -> bool:
         """Whether a held input may move between two jumps of a table (a loop, an FMU with a
         state): estimate.LONE_PIECES."""
-        return self.may_fail or self.plan.loop is not None
+        return self.may_fail or self.plan.loop is not None or self.plan.network is not None
 
     def __call__(self, rows: np.ndarray, first: int) -> None:
         """A chunk of whole buffer rows, the first being row `first` of the run."""
@@ -149,6 +154,9 @@ class PairRows:
         small against it on some row, or it comes near 0 (within NEAR_ZERO of its largest
         |value|), where 1 / its square magnifies the error of one row."""
         ill = dict(self.ill)
+        for name in self.net.cancelled(self.worst) if self.net is not None else ():
+            ill[name] = ("unresolved (its error is what is left of terms that cancel to under "
+                         f"{CANCELS:g} of their sum, finer than the linearisation resolves)")
         for name, (low, high) in self.divisors.items():
             if name not in ill and low < NEAR_ZERO * high:
                 divisor = next(d for n, d, *_ in self.plan.loop.divided if n == name)
@@ -184,8 +192,9 @@ class PairRows:
     def _fed_error(self) -> str | None:
         """Why the pair does not hold: a model's output that another FMU reads carries an
         error (beyond its round-off), which the pair would have to carry through that FMU."""
-        checked = self.plan.loop.checked if self.plan.loop else ()
-        for name, c, readers in [(f[0], f[3], f[4]) for f in self.plan.fed] + list(checked):
+        checked = [*(self.plan.loop.checked if self.plan.loop else ()),
+                   *(self.plan.network.checked if self.plan.network else ())]
+        for name, c, readers in [(f[0], f[3], f[4]) for f in self.plan.fed] + checked:
             if self.fed[name] > round_off([self.size[c]], self.n):
                 return (f"{name} carries an error into {', '.join(readers)}; the pair "
                         "carries an error only through FMUs without a state whose response "
@@ -226,6 +235,16 @@ class PairRows:
                 self.fed[name] = max(self.fed[name], w)
         return signed
 
+    def _network(self, ks: np.ndarray, h: np.ndarray, holds: dict) -> None:
+        """The network's errors (pair_network.py): its recorded outputs' kept, and the
+        largest of those it hands to FMUs outside it."""
+        errors = self.net.steps(ks, h, holds, self._rows)
+        where = {c: j for j, c in enumerate(self.net.cols)}
+        net = self.plan.network
+        self._keep([n for n, _ in net.recorded], errors[:, [where[c] for _, c in net.recorded]])
+        for name, c, _ in net.checked:
+            self.fed[name] = max(self.fed[name], float(np.max(np.abs(errors[:, where[c]]))))
+
     def _late_carried(self, names: list[str], nodes: np.ndarray) -> np.ndarray | float:
         """The error the loop carries into Jacobi's late outputs `names` at `nodes` (0 for
         those outside the loop's chain): the true value at node j is the run's d rows later,
@@ -261,10 +280,14 @@ class PairRows:
         if ks[-1] == self.n - 1:
             h[-1] = self.last * self.h
         stencils = {d: self._stencils(ks, d, cols) for d, cols in self.cols.items()}
+        holds = {}
         for i, g in enumerate(self.plan.groups):
             held, error, change = self._group(g, ks, [a[:, self.at[i]] for a in stencils[g.lag]])
             if g.model is None:
                 np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
+                continue
+            if self.net is not None:
+                holds[i] = (held, error, change)
                 continue
             if self.carry is not None and i == self.plan.loop.origin:
                 signed = self._carried(g, ks, h, (held, error, change))
@@ -273,6 +296,8 @@ class PairRows:
             names, index = self.covers[i]
             self._keep(names, signed[:, index])
             self._check_fed(i, signed)
+        if self.net is not None:
+            self._network(ks, h, holds)
         for d, names, at in self.lags:
             self._keep(names, self.window[ks - self.lo][:, self.cols[d][at]]
                        - stencils[d][1][:, at] + self._late_carried(names, ks))

@@ -19,6 +19,7 @@ from . import plausibility
 from ..models import library as fmu_library
 from ..models.catalog import SAMPLED_MODELS, bundled_model
 from ..models.pose_error import pose_batch, pose_error
+from ..models.drive_error import body_linear, motor_linear
 from ..models.responses import has_response, response
 from ..errors import Problem, ScenarioError
 from ..masters import DEFAULT, entry as master_entry
@@ -188,9 +189,25 @@ class ErrorModel:
 POSE_MODEL = ErrorModel(pose_error, pose_batch)
 
 
+def _no_stepwise(blend, names, inst) -> None:
+    """The drive train's models have no form for the adaptive master."""
+    return None
+
+
+# per bundled model name: the error models of the drive train (models/drive_error.py)
+_DRIVE_MODELS = {"DCMotor": ErrorModel(_no_stepwise, motor_linear),
+                 "MecanumDynamics": ErrorModel(_no_stepwise, body_linear)}
+
+
 def _error_models(order: list[Instance]) -> tuple[tuple[str, ErrorModel], ...]:
     """The bundled models' error models (Graph.error_models)."""
-    return tuple((inst.name, POSE_MODEL) for inst in order if _role(inst) == "pose")
+    return tuple((inst.name, m) for inst in order if (m := _error_model(inst)) is not None)
+
+
+def _error_model(inst: Instance) -> ErrorModel | None:
+    if _role(inst) == "pose":
+        return POSE_MODEL
+    return _DRIVE_MODELS.get(inst.model_name) if bundled_model(inst.model) is not None else None
 
 
 def _responses(order: list[Instance]) -> tuple[tuple[str, Callable], ...]:

@@ -1,0 +1,179 @@
+"""The embedded pair across FMUs with a state that feed one another: a network of linearised
+error models (a drive train: motors, the floor, the pose), with FMUs without a state between
+them (their responses, as pair_loop.py carries them).
+
+Each FMU with a state and a linear error model (Graph.error_models: `linearised`, models/
+drive_error.py) has its state's error x; the pose's model (`linear`, PoseBatch) its own. All
+of them together are X. At each node of the run the error of every value the network makes is
+S X (its sensitivity): an FMU's outputs C x + D (the error of its inputs there), an FMU without
+a state's J (the error of its inputs). The pair's hold error of an input (held - the mean of the
+cubic through the run's values) is taken against the run's values, which carry an error: against
+the truth it adds that error's mean over the step, (S_k X_k + S_k+1 X_k+1) / 2. Over the step an
+FMU with a linearised model, x' = A x + B u, moves its error by
+
+    x_k+1 = Phi x_k + Gamma0 (the input's error) - Gamma1 (the input's change over the step),
+
+Phi, Gamma0 from the trapezoidal (Cayley) form of A over the step, and Gamma1 = -(h^2 / 12) A B
+(the share of the input's change within the step that a fast state follows), against the
+mean-held input. Together: (I - G S_k+1 / 2) X_k+1 = (Phi + G S_k / 2) X_k + made_k, solved per
+step, then the recurrence X_k+1 = P_k X_k + q_k step by step (a few microseconds each).
+
+Not followed here: Jacobi's late values (pair.py hands that case over) and, where the quadratic
+master rolls back, the predicted end values' own error (second order: the drive train's error
+is first order, its inputs with direct feedthrough held at their newest values).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .pair import Group, Network, Node
+
+SUB = 1024          # the steps worked out at once (memory: S is (rows, columns, X) per batch)
+# an integral's error under this share of the sum of its terms' |values|: unresolved
+CANCELS = 0.05
+
+
+class NetworkCarry:
+    """The network's error over one run, batch by batch (X and the integrals carried on)."""
+
+    def __init__(self, net: Network, groups: list[Group]):
+        self.net, self.groups = net, groups
+        self.x, self.e = np.zeros(net.size), np.zeros(len(net.integrals))
+        self.spread = np.zeros(len(net.integrals))     # the sum of each integral's |terms|
+        integral = {c: k for k, (_, c) in enumerate(net.integrals) if c is not None}
+        self.cols = sorted({c for _, c in net.recorded} | {c for _, c, _ in net.checked})
+        self.of_x = [c for c in self.cols if c not in integral]
+        self.of_e = [integral[c] for c in self.cols if c in integral]
+        self.where = np.array([c in integral for c in self.cols])
+
+    def steps(self, ks: np.ndarray, h: np.ndarray, holds: dict, window) -> np.ndarray:
+        """The errors of self.cols at nodes ks + 1 (steps, columns). `holds`: per node's group
+        the pair's (held, error, change) per step; window(first, last): the run's rows."""
+        out = []
+        for lo in range(0, len(ks), SUB):
+            part = slice(lo, lo + SUB)
+            out.append(self._part(ks[part], h[part], {i: tuple(a[part] for a in hold)
+                                                      for i, hold in holds.items()}, window))
+        return np.concatenate(out)
+
+    def cancelled(self, worst: dict) -> list[str]:
+        """The recorded integrals whose largest |error| is under CANCELS of the sum of the
+        |terms| it is made of: what is left of terms that cancel, which the linearisation's
+        few per cent do not resolve."""
+        return [name for k, (name, _) in enumerate(self.net.integrals)
+                if name in worst and worst[name] < CANCELS * self.spread[k]]
+
+    def _part(self, ks, h, holds, window) -> np.ndarray:
+        rows = window(int(ks[0]), int(ks[-1]) + 1)      # nodes ks[0] .. ks[-1] + 1
+        sens, maps = self._sensitivities(rows)
+        n = len(ks)
+        phi, gain, made, s0, s1, late = self._maps(sens, maps, h, holds, len(rows))
+        lhs = np.eye(self.net.size) - 0.5 * gain @ s1
+        p = np.linalg.solve(lhs, phi + 0.5 * gain @ s0)
+        q = np.linalg.solve(lhs, made[:, :, None])[:, :, 0]
+        xs = np.empty((n + 1, self.net.size))
+        xs[0] = x = self.x
+        for k in range(n):
+            x = p[k] @ x + q[k]
+            xs[k + 1] = x
+        self.x = x
+        es = self._integrals(late, s0, s1, xs)
+        out = np.empty((n, len(self.cols)))
+        zero = np.zeros((len(rows), self.net.size))
+        table = np.stack([sens.get(c, zero)[1:] for c in self.of_x], axis=1)  # (steps, cols, X)
+        out[:, ~self.where] = np.einsum("kcx,kx->kc", table, xs[1:])
+        out[:, self.where] = es[:, self.of_e]
+        return out
+
+    def _integrals(self, late: tuple, s0, s1, xs) -> np.ndarray:
+        """The integrals' errors after each step: per step h/2 A_ic (x_k + x_k+1) + h B_i (the
+        input's error: the carried share's mean over the step, with made the rest); the sum of
+        their terms' |values| kept (a term per state and per input)."""
+        arm, gain, made = late
+        both = xs[:-1] + xs[1:]
+        carried = 0.5 * (np.einsum("kmx,kx->km", s0, xs[:-1]) + np.einsum("kmx,kx->km", s1,
+                                                                          xs[1:]))
+        by_state, by_input = arm * both[:, None], gain * carried[:, None]
+        es = self.e + np.cumsum(by_state.sum(axis=2) + by_input.sum(axis=2) + made, axis=0)
+        self.spread += (np.abs(by_state).sum(axis=(0, 2)) + np.abs(by_input).sum(axis=(0, 2))
+                        + np.abs(made).sum(axis=0))
+        self.e = es[-1]
+        return es
+
+    def _maps(self, sens: dict, maps: dict, h, holds: dict, rows: int) -> tuple:
+        """Per step: Phi (block diagonal), Gamma0 onto every node's held inputs, made, those
+        inputs' sensitivities at the step's start and end, and the integrals' (h/2 A_ic, h B_i,
+        made)."""
+        n, size, count = len(h), self.net.size, len(self.net.integrals)
+        phi, made = np.zeros((n, size, size)), np.zeros((n, size))
+        arm, i_made = np.zeros((n, count, size)), np.zeros((n, count))
+        gain, i_gain, s0, s1 = [], [], [], []
+        zero = np.zeros((rows, size))
+        for node in self.net.nodes:
+            g = self.groups[node.group]
+            block = slice(node.offset, node.offset + node.size)
+            at = slice(node.first, node.first + len(node.integral))
+            phi[:, block, block], b, made[:, block], late = self._discrete(
+                node, g, maps.get(node.group), h, holds[node.group])
+            full = np.zeros((n, size, len(g.cols)))
+            full[:, block] = b
+            gain.append(full)
+            i_full = np.zeros((n, count, len(g.cols)))
+            if late is not None:
+                arm[:, at, block], i_full[:, at], i_made[:, at] = late
+            i_gain.append(i_full)
+            s = np.stack([sens.get(c, zero) for c in g.cols], axis=1)   # (rows, in, X)
+            s0.append(s[:-1])
+            s1.append(s[1:])
+        s0, s1 = np.concatenate(s0, axis=1), np.concatenate(s1, axis=1)
+        return (phi, np.concatenate(gain, axis=2), made, s0, s1,
+                (arm, np.concatenate(i_gain, axis=2), i_made))
+
+    def _discrete(self, node: Node, g: Group, lin, h, hold) -> tuple:
+        """(Phi, Gamma0, made, the integrals' (h/2 A_ic, h B_i, made) or None) per step of one
+        node: its model's own (`linear`), or from its linearisation at the step's two ends,
+        averaged (trapezoidal form, Gamma1 as the module says)."""
+        held, error, change = hold
+        if lin is None:
+            return (*g.model.linear(h, held, error, change), None)
+        a, b = 0.5 * (lin[0][:-1] + lin[0][1:]), 0.5 * (lin[1][:-1] + lin[1][1:])
+        kept, integral = node.kept, node.integral
+        a_cc, b_c = a[:, kept][:, :, kept], b[:, kept]
+        a_ic, b_i = a[:, integral][:, :, kept], b[:, integral]
+        eye, hk = np.eye(node.size), h[:, None, None]
+        half = 0.5 * hk * a_cc
+        inverse = np.linalg.inv(eye - half)
+        phi = inverse @ (eye + half)
+        gamma0 = inverse @ (hk * b_c)
+        ramp = (h * h / 12.0)[:, None, None] * change[:, None, :]       # the change's share
+        made = np.einsum("kni,ki->kn", gamma0, error) + np.einsum(
+            "kni,ki->kn", inverse @ (a_cc @ b_c), ramp[:, 0])
+        i_made = np.einsum("kni,ki->kn", hk * b_i, error) + np.einsum(
+            "kni,ki->kn", a_ic @ b_c, ramp[:, 0])
+        return phi, gamma0, made, (0.5 * hk * a_ic, hk * b_i, i_made)
+
+    def _sensitivities(self, rows: np.ndarray) -> tuple[dict, dict]:
+        """Per column the network makes (but the integrals), d value / d X at each row; and
+        per linearised node its (A, B) at each row."""
+        size, zero = self.net.size, np.zeros((len(rows), self.net.size))
+        sens, maps = {}, {}
+        for kind, item in self.net.steps:
+            if kind == "through":
+                s_in = np.stack([sens.get(c, zero) for c in item.ins], axis=1)
+                s_out = item.response.jacobian(rows[:, item.ins], rows[:, item.outs]) @ s_in
+                sens.update({c: s_out[:, k] for k, c in enumerate(item.outs)})
+                continue
+            g = self.groups[item.group]
+            if item.reads is None:          # its outputs are its state
+                for k, c in enumerate(item.outs):
+                    if c is not None:
+                        sens[c] = np.zeros((len(rows), size))
+                        sens[c][:, item.offset + k] = 1.0
+                continue
+            a, b, c_map, d_map = g.model.linearised(rows[:, g.cols], rows[:, item.reads])
+            maps[item.group] = (a, b)
+            s_in = np.stack([sens.get(c, zero) for c in g.cols], axis=1)
+            s_out = d_map @ s_in
+            s_out[:, :, item.offset:item.offset + item.size] += c_map[:, :, item.kept]
+            sens.update({c: s_out[:, k] for k, c in enumerate(item.outs) if c is not None})
+        return sens, maps
