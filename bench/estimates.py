@@ -28,8 +28,12 @@ scenarios of bench/accuracy.py at TOL 1e-2 ... 1e-6.
 With --loops: the closed loops (a PathFollower on a pose, no motors), whose coupling error has
 no ground truth, against the same graph stepped by the same master at 1/32 of the step.
 
+With --drive: the robots with motors and a floor (no sampled sensor), every recorded output
+over their first DRIVE_STOP s against the same graph at 1/DRIVE_REFINE of the step (one model:
+the graph keeps body.h_ref), at the scenario's step and 2x.
+
 Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING] [--estimate richardson]
-     [--loops] [--adaptive]
+     [--loops] [--adaptive] [--drive]
 """
 from __future__ import annotations
 
@@ -223,6 +227,70 @@ def adaptive_table(names: list[str], tolerances=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6)) 
     print(f"\n{misses} MISS of {total} values (outside [1/{FACTOR:g}, {FACTOR:g}] of the truth)")
 
 
+DRIVE_STOP = 2.0        # --drive: the first 2 s of each robot scenario
+DRIVE_REFINE = 16       # its reference run's step, 1/16 of the run's
+
+
+def drive_scenarios() -> list[str]:
+    """The bundled robots with motors and a floor and no sampled sensor (--drive)."""
+    found = []
+    for path in sorted((ROOT / "scenarios" / "robot").glob("*.yaml")):
+        try:
+            graph = prepare(path)
+        except MecanumError:
+            continue                 # a sweep file, not a scenario
+        if not graph.sampled and any(i.model_name in DYNAMIC for i in graph.instances):
+            found.append(str(path.relative_to(ROOT / "scenarios")))
+    return found
+
+
+def drive_run(scenario: str, name: str, factor: int) -> tuple[dict, dict, str, float]:
+    """(the estimate, the true max and end per recorded Real output against a run at
+    1/DRIVE_REFINE of the step, the method, the estimate's cost) for a drive train."""
+    graph, exp = at_step(prepare(ROOT / "scenarios" / scenario), name, factor)
+    graph, exp = with_experiment(graph, stop_time=DRIVE_STOP)
+    results = master.simulate(graph, exp, with_estimate=True)
+    found = master.estimate_error(graph, results)
+    fine, fexp = with_experiment(graph, step_size=exp.step_size / DRIVE_REFINE, estimate="none")
+    reference = master.simulate(fine, fexp)
+    at = np.arange(len(results.time)) * DRIVE_REFINE
+    true = {}
+    for output in found["error_estimate"] or {}:
+        err = np.abs(np.asarray(results[output], float) - np.asarray(reference[output],
+                                                                        float)[at])
+        true[output] = {"max": float(err.max()), "end": float(err[-1])}
+    return (found["error_estimate"], true, found["error_estimate_method"],
+            float(found.get("error_estimate_cost", math.nan)))
+
+
+def drive_table(names: list[str], masters) -> None:
+    """--drive: per robot, master and step, every recorded output's max and end against the
+    reference run: counts within 3x, MISS, WITHHELD; the pose's lines; the estimate's cost."""
+    print(f"{'scenario':<28} {'master':<12} {'h':>6} {'method':<10} {'values':>6} {'3x':>5} "
+          f"{'MISS':>5} {'WITHH':>5} {'pose.x max':>10} {'pose.y max':>10} {'cost':>6}")
+    totals = np.zeros(4, dtype=int)
+    for scenario in names:
+        for name in masters:
+            for factor in (1, 2):
+                estimate, true, method, cost = drive_run(scenario, name, factor)
+                counts, poses = np.zeros(4, dtype=int), []
+                for output, t in true.items():
+                    for which in ("max", "end"):
+                        ratio, miss = verdict(estimate[output][which], t[which])
+                        counts += (1, miss == "", miss == "MISS", miss == "WITHHELD")
+                        if output in ("pose.x", "pose.y") and which == "max":
+                            poses.append(ratio)
+                totals += counts
+                step = prepare(ROOT / "scenarios" / scenario).scenario.experiment.step_size
+                print(f"{scenario:<28} {name:<12} {step * factor:>6g} "
+                      f"{'the pair' if method.startswith('the embedded') else 'Richardson':<10} "
+                      f"{counts[0]:>6} {counts[1]:>5} {counts[2]:>5} {counts[3]:>5} "
+                      f"{poses[0]:>10} {poses[1]:>10} {cost:>6.2f}", flush=True)
+    print(f"\n{totals[0]} values: {totals[1]} within 3x, {totals[2]} MISS, {totals[3]} WITHHELD "
+          f"(the reference: the same graph at 1/{DRIVE_REFINE} of the step, the first "
+          f"{DRIVE_STOP:g} s)")
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the scenario's step only")
@@ -236,7 +304,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--adaptive", action="store_true",
                         help="the adaptive master's own estimate at TOL 1e-2 ... 1e-6, on the "
                              "scenarios of bench/accuracy.py")
+    parser.add_argument("--drive", action="store_true",
+                        help="the robots with motors and a floor instead, every recorded "
+                             f"output against a run at 1/{DRIVE_REFINE} of the step")
     args = parser.parse_args(argv)
+    if args.drive:
+        return drive_table([s for s in drive_scenarios() if args.only in s],
+                           args.master or FIXED)
     if args.adaptive:
         return adaptive_table([s for s in ACCURACY_SCENARIOS if args.only in s])
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "

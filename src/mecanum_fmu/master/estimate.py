@@ -164,6 +164,8 @@ def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict)
         end = BELOW_ROUND_OFF if max(end, other) <= floor else \
             LATE_END if abs(other - end) > 0.5 * end else end
         estimate[name] = {"max": worst if worst > floor else BELOW_ROUND_OFF, "end": end}
+        if name in pair.get("unresolved_end", {}):
+            estimate[name]["end"] = pair["unresolved_end"][name]
         if name in pair.get("unresolved", {}):
             estimate[name] = dict.fromkeys(("max", "end"), pair["unresolved"][name])
     models = ", ".join(pair["models"]) or "none here"

@@ -21,6 +21,8 @@ from .stencils import FOUR, means, values, weight_table
 
 # a carried error over this share of the value an output divides by: its linearisation fails
 ILL = 0.1
+CANCELLED = ("unresolved (its error is what is left of terms that cancel to under "
+             f"{CANCELS:g} of their sum, finer than the linearisation resolves)")
 # a divisor that comes within this share of its largest |value| of 0: 1 / its square magnifies
 # one row's error (the ICR's max on a path whose w crosses 0 read 7x over)
 NEAR_ZERO = 0.01
@@ -143,6 +145,8 @@ class PairRows:
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
                 "unresolved": self._ill(),
+                "unresolved_end": dict.fromkeys(self.net.cancelled(self.end), CANCELLED)
+                if self.net is not None else {},
                 "seconds": self.seconds, "failed": self.failed or self._moved(),
                 "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
@@ -155,8 +159,7 @@ class PairRows:
         |value|), where 1 / its square magnifies the error of one row."""
         ill = dict(self.ill)
         for name in self.net.cancelled(self.worst) if self.net is not None else ():
-            ill[name] = ("unresolved (its error is what is left of terms that cancel to under "
-                         f"{CANCELS:g} of their sum, finer than the linearisation resolves)")
+            ill[name] = CANCELLED
         for name, (low, high) in self.divisors.items():
             if name not in ill and low < NEAR_ZERO * high:
                 divisor = next(d for n, d, *_ in self.plan.loop.divided if n == name)
