@@ -47,7 +47,8 @@ def _misses(estimate: dict, true: dict, allowed=()) -> list:
     return misses
 
 
-@pytest.fixture(scope="module", params=["quadratic", "trapezoidal", "gauss-seidel"])
+@pytest.fixture(scope="module", params=["quadratic", "trapezoidal", "gauss-seidel",
+                                        "jacobi"])
 def circle(request, fmu_dir):
     return _run(fmu_dir, "circle.yaml", request.param, 0.5)
 
@@ -58,8 +59,8 @@ def test_the_drive_train_gets_the_pair_within_3x_on_every_output(circle):
     assert "body: MecanumDynamics" in method
     assert "coarse" not in results.extra           # no coarser run was stepped
     assert true["pose.y"] > 1e-5 and true["motor1.w"] > 1e-4     # the step matters here
-    body_energies = ("body.E_slip", "body.E_drive")
-    assert _misses(estimate, true, allowed=body_energies) == []
+    energies = [n for n in true if ".E_" in n]      # integrals: unresolved where they cancel
+    assert _misses(estimate, true, allowed=energies) == []
 
 
 def test_an_integral_of_terms_that_cancel_is_unresolved_not_a_number(circle):
@@ -73,25 +74,16 @@ def test_an_integral_of_terms_that_cancel_is_unresolved_not_a_number(circle):
 
 
 @pytest.mark.heavy(12)
-def test_a_path_follower_closed_on_the_drive_train_gets_the_pair_within_3x(fmu_dir):
-    estimate, method, results, true = _run(fmu_dir, "track_circle.yaml", "gauss-seidel", 0.5)
+@pytest.mark.parametrize("master_name", ["gauss-seidel", "jacobi"])
+def test_a_path_follower_closed_on_the_drive_train_gets_the_pair_within_3x(fmu_dir,
+                                                                          master_name):
+    """Under Jacobi every value is a step late where it passes an FMU with direct
+    feedthrough (Center2Wheel, the follower, the motors' current): carried as a time part."""
+    estimate, method, results, true = _run(fmu_dir, "track_circle.yaml", master_name, 0.5)
     assert method.startswith("the embedded pair") and "through the Jacobians" not in method
     names = [n for n in true if n.startswith(("pose.", "follower.", "body.v", "motor1.w"))]
     assert len(names) >= 8
     assert _misses({n: estimate[n] for n in names}, {n: true[n] for n in names}) == []
-
-
-def test_under_jacobi_the_drive_train_hands_over_and_says_why(fmu_dir):
-    """Jacobi hands each motor its w_ref a step late (Center2Wheel has no state) and its
-    tau_load on time (the body has one): the pair follows one lag per FMU."""
-    graph = prepare(ROBOT / "circle.yaml", master_name="jacobi", fmu_dir=fmu_dir)
-    graph, exp = with_experiment(graph, stop_time=0.05)
-    results = master.simulate(graph, exp, with_estimate=True)
-    found = master.estimate_error(graph, results)
-    assert found["error_estimate_method"].startswith("Richardson")
-    assert "motor1's inputs arrive with different lags under Jacobi" in \
-        found["error_estimate_method"]
-    assert isinstance(found["error_estimate"]["pose.y"]["max"], float)
 
 
 @pytest.mark.heavy(8)

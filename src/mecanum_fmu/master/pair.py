@@ -67,6 +67,7 @@ class Group:
     lag: int
     model: object | None
     model_name: str = ""        # the FMU's model (its modelName), for the method's words
+    lags: np.ndarray | None = None      # per input (in a Network they may differ); lag: the most
 
 
 @dataclass
@@ -143,6 +144,7 @@ class Network:
     checked: list           # its values read by FMUs outside it: (name, column, readers)
     size: int               # the size of X (every node's state but the integrals)
     integrals: list         # per integral: its output's name and column (None: not kept)
+    made: dict = field(default_factory=dict)    # the values it makes -> their column
 
 
 def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
@@ -181,38 +183,37 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
         lag[inst.name] = 0          # exact, or its model's (PairRows checks those fed on)
         if group.model is not None:
             modelled[inst.name] = len(groups) - 1
-    for g in groups:        # their inputs' lags, now that every source's is known
-        g.lag = _lag_in(g, into[g.name], lag)
-        if isinstance(g.lag, str):
-            return g.lag
     fed = _fed(graph, groups, modelled, col)
     if isinstance(fed, str):
         return fed
-    network = _network(graph, groups, col, real_slots, into, how.freezes_inputs)
+    network = _network(graph, groups, col, real_slots, into)
     if isinstance(network, str):
         return network
+    for g in groups:        # their inputs' lags, now that every source's is known
+        lags = _lags_in(g, into[g.name], lag, network)
+        if isinstance(lags, str):
+            return lags
+        g.lags, g.lag = lags, int(lags.max(initial=0))
     loop = None if network else _loop(graph, groups, fed, col, real_slots, into, lag)
     plan = _outputs(graph, lag, groups, slots, col, "frozen" if how.freezes_inputs else how.hold)
     if isinstance(plan, PairPlan):
         plan.fed, plan.rolled_back, plan.loop, plan.network = fed, rolled_back, loop, network
         if loop is not None:        # its model's outputs are checked where the loop is
             plan.fed = [f for f in fed if f[1] != loop.origin]
-        if network is not None:     # and every model's where the network is
-            plan.fed = []
+        if network is not None:     # and every model's where the network is; the values
+            plan.fed = []           # it makes carry their own lag under Jacobi
+            plan.lagged = [l for l in plan.lagged if l[0] not in network.made]
     return plan
 
 
-def _network(graph: Graph, groups: list[Group], col, real_slots: dict, into: dict,
-             frozen: bool) -> "Network | str | None":
+def _network(graph: Graph, groups: list[Group], col, real_slots: dict, into: dict
+             ) -> "Network | str | None":
     """The Network of every FMU with an error model, where one of them is linearised (its
     model has `linearised`: the drive train's), else None; or why the pair cannot follow it.
     In step order, an FMU without a state that reads a value the network makes and has a
     response carries it on; any other reader is checked (Network.checked)."""
     if not any(hasattr(g.model, "linearised") for g in groups):
         return None
-    if frozen:
-        return (f"under Jacobi the pair does not follow the late values of FMUs with a state "
-                f"that feed one another ({', '.join(g.name for g in groups if g.model)})")
     ports = {str(p.ref): p for p in real_slots}
     nodes, made, offset, integrals = {}, {}, 0, []   # made: the values it makes -> column
     for i, g in enumerate(groups):
@@ -248,7 +249,7 @@ def _network(graph: Graph, groups: list[Group], col, real_slots: dict, into: dic
     recorded = [(str(p.ref), made[str(p.ref)]) for p in graph.recorded if str(p.ref) in made]
     return Network(list(nodes.values()), steps, recorded,
                    [(name, made[name], sorted(r)) for name, r in checked.items()], offset,
-                   integrals)
+                   integrals, made)
 
 
 def _node(g: Group, i: int, col, ports: dict, offset: int, integrals: list) -> Node | str:
@@ -326,6 +327,17 @@ def _through(inst, links: list, factory, col, ports: dict, lag: int) -> Through 
         return None
     return Through(inst.name, response, np.array([col(l.source) for l in links]),
                    np.array([col(p) for p in outs]), lag)
+
+
+def _lags_in(g: Group, links: list, lag: dict, network: "Network | None") -> np.ndarray | str:
+    """The lag of each of an FMU with a state's held inputs (Group.lags): its source's, but
+    0 for a value a Network makes (it carries that value's lag as an error of its own,
+    pair_network.py); one lag for all but there (else why the pair cannot follow them)."""
+    if network is None or g.model is None:
+        d = _lag_in(g, links, lag)
+        return d if isinstance(d, str) else np.full(len(g.cols), d, dtype=np.int64)
+    return np.array([0 if str(l.source.ref) in network.made else lag[l.source.ref.instance]
+                     for l in links], dtype=np.int64)          # in the order of g.cols
 
 
 def _lag_in(fmu, links: list, lag: dict) -> int | str:

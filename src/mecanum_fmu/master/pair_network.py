@@ -25,11 +25,20 @@ CANCELS of the sum of its terms' sizes, it is unresolved (its largest, or its en
 linearisation is good to 7% on the robot circle, to about 20% on the hard start at twice its
 step.
 
-Not followed here: Jacobi's late values (pair.py hands that case over) and, where the quadratic
-master rolls back, the predicted end values' own error (second order: the drive train's error
-is first order, its inputs with direct feedthrough held at their newest values).
+Under Jacobi every FMU computes its outputs with its inputs of the row before: a value with
+direct feedthrough at row r errs, beyond its sensitivity, by D (its inputs' time part - their
+change from row r - 1 to row r) (an FMU without a state: J for D), and an input from outside
+the network that arrives d rows late by row r - row r + d (rows past the last node
+extrapolated as a line). That time part is carried with S X, in the hold errors and in the
+outputs' errors.
+
+Not followed here: where the quadratic master rolls back, the predicted end values' own error
+(second order: the drive train's error is first order, its inputs with direct feedthrough
+held at their newest values).
 """
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 
@@ -46,8 +55,13 @@ SPREAD = 8          # that sum is taken on every SPREAD-th step (times SPREAD)
 class NetworkCarry:
     """The network's error over one run, batch by batch (X and the integrals carried on)."""
 
-    def __init__(self, net: Network, groups: list[Group]):
-        self.net, self.groups = net, groups
+    def __init__(self, net: Network, groups: list[Group], n_steps: int, frozen: bool = False):
+        self.net, self.groups, self.n, self.frozen = net, groups, n_steps, frozen
+        # under Jacobi: per node, its inputs from outside the network that arrive late (their
+        # places and lags), and the most rows past a node those need
+        self.late_in = {n.group: [(k, int(d)) for k, d in enumerate(groups[n.group].lags)
+                                  if d > 0] for n in net.nodes}
+        self.ahead = max([d for pairs in self.late_in.values() for _, d in pairs], default=0)
         self.x, self.e = np.zeros(net.size), np.zeros(len(net.integrals))
         self.spread = np.zeros(len(net.integrals))     # the sum of each integral's |terms|
         integral = {c: k for k, (_, c) in enumerate(net.integrals) if c is not None}
@@ -73,11 +87,30 @@ class NetworkCarry:
         return [name for k, (name, _) in enumerate(self.net.integrals)
                 if name in sizes and sizes[name] < CANCELS * self.spread[k]]
 
+    def copy(self) -> "NetworkCarry":
+        """A copy whose running totals are its own (PairRows' Jacobi tail)."""
+        other = copy.copy(self)
+        other.x, other.e, other.spread = self.x.copy(), self.e.copy(), self.spread.copy()
+        return other
+
     def _part(self, ks, h, holds, window) -> np.ndarray:
-        rows = window(int(ks[0]), int(ks[-1]) + 1)      # nodes ks[0] .. ks[-1] + 1
-        sens, maps = self._sensitivities(rows)
+        first, last = int(ks[0]), int(ks[-1]) + 1       # nodes first .. last
+        around = window(first - 1, last + self.ahead)   # and the row before, the rows after
+        past = np.arange(first - 1, last + self.ahead + 1) - self.n
+        if self.ahead and past[-1] > 0:     # past the last node: extrapolated, as a line
+            end = np.flatnonzero(past == 0)[0]
+            slope = around[end] - around[end - 1]
+            around = around.copy()
+            around[end + 1:] = around[end] + past[end + 1:, None] * slope
+        rows = around[1:last - first + 2]
+        sens, times, maps = self._sensitivities(rows, around)
         n = len(ks)
         left, right, gain, made, s0, s1, late = self._maps(sens, maps, h, holds, len(rows))
+        if times:                   # Jacobi: the values' own lag, carried with their error
+            t = self._stacked(times, len(rows))
+            carried = 0.5 * (t[:-1] + t[1:])
+            made = made + _apply(gain, carried)
+            late = (late[0], late[1], late[2] + _apply(late[1], carried))
         inverse = np.linalg.inv(left - 0.5 * gain @ s1)
         p = inverse @ (right + 0.5 * gain @ s0)
         q = _apply(inverse, made)
@@ -92,6 +125,9 @@ class NetworkCarry:
         zero = np.zeros((len(rows), self.net.size))
         table = np.stack([sens.get(c, zero)[1:] for c in self.of_x], axis=1)  # (steps, cols, X)
         out[:, ~self.where] = np.einsum("kcx,kx->kc", table, xs[1:])
+        if times:
+            out[:, ~self.where] += np.column_stack([times.get(c, np.zeros(len(rows)))[1:]
+                                                    for c in self.of_x])
         out[:, self.where] = es[:, self.of_e]
         return out
 
@@ -160,16 +196,40 @@ class NetworkCarry:
         i_made = _apply(hk * b_i, error) + _apply(a_ic @ b_c, ramp)
         return eye - half, eye + half, gain, made, (0.5 * hk * a_ic, hk * b_i, i_made)
 
-    def _sensitivities(self, rows: np.ndarray) -> tuple[dict, dict]:
-        """Per column the network makes (but the integrals), d value / d X at each row; and
-        per linearised node its (A, B) at each row."""
+    def _stacked(self, times: dict, rows: int) -> np.ndarray:
+        """The nodes' inputs' own lag (their sources' time parts), (rows, inputs)."""
+        return np.column_stack([times.get(c, np.zeros(rows)) if c in times else np.zeros(rows)
+                                for node in self.net.nodes
+                                for c in self.groups[node.group].cols])
+
+    def _late(self, cols, around: np.ndarray, lags=()) -> np.ndarray:
+        """Under Jacobi, what the inputs `cols` of an FMU with direct feedthrough add to its
+        outputs' error beyond their own (sensitivities'), per row r: it computed them with
+        its inputs of row r - 1: their time part (the network's values') or their lag (an
+        input from outside, d rows late: row r - row r + d), less their change, row r -
+        row r - 1."""
+        rows = len(around) - 1 - self.ahead
+        now, before = around[1:rows + 1][:, cols], around[:rows][:, cols]
+        late = -(now - before)
+        for k, d in lags:
+            late[:, k] += now[:, k] - around[1 + d:rows + 1 + d][:, cols[k]]
+        return late
+
+    def _sensitivities(self, rows: np.ndarray, around: np.ndarray) -> tuple[dict, dict, dict]:
+        """Per column the network makes (but the integrals), d value / d X at each row; under
+        Jacobi its time part (what its row's value errs beyond that, from the rows: its
+        inputs' lag and change); and per linearised node its (A, B) at each row."""
         size, zero = self.net.size, np.zeros((len(rows), self.net.size))
-        sens, maps = {}, {}
+        sens, times, maps = {}, {}, {}
         for kind, item in self.net.steps:
             if kind == "through":
                 s_in = np.stack([sens.get(c, zero) for c in item.ins], axis=1)
-                s_out = item.response.jacobian(rows[:, item.ins], rows[:, item.outs]) @ s_in
+                jac = item.response.jacobian(rows[:, item.ins], rows[:, item.outs])
+                s_out = jac @ s_in
                 sens.update({c: s_out[:, k] for k, c in enumerate(item.outs)})
+                if self.frozen:
+                    tau = self._late(item.ins, around) + self._own(times, item.ins, len(rows))
+                    times.update({c: t for c, t in zip(item.outs, _apply(jac, tau).T)})
                 continue
             g = self.groups[item.group]
             if item.reads is None:          # its outputs are its state
@@ -185,7 +245,17 @@ class NetworkCarry:
                 s_out = d_map @ np.stack([sens.get(c, zero) for c in g.cols], axis=1)
             s_out[:, :, item.offset:item.offset + item.size] += c_map[:, :, item.kept]
             sens.update({c: s_out[:, k] for k, c in enumerate(item.outs) if c is not None})
-        return sens, maps
+            if self.frozen:
+                tau = self._late(g.cols, around, self.late_in[item.group]) + self._own(
+                    times, g.cols, len(rows))
+                times.update({c: t for c, t in zip(item.outs, _apply(d_map, tau).T)
+                              if c is not None})
+        return sens, times, maps
+
+    @staticmethod
+    def _own(times: dict, cols, rows: int) -> np.ndarray:
+        """The time parts the columns `cols` carry (0 for those that have none), (rows, cols)."""
+        return np.column_stack([times.get(c, np.zeros(rows)) for c in cols])
 
 
 def _apply(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:

@@ -31,15 +31,20 @@ NEAR_ZERO = 0.01
 
 def _columns(plan: PairPlan) -> tuple[dict, list, list]:
     """Per lag, the columns whose true values the stencils rebuild once per batch (the held
-    inputs', the late outputs'); where each group's are among them; and Jacobi's late
-    outputs by lag: (lag, names, where their columns are among that lag's)."""
+    inputs', the late outputs'); where each group's are among them (per lag: the inputs'
+    places in the group, their columns' places in that lag's); and Jacobi's late outputs by
+    lag: (lag, names, where their columns are among that lag's)."""
     cols: dict[int, list] = {}
     for g in plan.groups:
-        cols.setdefault(g.lag, []).extend(c for c in g.cols if c not in cols[g.lag])
+        for c, d in zip(g.cols, g.lags.tolist()):
+            if c not in cols.setdefault(d, []):
+                cols[d].append(c)
     for _, c, d in plan.lagged:
         if c not in cols.setdefault(d, []):
             cols[d].append(c)
-    at = [np.array([cols[g.lag].index(c) for c in g.cols]) for g in plan.groups]
+    at = [{d: (np.flatnonzero(g.lags == d), np.array([cols[d].index(c)
+                                                      for c in g.cols[g.lags == d]]))
+           for d in set(g.lags.tolist())} for g in plan.groups]
     by_lag: dict[int, list] = {}
     for name, col, d in plan.lagged:
         by_lag.setdefault(d, []).append((name, cols[d].index(col)))
@@ -67,7 +72,8 @@ class PairRows:
         loop, net = plan.loop, plan.network
         self.carry = LoopCarry(loop, plan.groups[loop.origin], plan.hold == "frozen") \
             if loop is not None else None
-        self.net = NetworkCarry(net, plan.groups) if net is not None else None
+        self.net = NetworkCarry(net, plan.groups, n_steps, plan.hold == "frozen") \
+            if net is not None else None
         # Jacobi's late outputs of the loop's chain: their lag's error and the carried one
         self.late = {name: c for name, c, _ in plan.lagged} if loop is not None else {}
         self.in_chain = {name for name, _ in loop.recorded} if loop is not None else set()
@@ -172,11 +178,11 @@ class PairRows:
         place: a shallow copy keeps them; the window is sliced, never written)."""
         return ([copy.copy(g.model) for g in self.plan.groups], dict(self.worst),
                 dict(self.end), self.k, self.lo, self.window, [m.copy() for m in self.moved],
-                dict(self.fed), copy.copy(self.carry))
+                dict(self.fed), copy.copy(self.carry), self.net and self.net.copy())
 
     def _restore(self, state: tuple) -> None:
-        models, worst, end, self.k, self.lo, self.window, moved, fed, carry = state
-        self.carry = copy.copy(carry)
+        models, worst, end, self.k, self.lo, self.window, moved, fed, carry, net = state
+        self.carry, self.net = copy.copy(carry), net and net.copy()
         for g, model in zip(self.plan.groups, models):
             g.model = copy.copy(model)
         self.worst, self.end, self.moved = dict(worst), dict(end), [m.copy() for m in moved]
@@ -285,7 +291,7 @@ class PairRows:
         stencils = {d: self._stencils(ks, d, cols) for d, cols in self.cols.items()}
         holds = {}
         for i, g in enumerate(self.plan.groups):
-            held, error, change = self._group(g, ks, [a[:, self.at[i]] for a in stencils[g.lag]])
+            held, error, change = self._group(g, ks, self._gathered(i, stencils))
             if g.model is None:
                 np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
                 continue
@@ -311,6 +317,19 @@ class PairRows:
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
+
+    def _gathered(self, i: int, stencils: dict) -> list:
+        """Group i's inputs' (mean, start, end) per step from the stencils of their lags."""
+        at = self.at[i]
+        if len(at) == 1:
+            (d, (_, index)), = at.items()
+            return [a[:, index] for a in stencils[d]]
+        rows, width = len(stencils[next(iter(at))][0]), len(self.plan.groups[i].cols)
+        out = [np.empty((rows, width)) for _ in range(3)]
+        for d, (places, index) in at.items():
+            for o, a in zip(out, stencils[d]):
+                o[:, places] = a[:, index]
+        return out
 
     def _group(self, g: Group, ks: np.ndarray, stencils: list) -> tuple:
         """(held, held - true mean, the true change over the step) per step and input, from
