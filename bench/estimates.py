@@ -10,10 +10,11 @@ loops and of the whole (each run's set-up included).
 
 The scenarios are those whose single pose has a ground truth (report/ground_truth.py); a
 closed loop's "truth" is the path its follower is asked to follow (the tracking error, not the
-coupling error), so closed loops are left out, and so are the robots with motors and a floor
-(DCMotor, MecanumDynamics: their "truth" is the kinematic path, which the motors' lag and
-the slip leave by design) and the sampled sensors (no coarser run: their samples move). The true error is |run - truth| on the run's
-times (the truth's grid when it thins a long run), its max and its last value.
+coupling error), so closed loops are left out (--loops), and so are the robots with motors
+and a floor (DCMotor, MecanumDynamics: their "truth" is the kinematic path, which the motors'
+lag and the slip leave by design: --drive) and the sampled sensors (no coarser run: their
+samples move). The true error is |run - truth| on the run's times (the truth's grid when it
+thins a long run), its max and its last value.
 
 How a tiny error is counted (docs/masters.md, "The error estimate"): a true error at or below
 FLOOR (1e-9 in the output's unit: the ground truth is solved to rtol 1e-10) is "none"; an
@@ -244,10 +245,12 @@ def drive_scenarios() -> list[str]:
     return found
 
 
-def drive_run(scenario: str, name: str, factor: int) -> tuple[dict, dict, str, float]:
+def drive_run(scenario: str, name: str, factor: int, estimate: str = "auto"
+              ) -> tuple[dict, dict, str, float]:
     """(the estimate, the true max and end per recorded Real output against a run at
     1/DRIVE_REFINE of the step, the method, the estimate's cost) for a drive train."""
-    graph, exp = at_step(prepare(ROOT / "scenarios" / scenario), name, factor)
+    graph, exp = at_step(prepare(ROOT / "scenarios" / scenario, estimate=estimate), name,
+                         factor)
     graph, exp = with_experiment(graph, stop_time=DRIVE_STOP)
     results = master.simulate(graph, exp, with_estimate=True)
     found = master.estimate_error(graph, results)
@@ -263,7 +266,7 @@ def drive_run(scenario: str, name: str, factor: int) -> tuple[dict, dict, str, f
             float(found.get("error_estimate_cost", math.nan)))
 
 
-def drive_table(names: list[str], masters) -> None:
+def drive_table(names: list[str], masters, estimate: str = "auto") -> None:
     """--drive: per robot, master and step, every recorded output's max and end against the
     reference run: counts within 3x, MISS, WITHHELD; the pose's lines; the estimate's cost."""
     print(f"{'scenario':<28} {'master':<12} {'h':>6} {'method':<10} {'values':>6} {'3x':>5} "
@@ -272,11 +275,11 @@ def drive_table(names: list[str], masters) -> None:
     for scenario in names:
         for name in masters:
             for factor in (1, 2):
-                estimate, true, method, cost = drive_run(scenario, name, factor)
+                found, true, method, cost = drive_run(scenario, name, factor, estimate)
                 counts, poses = np.zeros(4, dtype=int), []
                 for output, t in true.items():
                     for which in ("max", "end"):
-                        ratio, miss = verdict(estimate[output][which], t[which])
+                        ratio, miss = verdict(found[output][which], t[which])
                         counts += (1, miss == "", miss == "MISS", miss == "WITHHELD")
                         if output in ("pose.x", "pose.y") and which == "max":
                             poses.append(ratio)
@@ -310,7 +313,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.drive:
         return drive_table([s for s in drive_scenarios() if args.only in s],
-                           args.master or FIXED)
+                           args.master or FIXED, args.estimate)
     if args.adaptive:
         return adaptive_table([s for s in ACCURACY_SCENARIOS if args.only in s])
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "

@@ -107,7 +107,8 @@ class NetworkCarry:
         n = len(ks)
         left, right, gain, made, s0, s1, late = self._maps(sens, maps, h, holds, len(rows))
         if times:                   # Jacobi: the values' own lag, carried with their error
-            t = self._stacked(times, len(rows))
+            t = self._own(times, [c for node in self.net.nodes
+                                  for c in self.groups[node.group].cols], len(rows))
             carried = 0.5 * (t[:-1] + t[1:])
             made = made + _apply(gain, carried)
             late = (late[0], late[1], late[2] + _apply(late[1], carried))
@@ -195,12 +196,6 @@ class NetworkCarry:
         made = _apply(gain, error) + _apply(a_cc @ b_c, ramp)
         i_made = _apply(hk * b_i, error) + _apply(a_ic @ b_c, ramp)
         return eye - half, eye + half, gain, made, (0.5 * hk * a_ic, hk * b_i, i_made)
-
-    def _stacked(self, times: dict, rows: int) -> np.ndarray:
-        """The nodes' inputs' own lag (their sources' time parts), (rows, inputs)."""
-        return np.column_stack([times.get(c, np.zeros(rows)) if c in times else np.zeros(rows)
-                                for node in self.net.nodes
-                                for c in self.groups[node.group].cols])
 
     def _late(self, cols, around: np.ndarray, lags=()) -> np.ndarray:
         """Under Jacobi, what the inputs `cols` of an FMU with direct feedthrough add to its
