@@ -157,7 +157,15 @@ class PairRows:
                 "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
                            if g.model is not None],
-                "through": [t.name for t in self.plan.loop.chain] if self.plan.loop else []}
+                "through": self._through()}
+
+    def _through(self) -> list[str]:
+        """The FMUs without a state the error is carried through (a loop's chain, a network's
+        FMUs between its models), for the method's words."""
+        if self.plan.loop:
+            return [t.name for t in self.plan.loop.chain]
+        steps = self.plan.network.steps if self.plan.network else ()
+        return [item.name for kind, item in steps if kind == "through"]
 
     def _ill(self) -> dict[str, str]:
         """The chain's outputs whose estimate is unresolved: their divisor's error is not
