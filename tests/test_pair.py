@@ -9,7 +9,7 @@ from helpers import ROOT, with_experiment
 from mecanum_fmu import master, runner
 from mecanum_fmu.master import plan, stencils, stepping
 from mecanum_fmu.master.estimate import LATE_END, LONE_PIECES, SHORT_PIECES
-from mecanum_fmu.master.pair import pieces
+from mecanum_fmu.master.breakpoints import pieces
 from mecanum_fmu.models import pose_error
 from mecanum_fmu.scenario.tables import Breaks
 

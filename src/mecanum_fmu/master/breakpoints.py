@@ -2,7 +2,8 @@
 master (the graph carries them; this module knows no model). The
 adaptive master ends its steps on the twist tables' (Stops, master/adaptive.py); the fixed-step
 masters cut the step that ends on a jump (step_cuts); the error estimate keeps all of them on
-its coarser grids (master/richardson.py)."""
+its coarser grids (master/richardson.py); the embedded pair reads the sources' smooth pieces
+on the grid (pieces)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -12,7 +13,7 @@ import numpy as np
 from ..scenario.graph import Graph
 from ..scenario.tables import Breaks
 
-__all__ = ["Breaks", "Cut", "graph_breaks", "step_cuts"]
+__all__ = ["Breaks", "Cut", "Pieces", "graph_breaks", "pieces", "step_cuts"]
 
 
 def graph_breaks(graph: Graph) -> Breaks:
@@ -67,3 +68,62 @@ def _cut(pieces: dict[float, bool]) -> Cut:
     times = sorted(pieces)
     inside = tuple(t for t in times if t != np.inf)
     return Cut(inside, tuple(pieces[t] for t in inside) + (pieces.get(np.inf, False),))
+
+
+@dataclass(frozen=True)
+class Pieces:
+    """The smooth pieces of the sources on the grid of nodes 0 .. n (true times, in steps):
+    piece i starts at node starts[i] and its values are usable up to node ends[i] (a jump's
+    node belongs to the piece after it); `cut`: the nodes at which a step ends on a jump (the
+    master cuts it: the step sees the left value, the holds restart); `across`: step index ->
+    (the fraction of it before a breakpoint inside it, whether that may be a jump)."""
+    starts: np.ndarray
+    ends: np.ndarray
+    cut: np.ndarray
+    across: dict
+    # a piece with a kink at an end holds fewer than two nodes: the steps are longer than
+    # the table's rows, and the values the run sees do not tell the input between them
+    short: bool = False
+    # some piece holds one node (a hold table's rows as close as the steps): its one value
+    # says it all where the input is constant between the jumps, not where it may move (a
+    # loop, an FMU with a state: estimate.LONE_PIECES)
+    lone: bool = False
+
+
+_RANK = {"kink": 0, "across kink": 1, "across jump": 2, "jump": 3}
+
+
+def pieces(breaks, start: float, h: float, n: int) -> Pieces:
+    """The pieces of `breaks` (tables.Breaks) on a run of n steps of h from start: a kink on
+    a node ends one piece there and starts the next; a jump (or what may be one: `others`)
+    on a node starts the next piece there, the one before ending a node earlier; one inside
+    a step ends a piece at the step's start and starts the next at its end."""
+    bounds: dict[int, str] = {}       # the node a piece starts at -> the break before it
+    across: dict[int, tuple[float, bool]] = {}
+
+    def mark(j: int, kind: str) -> None:
+        if _RANK[kind] >= _RANK[bounds.get(j, "kink")]:
+            bounds[j] = kind
+    for times, kind in ((breaks.kinks, "kink"), (breaks.jumps, "jump"), (breaks.others, "jump")):
+        for b in np.asarray(times, dtype=float):
+            x = (b - start) / h
+            j = int(round(x))
+            if abs(x - j) < NEAR:
+                if 0 < j <= n:
+                    mark(j, kind)
+            elif 0 < x < n:
+                k = int(np.floor(x))
+                if k not in across or kind == "jump":
+                    across[k] = (x - k, kind == "jump")
+                mark(k + 1, f"across {kind}")
+    starts = [0] + sorted(bounds)
+    ends = [j if bounds[j] == "kink" else j - 1 for j in starts[1:]] + [n]
+    kinks = ("kink", "across kink")
+    kinked = [bounds.get(j) in kinks or bounds.get(nxt) in kinks
+              for j, nxt in zip(starts, starts[1:] + [None])]
+    # (a piece that starts on the last node holds no step: a table's row at the stop time)
+    short = any(k and e - j < 1 and j < n for j, e, k in zip(starts, ends, kinked))
+    cut = sorted(j for j, kind in bounds.items() if kind == "jump")
+    return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
+                  np.array(cut, dtype=np.int64), across, short,
+                  any(e - j < 1 and j < n for j, e in zip(starts, ends)))

@@ -16,7 +16,8 @@ from ..scenario.graph import Graph
 from ..masters import DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, entry as master_entry
 from ..results import BELOW_ROUND_OFF, Results, round_off
 from .breakpoints import graph_breaks
-from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, PairPlan, pair_plan
+from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
+from .pair_parts import PairPlan
 from .pair_rows import PairRows
 from .richardson import coarse_experiment, coarse_factors, coarse_run, richardson
 

@@ -37,13 +37,11 @@ the predicted values' own.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from ..masters import entry as master_entry
 from ..scenario.graph import Graph
-from .breakpoints import NEAR
+from .pair_parts import Group, Loop, Network, Node, PairPlan, Through
 from .plan import has_state, state_only_inputs
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
@@ -52,99 +50,6 @@ METHOD = ("the embedded pair: per step, each held input's hold against the mean 
           "FMUs without a state read their inputs exactly{lag}")
 LOOP_METHOD = (", and through the Jacobians of {through}, whose outputs carry it (around a "
                "loop, back into the model's inputs)")
-
-
-@dataclass
-class Group:
-    """One FMU's held Real inputs: their columns in the tapped rows, their roles ("state":
-    blended by the trapezoidal and quadratic holds; "direct": the newest value; with
-    "_ahead" or "fed_back": the same, closing a loop, their value of t_k+1 unknown when the
-    FMU steps), the lag of their values (Jacobi: steps late), and the FMU's error model
-    (None: it must see none)."""
-    name: str
-    cols: np.ndarray
-    roles: np.ndarray
-    lag: int
-    model: object | None
-    model_name: str = ""        # the FMU's model (its modelName), for the method's words
-    lags: np.ndarray | None = None      # per input (in a Network they may differ); lag: the most
-
-
-@dataclass
-class PairPlan:
-    slots: np.ndarray            # the buffer slots the tap keeps of every row
-    groups: list[Group]
-    lagged: list[tuple[str, int, int]]      # (output, column, lag): Jacobi's late outputs
-    covered: dict[str, tuple[int, int]]     # output -> (group, index in its model's outputs)
-    hold: str                    # "zoh", "trapezoidal", "quadratic" ; jacobi: "frozen"
-    # the error models' outputs that other FMUs read: (output, group, index in its model's
-    # outputs, column, the FMUs that read it); the pair holds where they carry no error
-    fed: list = field(default_factory=list)
-    rolled_back: bool = False    # the quadratic master predicts, rolls back, corrects a loop
-    loop: "Loop | None" = None   # a model's error carried through FMUs without a state
-    network: "Network | None" = None    # FMUs with a state that feed one another
-
-
-@dataclass
-class Through:
-    """An FMU without a state that the pair carries an error through: its response (Graph.
-    responses), the columns of its linked inputs' sources (in the response's order) and of
-    its outputs, and (Jacobi) its lag behind the model's outputs."""
-    name: str
-    response: object
-    ins: np.ndarray
-    outs: np.ndarray
-    lag: int = 0        # under Jacobi: its outputs' row r comes from its inputs' row r - 1
-
-
-@dataclass
-class Loop:
-    """One error model's outputs carried through FMUs without a state (in step order), and
-    back into its own held inputs where they close a loop: per row, the error of each
-    carried value is its sensitivity to the model's outputs (the chain's Jacobians) times
-    their error."""
-    origin: int                     # the group whose model's outputs carry the error
-    starts: list                    # (column, index in the model's outputs) of those read
-    chain: list[Through]
-    recorded: list                  # the chain's recorded outputs: (name, column)
-    # carried values read by an FMU the pair cannot carry them through: (name, column, its
-    # readers); the pair holds where they carry no error (as PairPlan.fed)
-    checked: list
-    # the chain's recorded outputs that divide by another output (Response.divides): (name,
-    # the divisor's name, its column, the floor below which it does not divide); unresolved
-    # where the divisor's error is not small against it
-    divided: list = field(default_factory=list)
-
-
-@dataclass
-class Node:
-    """One FMU with a state in a Network: its group; the place and size of its state's error
-    in X (but its integrals') and of its integrals' in the network's integrals (the energies:
-    states no rate depends on and no other FMU reads; their places in its model's state are
-    `integral`, the others' `kept`); the columns of the outputs its model linearises about
-    (None: its model's outputs are its state, as the pose's); per model output its column
-    (None where the run keeps none)."""
-    group: int
-    offset: int
-    size: int
-    reads: np.ndarray | None
-    outs: list
-    kept: list = field(default_factory=list)
-    integral: list = field(default_factory=list)
-    first: int = 0          # its first integral's place among the network's
-
-
-@dataclass
-class Network:
-    """The FMUs with an error model, where some feed one another (pair_network.py), and the
-    FMUs without a state between them."""
-    nodes: list[Node]
-    steps: list             # in step order: ("node", Node) or ("through", Through)
-    recorded: list          # the recorded outputs it covers: (name, column)
-    checked: list           # its values read by FMUs outside it: (name, column, readers)
-    size: int               # the size of X (every node's state but the integrals)
-    integrals: list         # per integral: its output's name and column (None: not kept)
-    made: dict = field(default_factory=dict)    # the values it makes -> their column
 
 
 def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
@@ -409,62 +314,3 @@ def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hol
             lagged.append((name, col(port), lag[owner]))
     order = np.array(sorted(slots, key=slots.get), dtype=np.intp)
     return PairPlan(order, groups, lagged, covered, hold)
-
-
-@dataclass(frozen=True)
-class Pieces:
-    """The smooth pieces of the sources on the grid of nodes 0 .. n (true times, in steps):
-    piece i starts at node starts[i] and its values are usable up to node ends[i] (a jump's
-    node belongs to the piece after it); `cut`: the nodes at which a step ends on a jump (the
-    master cuts it: the step sees the left value, the holds restart); `across`: step index ->
-    (the fraction of it before a breakpoint inside it, whether that may be a jump)."""
-    starts: np.ndarray
-    ends: np.ndarray
-    cut: np.ndarray
-    across: dict
-    # a piece with a kink at an end holds fewer than two nodes: the steps are longer than
-    # the table's rows, and the values the run sees do not tell the input between them
-    short: bool = False
-    # some piece holds one node (a hold table's rows as close as the steps): its one value
-    # says it all where the input is constant between the jumps, not where it may move (a
-    # loop, an FMU with a state: estimate.LONE_PIECES)
-    lone: bool = False
-
-
-_RANK = {"kink": 0, "across kink": 1, "across jump": 2, "jump": 3}
-
-
-def pieces(breaks, start: float, h: float, n: int) -> Pieces:
-    """The pieces of `breaks` (tables.Breaks) on a run of n steps of h from start: a kink on
-    a node ends one piece there and starts the next; a jump (or what may be one: `others`)
-    on a node starts the next piece there, the one before ending a node earlier; one inside
-    a step ends a piece at the step's start and starts the next at its end."""
-    bounds: dict[int, str] = {}       # the node a piece starts at -> the break before it
-    across: dict[int, tuple[float, bool]] = {}
-
-    def mark(j: int, kind: str) -> None:
-        if _RANK[kind] >= _RANK[bounds.get(j, "kink")]:
-            bounds[j] = kind
-    for times, kind in ((breaks.kinks, "kink"), (breaks.jumps, "jump"), (breaks.others, "jump")):
-        for b in np.asarray(times, dtype=float):
-            x = (b - start) / h
-            j = int(round(x))
-            if abs(x - j) < NEAR:
-                if 0 < j <= n:
-                    mark(j, kind)
-            elif 0 < x < n:
-                k = int(np.floor(x))
-                if k not in across or kind == "jump":
-                    across[k] = (x - k, kind == "jump")
-                mark(k + 1, f"across {kind}")
-    starts = [0] + sorted(bounds)
-    ends = [j if bounds[j] == "kink" else j - 1 for j in starts[1:]] + [n]
-    kinks = ("kink", "across kink")
-    kinked = [bounds.get(j) in kinks or bounds.get(nxt) in kinks
-              for j, nxt in zip(starts, starts[1:] + [None])]
-    # (a piece that starts on the last node holds no step: a table's row at the stop time)
-    short = any(k and e - j < 1 and j < n for j, e, k in zip(starts, ends, kinked))
-    cut = sorted(j for j, kind in bounds.items() if kind == "jump")
-    return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
-                  np.array(cut, dtype=np.int64), across, short,
-                  any(e - j < 1 and j < n for j, e in zip(starts, ends)))

@@ -1,5 +1,5 @@
 """The embedded pair around a loop: one error model's error carried through FMUs without a
-state (their responses, Graph.responses) and back into its own held inputs (pair.Loop).
+state (their responses, Graph.responses) and back into its own held inputs (pair_parts.Loop).
 
 Per step k (nodes k and k + 1 of the run), the model's outputs carry the error E_k; every
 carried value v carries S_v,k E_k, S its sensitivity to them, the chain's Jacobians at the
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .pair import Group, Loop
+from .pair_parts import Group, Loop
 
 # the share of the predicted end value in the corrector's hold, per role (plan.HOLDS)
 _END_WEIGHT = {"state_ahead": 0.5, "fed_back": 1.0}

@@ -42,7 +42,7 @@ import copy
 
 import numpy as np
 
-from .pair import Group, Network, Node
+from .pair_parts import Group, Network, Node
 
 SUB = 1024          # the steps worked out at once (memory: S is (rows, columns, X) per batch)
 # an integral's error under this share of the sum of its terms' |values|: unresolved (the

@@ -1,4 +1,5 @@
-"""The embedded pair stepped over the run's rows (pair.py holds the plan): the recorder's tap.
+"""The embedded pair stepped over the run's rows (pair.py makes the plan, of pair_parts.py's
+parts): the recorder's tap.
 
 Every chunk of rows the recorder flushes passes through PairRows, which keeps the columns the
 plan needs and works out each step's errors as soon as the values its stencil reads are in:
@@ -14,7 +15,8 @@ import time as _time
 import numpy as np
 
 from ..results import round_off
-from .pair import Group, PairPlan, pieces
+from .breakpoints import pieces
+from .pair_parts import Group, PairPlan
 from .pair_loop import LoopCarry
 from .pair_network import CANCELS, NetworkCarry
 from .stencils import FOUR, means, values, weight_table

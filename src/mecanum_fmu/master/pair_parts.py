@@ -1,0 +1,101 @@
+"""The embedded pair's plan, its parts (pair.py makes it): per FMU with a state its held inputs
+(Group), the FMUs without a state an error is carried through (Through), a model's error around
+a loop (Loop), FMUs with a state that feed one another (Node, Network), the whole (PairPlan)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Group:
+    """One FMU's held Real inputs: their columns in the tapped rows, their roles ("state":
+    blended by the trapezoidal and quadratic holds; "direct": the newest value; with
+    "_ahead" or "fed_back": the same, closing a loop, their value of t_k+1 unknown when the
+    FMU steps), the lag of their values (Jacobi: steps late), and the FMU's error model
+    (None: it must see none)."""
+    name: str
+    cols: np.ndarray
+    roles: np.ndarray
+    lag: int
+    model: object | None
+    model_name: str = ""        # the FMU's model (its modelName), for the method's words
+    lags: np.ndarray | None = None      # per input (in a Network they may differ); lag: the most
+
+
+@dataclass
+class PairPlan:
+    slots: np.ndarray            # the buffer slots the tap keeps of every row
+    groups: list[Group]
+    lagged: list[tuple[str, int, int]]      # (output, column, lag): Jacobi's late outputs
+    covered: dict[str, tuple[int, int]]     # output -> (group, index in its model's outputs)
+    hold: str                    # "zoh", "trapezoidal", "quadratic" ; jacobi: "frozen"
+    # the error models' outputs that other FMUs read: (output, group, index in its model's
+    # outputs, column, the FMUs that read it); the pair holds where they carry no error
+    fed: list = field(default_factory=list)
+    rolled_back: bool = False    # the quadratic master predicts, rolls back, corrects a loop
+    loop: "Loop | None" = None   # a model's error carried through FMUs without a state
+    network: "Network | None" = None    # FMUs with a state that feed one another
+
+
+@dataclass
+class Through:
+    """An FMU without a state that the pair carries an error through: its response (Graph.
+    responses), the columns of its linked inputs' sources (in the response's order) and of
+    its outputs, and (Jacobi) its lag behind the model's outputs."""
+    name: str
+    response: object
+    ins: np.ndarray
+    outs: np.ndarray
+    lag: int = 0        # under Jacobi: its outputs' row r comes from its inputs' row r - 1
+
+
+@dataclass
+class Loop:
+    """One error model's outputs carried through FMUs without a state (in step order), and
+    back into its own held inputs where they close a loop: per row, the error of each
+    carried value is its sensitivity to the model's outputs (the chain's Jacobians) times
+    their error."""
+    origin: int                     # the group whose model's outputs carry the error
+    starts: list                    # (column, index in the model's outputs) of those read
+    chain: list[Through]
+    recorded: list                  # the chain's recorded outputs: (name, column)
+    # carried values read by an FMU the pair cannot carry them through: (name, column, its
+    # readers); the pair holds where they carry no error (as PairPlan.fed)
+    checked: list
+    # the chain's recorded outputs that divide by another output (Response.divides): (name,
+    # the divisor's name, its column, the floor below which it does not divide); unresolved
+    # where the divisor's error is not small against it
+    divided: list = field(default_factory=list)
+
+
+@dataclass
+class Node:
+    """One FMU with a state in a Network: its group; the place and size of its state's error
+    in X (but its integrals') and of its integrals' in the network's integrals (the energies:
+    states no rate depends on and no other FMU reads; their places in its model's state are
+    `integral`, the others' `kept`); the columns of the outputs its model linearises about
+    (None: its model's outputs are its state, as the pose's); per model output its column
+    (None where the run keeps none)."""
+    group: int
+    offset: int
+    size: int
+    reads: np.ndarray | None
+    outs: list
+    kept: list = field(default_factory=list)
+    integral: list = field(default_factory=list)
+    first: int = 0          # its first integral's place among the network's
+
+
+@dataclass
+class Network:
+    """The FMUs with an error model, where some feed one another (pair_network.py), and the
+    FMUs without a state between them."""
+    nodes: list[Node]
+    steps: list             # in step order: ("node", Node) or ("through", Through)
+    recorded: list          # the recorded outputs it covers: (name, column)
+    checked: list           # its values read by FMUs outside it: (name, column, readers)
+    size: int               # the size of X (every node's state but the integrals)
+    integrals: list         # per integral: its output's name and column (None: not kept)
+    made: dict = field(default_factory=dict)    # the values it makes -> their column
