@@ -73,7 +73,6 @@ def test_an_integral_of_terms_that_cancel_is_unresolved_not_a_number(circle):
     assert isinstance(estimate["motor1.E_electrical"]["max"], float)   # these do not cancel
 
 
-@pytest.mark.heavy(12)
 @pytest.mark.parametrize("master_name", ["gauss-seidel", "jacobi"])
 def test_a_path_follower_closed_on_the_drive_train_gets_the_pair_within_3x(fmu_dir,
                                                                           master_name):
@@ -87,7 +86,6 @@ def test_a_path_follower_closed_on_the_drive_train_gets_the_pair_within_3x(fmu_d
     assert _misses({n: estimate[n] for n in names}, {n: true[n] for n in names}) == []
 
 
-@pytest.mark.heavy(8)
 def test_an_integral_whose_end_cancels_keeps_its_max_and_withholds_its_end(fmu_dir):
     """The hard start at twice its step: the motors' gearbox and load work climb, then fall
     back to a twentieth of their largest error, against the linearisation's 20% there."""
