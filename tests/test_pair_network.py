@@ -101,3 +101,22 @@ def test_an_integral_whose_end_cancels_keeps_its_max_and_withholds_its_end(fmu_d
     assert error[-1] < 0.1 * error.max()                 # it did cancel
     assert estimate["motor1.E_load"]["end"].startswith("unresolved")
     assert error.max() / 3 <= estimate["motor1.E_load"]["max"] <= 3 * error.max()
+
+
+def test_a_scenario_that_records_the_pose_alone_keeps_what_the_models_read(fmu_dir):
+    """`outputs:` lists the pose alone: the masters keep the motors' V beside it (Graph.
+    watched; their w and the body's twist feed links), and the pair applies as on the full
+    scenario."""
+    import yaml
+    document = yaml.safe_load((ROBOT / "circle.yaml").read_text())
+    document["outputs"] = ["pose.x", "pose.y", "pose.theta"]
+    graph = prepare(document, master_name="gauss-seidel", fmu_dir=fmu_dir)
+    assert {str(p.ref) for p in graph.watched} == {f"motor{i}.V" for i in range(1, 5)}
+    graph, exp = with_experiment(graph, stop_time=0.5)
+    results = master.simulate(graph, exp, with_estimate=True)
+    assert list(results.names) == ["pose.x", "pose.y", "pose.theta"]     # the user's columns
+    found = master.estimate_error(graph, results)
+    assert found["error_estimate_method"].startswith("the embedded pair")
+    _, _, _, true = _run(fmu_dir, "circle.yaml", "gauss-seidel", 0.5)
+    for name in ("pose.x", "pose.y"):
+        assert true[name] / 3 <= found["error_estimate"][name]["max"] <= 3 * true[name]

@@ -57,11 +57,12 @@ class Buffers:
 
 
 def _outputs_of(graph: Graph) -> dict[str, list[Port]]:
-    """Per instance, the outputs that feed a link or are recorded, without repeats."""
+    """Per instance, the outputs that feed a link, are recorded or are watched (Graph.watched:
+    an error model reads them), without repeats."""
     outputs: dict[str, list[Port]] = {i.name: [] for i in graph.instances}
     for link in graph.links:
         outputs[link.source.ref.instance].append(link.source)
-    for port in graph.recorded:
+    for port in (*graph.recorded, *graph.watched):
         outputs[port.ref.instance].append(port)
     return {name: list(dict.fromkeys(ports)) for name, ports in outputs.items()}
 

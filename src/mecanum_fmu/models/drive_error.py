@@ -28,6 +28,10 @@ _MOTOR_OUT = ("w", "i", "V", "tau", "E_electrical", "E_copper", "E_viscous", "E_
 _WHEELS = ("w1", "w2", "w3", "w4")
 _BODY_OUT = ("vx", "vy", "w", "tau_load1", "tau_load2", "tau_load3", "tau_load4", "slip1",
              "slip2", "slip3", "slip4", "E_slip", "E_drive", "E_kinetic", "eps")
+# the outputs each model linearises about (`reads`): the masters keep them where the scenario
+# does not record them (Graph.watched)
+MOTOR_READS = ("w", "V")
+BODY_READS = ("vx", "vy", "w")
 # a clamp is in force where V is within this share of the clamp's value of it
 _ON_CLAMP = 1e-12
 
@@ -66,7 +70,7 @@ class MotorLinear(Linear):
     width = 2
 
     def __init__(self, names, motor: Motor, w_ref: float, tau_load: float):
-        super().__init__(names, _MOTOR_IN, _MOTOR_OUT, ("w", "V"), 7,
+        super().__init__(names, _MOTOR_IN, _MOTOR_OUT, MOTOR_READS, 7,
                          {n: 2 + k for k, n in enumerate(_MOTOR_OUT[4:9])})
         self.m, self.fixed = motor, np.array([w_ref, tau_load])
 
@@ -126,7 +130,7 @@ class BodyLinear(Linear):
     width = 4
 
     def __init__(self, names, chassis: Chassis, wheels: list[float]):
-        super().__init__(names, _WHEELS, _BODY_OUT, ("vx", "vy", "w"), 5,
+        super().__init__(names, _WHEELS, _BODY_OUT, BODY_READS, 5,
                          {"E_slip": 3, "E_drive": 4})
         self.c, self.fixed = chassis, np.array(wheels)
         self.axes, self.levers = np.array(chassis.axes), np.array(chassis.levers)

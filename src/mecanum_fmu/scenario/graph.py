@@ -19,7 +19,7 @@ from . import plausibility
 from ..models import library as fmu_library
 from ..models.catalog import SAMPLED_MODELS, bundled_model
 from ..models.pose_error import pose_batch, pose_error
-from ..models.drive_error import body_linear, motor_linear
+from ..models.drive_error import BODY_READS, MOTOR_READS, body_linear, motor_linear
 from ..models.responses import has_response, response
 from ..errors import Problem, ScenarioError
 from ..masters import DEFAULT, entry as master_entry
@@ -84,6 +84,9 @@ class Graph:
     # in its inputs, models/responses.py: a factory of (its linked inputs, the instance)),
     # through which the fixed-step masters' pair carries an error around a loop
     responses: tuple[tuple[str, Callable], ...] = ()
+    # the outputs an error model reads that are neither recorded nor linked: the masters keep
+    # them beside the others (the drive train's V and twist under a scenario's `outputs:`)
+    watched: tuple[Port, ...] = ()
 
     def instance(self, name: str) -> Instance:
         return next(i for i in self.instances if i.name == name)
@@ -148,11 +151,25 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
     refused = _adaptive_problems(scenario, order)
     if refused:
         raise ScenarioError(refused)
+    models = _error_models(order)
     return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
                  tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
                        + _rollback_warning(scenario, order, links)
-                       + plausibility.warnings(scenario, order)), _error_models(order),
-                 _responses(order))
+                       + plausibility.warnings(scenario, order)), models,
+                 _responses(order), _watched(order, models, recorded, links))
+
+
+def _watched(order: list[Instance], models: tuple, recorded: list[Port], links: list[Link]
+             ) -> tuple[Port, ...]:
+    """The outputs the error models read that no link and no recording keeps (Graph.watched)."""
+    kept = {p.ref for p in recorded} | {l.source.ref for l in links}
+    by_name = {inst.name: inst for inst in order}
+    watched = []
+    for name, model in models:
+        variables = {v.name: v for v in by_name[name].model.modelVariables}
+        watched += [_port(VarRef(name, r), variables[r]) for r in model.reads
+                    if r in variables and VarRef(name, r) not in kept]
+    return tuple(watched)
 
 
 def _table(comp, values: dict[str, Scalar], model_name: str) -> Table | None:
@@ -184,6 +201,7 @@ class ErrorModel:
     masters' embedded pair (master/pair.py); each gives None where it does not apply."""
     stepwise: Callable
     batch: Callable
+    reads: tuple[str, ...] = ()     # the outputs its batch form linearises about
 
 
 POSE_MODEL = ErrorModel(pose_error, pose_batch)
@@ -195,8 +213,8 @@ def _no_stepwise(blend, names, inst) -> None:
 
 
 # per bundled model name: the error models of the drive train (models/drive_error.py)
-_DRIVE_MODELS = {"DCMotor": ErrorModel(_no_stepwise, motor_linear),
-                 "MecanumDynamics": ErrorModel(_no_stepwise, body_linear)}
+_DRIVE_MODELS = {"DCMotor": ErrorModel(_no_stepwise, motor_linear, MOTOR_READS),
+                 "MecanumDynamics": ErrorModel(_no_stepwise, body_linear, BODY_READS)}
 
 
 def _error_models(order: list[Instance]) -> tuple[tuple[str, ErrorModel], ...]:
