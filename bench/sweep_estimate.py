@@ -4,7 +4,7 @@ medians. The runs are the first N variants of scenarios/sweeps/wheel_tolerance.y
 the worker's own run_batch; interleaved rounds, the first run of each kind not timed. Twice:
 with the default estimate (auto: the embedded pair) and with `experiment: {estimate: none}`.
 
-Run: .venv/bin/python bench/sweep_estimate.py [--runs N] [--rounds R]
+Run: .venv/bin/python bench/sweep_estimate.py [--runs N] [--rounds R] [--study SWEEP_FILE]
 """
 from __future__ import annotations
 
@@ -27,8 +27,11 @@ def main(argv=None) -> float:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--study", default=str(STUDY.relative_to(ROOT)),
+                        help="the sweep file (e.g. scenarios/robot/sweep_mu_kp.yaml: the drive "
+                             "train's pair in every run)")
     args = parser.parse_args(argv)
-    graph, batch, path_names = study(args.runs)
+    graph, batch, path_names = study(args.runs, ROOT / args.study)
     ratio = compare(graph, batch, path_names, args.rounds, "auto")
     scenario = graph.scenario
     off = dataclasses.replace(scenario, experiment=dataclasses.replace(scenario.experiment,
@@ -56,10 +59,10 @@ def compare(graph, batch, path_names, rounds: int, estimate: str) -> float:
     return s / a
 
 
-def study(runs: int):
+def study(runs: int, path: Path = STUDY):
     """The compiled graph, the first `runs` (index, values) and the path names of the study
     (the pose's x and y, as the sweep's client asks for them)."""
-    _, graph, planned = prepare_sweep(STUDY)
+    _, graph, planned = prepare_sweep(path)
     batch = [(r.index, r.values) for r in planned if r.problem is None][:runs]
     pose = find_roles(graph).pose
     return graph, batch, ((f"{pose}.x", f"{pose}.y") if pose else None)
