@@ -219,10 +219,12 @@ def command_env(copy: Path, tmp: Path, venv_active: bool = False) -> dict[str, s
     return env
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def fresh_copy(tmp_path_factory, fmu_dir):
     """A copy of the checkout as `make run` leaves it: the venv, fmus/*.fmu and
-    fmus/fmi3/*.fmu (its `fmus` step builds both), results/circle/."""
+    fmus/fmi3/*.fmu (its `fmus` step builds both), results/circle/. One per test process
+    (session scope): the heavy commands run first, apart from the module's other tests, and
+    a module-scoped copy was made again (3 s) each time the module's tests resumed."""
     copy = tmp_path_factory.mktemp("fresh_clone")
     for name in checkout_files():
         (copy / name).parent.mkdir(parents=True, exist_ok=True)
@@ -237,6 +239,7 @@ def fresh_copy(tmp_path_factory, fmu_dir):
     proc = subprocess.run(["bash", "-c", step], cwd=copy, env=command_env(copy, tmp),
                           capture_output=True, text=True, timeout=TIMEOUT)
     assert proc.returncode == 0, f"`{step}` in the fresh copy: {tail(proc)}"
+    RAN[(copy, step, False)] = proc      # README's `run scenarios/circle.yaml` is this command
     return copy
 
 

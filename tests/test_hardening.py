@@ -207,13 +207,21 @@ def test_inflation_counted_during_extraction(built_fmus, sandbox, monkeypatch):
 
 
 # -- class 3: damaged or oversized SSP members -------------------------------------------------
-@pytest.fixture
-def circle_ssp(fmu_dir, sandbox, capsys) -> Path:
+@pytest.fixture(scope="module")
+def exported_circle(fmu_dir, tmp_path_factory) -> Path:
+    """The circle's SSP, exported once for the module by `export-ssp` in this process."""
+    from mecanum_fmu import cli
     root = Path(__file__).resolve().parents[1]
-    code, _, err = run_main(capsys, "export-ssp", root / "scenarios" / "circle.yaml", "-o",
-                            sandbox / "circle.ssp", "--fmu-dir", fmu_dir)
-    assert code == 0, err
-    return sandbox / "circle.ssp"
+    path = tmp_path_factory.mktemp("circle_ssp") / "circle.ssp"
+    assert cli.main(["export-ssp", str(root / "scenarios" / "circle.yaml"), "-o", str(path),
+                     "--fmu-dir", str(fmu_dir)]) == 0
+    return path
+
+
+@pytest.fixture
+def circle_ssp(exported_circle, sandbox) -> Path:
+    """A copy of the circle's SSP in the sandbox (an export is the same bytes each time)."""
+    return Path(shutil.copy(exported_circle, sandbox / "circle.ssp"))
 
 
 def _ssd_with_parameter_file(content: dict[str, bytes], member: str) -> dict[str, bytes]:

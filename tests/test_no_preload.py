@@ -88,9 +88,10 @@ def test_each_slave_imports_from_its_bundled_stdlib_alone(built_fmus, tmp_path):
         assert proc.stdout.strip() == "outside: []", (name, proc.stdout)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def ssps(fmu_dir, tmp_path_factory):
-    """circle (h = 0.05) and a non-default twist: (ssp, graph, names, our Jacobi end values)."""
+    """circle (h = 0.05) and a non-default twist: (ssp, graph, names, our Jacobi end values).
+    Made once per test process: the heavy test that uses it runs apart from the others."""
     folder = tmp_path_factory.mktemp("travel")
     out = {}
     for name, path in (("circle", ROOT / "scenarios" / "circle.yaml"),

@@ -52,11 +52,17 @@ def ink(pixels: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def written(tmp_path_factory):
+def drawn_here(tmp_path_factory) -> list:
+    """The PNGs of make_run() drawn in this process, once for the module: the reference the
+    worker's files are compared with byte for byte (make_run's data are fixed)."""
     results, truth = make_run()
-    out = tmp_path_factory.mktemp("plots")
-    paths = plots.write_plots(results, ROLES, truth, out, title="circle")
-    return {p.stem: np.round(imread(p) * 255).astype(np.uint8) for p in paths}
+    return plots.write_plots(results, ROLES, truth, tmp_path_factory.mktemp("plots"),
+                             title="circle")
+
+
+@pytest.fixture(scope="module")
+def written(drawn_here):
+    return {p.stem: np.round(imread(p) * 255).astype(np.uint8) for p in drawn_here}
 
 
 def test_every_panel_is_a_whole_piece_of_the_dashboard(written):
@@ -89,12 +95,11 @@ def test_the_dashboard_is_not_blank_and_has_the_panels(written):
     assert ink(dash).mean() > 0.05
 
 
-def test_worker_writes_the_same_files_as_drawing_here(tmp_path):
+def test_worker_writes_the_same_files_as_drawing_here(drawn_here, tmp_path):
     results, truth = make_run()
-    here = plots.write_plots(results, ROLES, truth, tmp_path / "here", title="circle")
     there = PlotWorker.start().finish(results, judged(ROLES, truth), tmp_path / "there", title="circle")
-    assert [p.name for p in there] == [p.name for p in here]
-    for a, b in zip(here, there):
+    assert [p.name for p in there] == [p.name for p in drawn_here]
+    for a, b in zip(drawn_here, there):
         assert a.read_bytes() == b.read_bytes(), a.name
 
 
@@ -231,14 +236,13 @@ def test_two_stages_give_the_pixels_of_one_whole_draw():
     assert list(pngs) == ["dashboard"] + PANEL_KEYS
 
 
-def test_a_draft_sent_before_the_truth_gives_the_same_files(tmp_path):
+def test_a_draft_sent_before_the_truth_gives_the_same_files(drawn_here, tmp_path):
     results, truth = make_run()
-    here = plots.write_plots(results, ROLES, truth, tmp_path / "here", title="circle")
     worker = PlotWorker.start()
     worker.draft(results, ROLES, "circle")
     there = worker.finish(results, judged(ROLES, truth), tmp_path / "there", title="circle")
-    assert [p.name for p in there] == [p.name for p in here]
-    for a, b in zip(here, there):
+    assert [p.name for p in there] == [p.name for p in drawn_here]
+    for a, b in zip(drawn_here, there):
         assert a.read_bytes() == b.read_bytes(), a.name
 
 

@@ -10,7 +10,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pytest
 
-from helpers import CHAIN_CONNECTIONS, child_env, run_child
+from helpers import CHAIN_CONNECTIONS, child_env, run_child, run_main
 from mecanum_fmu.models.library import read_description
 from mecanum_fmu.scenario.graph import compile_graph, port_type
 from mecanum_fmu.errors import ScenarioError
@@ -45,9 +45,17 @@ def circle_graph(fmu_dir):
     return compile_graph(load_scenario(CIRCLE), fmu_dir)
 
 
+@pytest.fixture(scope="module")
+def exported_once(circle_graph, tmp_path_factory):
+    """The circle's SSP, exported once for the module (an export is the same bytes each time:
+    test_export_is_deterministic)."""
+    return ssp_write.export_ssp(circle_graph, tmp_path_factory.mktemp("ssp") / "circle.ssp")
+
+
 @pytest.fixture
-def exported(circle_graph, tmp_path):
-    return ssp_write.export_ssp(circle_graph, tmp_path / "circle.ssp")
+def exported(exported_once, tmp_path):
+    """A copy of the circle's SSP in the test's own folder."""
+    return Path(shutil.copy(exported_once, tmp_path / "circle.ssp"))
 
 
 def cli(*args, cwd=None, env_extra=None):
@@ -291,21 +299,22 @@ def test_load_ssp_gives_the_same_scenario(exported, circle_graph, fmu_dir, cache
     assert {p: Path(p).stat().st_mtime_ns for p in paths} == mtimes
 
 
-def test_round_trip_is_bit_identical(exported, tmp_path, fmu_dir, cache_home):
-    env = {"XDG_CACHE_HOME": str(cache_home)}
+def test_round_trip_is_bit_identical(exported, tmp_path, fmu_dir, capsys):
+    """`run` of the YAML and of its SSP, in this process (cli.main; the extraction cache is
+    cache_home's): the same results.csv, end pose and step count."""
     for master in ("trapezoidal", "jacobi"):
         a, b = tmp_path / f"yaml-{master}", tmp_path / f"ssp-{master}"
-        p1 = cli("run", CIRCLE, "--out", a, "--no-plots", "-q", "--master", master,
-                 "--fmu-dir", fmu_dir, env_extra=env)
-        p2 = cli("run", exported, "--out", b, "--no-plots", "-q", "--master", master,
-                 env_extra=env)
-        assert p1.returncode == 0, p1.stderr
-        assert p2.returncode == 0, p2.stderr
+        code_a, _, err_a = run_main(capsys, "run", CIRCLE, "--out", a, "--no-plots", "-q",
+                                    "--master", master, "--fmu-dir", fmu_dir)
+        code_b, _, err_b = run_main(capsys, "run", exported, "--out", b, "--no-plots", "-q",
+                                    "--master", master)
+        assert code_a == 0, err_a
+        assert code_b == 0, err_b
         assert (a / "results.csv").read_bytes() == (b / "results.csv").read_bytes()
         sa, sb = (json.loads((d / "summary.json").read_text()) for d in (a, b))
         assert sa["end_pose"] == sb["end_pose"] and sa["steps"] == sb["steps"]
-    proc = cli("validate", exported, env_extra=env)
-    assert proc.returncode == 0 and "ok - 4 components, 10 connections" in proc.stdout
+    code, out, _ = run_main(capsys, "validate", exported)
+    assert code == 0 and "ok - 4 components, 10 connections" in out
 
 
 THIRD_PARTY = """<?xml version="1.0" encoding="UTF-8"?>
@@ -401,7 +410,7 @@ def write_third_party(dest: Path, built_fmus, ssd_text=THIRD_PARTY, bare=False) 
 
 
 @pytest.mark.parametrize("bare", [False, True], ids=["ssp", "bare-ssd"])
-def test_third_party_ssp_runs_under_our_master(bare, tmp_path, built_fmus, cache_home):
+def test_third_party_ssp_runs_under_our_master(bare, tmp_path, built_fmus, capsys):
     path = write_third_party(tmp_path, built_fmus, bare=bare)
     scenario = ssp_read.load_ssp(path)
     assert scenario.name == "third_party_car"
@@ -411,9 +420,8 @@ def test_third_party_ssp_runs_under_our_master(bare, tmp_path, built_fmus, cache
     assert params["cmd"] == {"vy_expr": "0.5", "vx_expr": "0.2", "w_expr": "0"}
     assert params["inv"] == {"R": 0.05, "L": 0.2}
     out = tmp_path / "out"
-    proc = cli("run", path, "--out", out, "--no-plots",
-               env_extra={"XDG_CACHE_HOME": str(cache_home)})
-    assert proc.returncode == 0, proc.stderr
+    code, _, err = run_main(capsys, "run", path, "--out", out, "--no-plots")   # cache_home's
+    assert code == 0, err
     end = json.loads((out / "summary.json").read_text())["end_pose"]
     assert end["x"] == pytest.approx(0.96, abs=1e-9)
     assert end["y"] == pytest.approx(2.4, abs=1e-9)
