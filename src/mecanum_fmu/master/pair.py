@@ -34,6 +34,12 @@ carries no error, but for the steps whose predictor's extrapolation misses a cor
 start, a kink, a jump): one step's error in the loop's predicted value, not carried on (the
 corrector steps from the run's state); where the loop carries an error, pair_loop.py counts
 the predicted values' own.
+
+Where an error model is a linearisation (it has `linearised`: the drive train's motors and
+floor, models/drive_error.py), the FMUs with an error model feed one another's errors: all of
+them are solved together as a Network (pair_network.py), with the FMUs without a state between
+them carrying the error by their responses, and each held input keeps a lag of its own under
+Jacobi (a value the network makes carries its lag as an error instead).
 """
 from __future__ import annotations
 
