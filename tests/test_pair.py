@@ -371,3 +371,34 @@ def test_the_loop_s_recurrence_by_doubling_is_the_step_by_step_one(n):
         e = p[k] @ e + q[k]
         expected.append(e)
     assert np.allclose(_recurrence(p, q, start), expected, rtol=1e-10, atol=1e-10)
+
+
+def test_the_sensors_outputs_are_unresolved_and_the_true_pose_keeps_the_pair(fmu_dir):
+    """belief_open_circle: the encoders, the gyro and the odometry sample at their own period
+    and nothing else reads them, so the pair estimates the rest (the true pose against the
+    seed circle's closed form, x = 1 - cos t, y = sin t) and leaves theirs unresolved."""
+    import math
+    graph = runner.prepare(SCENARIOS / "robot" / "belief_open_circle.yaml", fmu_dir=fmu_dir)
+    exp = graph.scenario.experiment
+    results = master.simulate(graph, exp, with_estimate=True)
+    found = master.estimate_error(graph, results)
+    assert found["error_estimate_method"].startswith("the embedded pair")
+    for name in ("odom.x", "odom.theta", "enc1.w_meas", "gyro.w_meas"):
+        assert found["error_estimate"][name]["max"].startswith(
+            "unresolved (Encoder, Gyro, Odometry sample at their own period")
+    t = exp.stop_time
+    for name, truth in (("pose.x", 1 - math.cos(t)), ("pose.y", math.sin(t))):
+        true = abs(results.final(name) - truth)
+        assert true > 1e-9                                       # the step shows
+        assert true / 3 <= found["error_estimate"][name]["end"] <= 3 * true
+
+
+def test_a_loop_closed_through_the_sensors_hands_over(fmu_dir):
+    """belief_track_circle: the follower reads the odometry's belief, so the pose (which has
+    an error model) is made from the samples: the pair says so, and no estimate is made."""
+    graph = runner.prepare(SCENARIOS / "robot" / "belief_track_circle.yaml", fmu_dir=fmu_dir)
+    graph, exp = with_experiment(graph, stop_time=0.2)
+    results = master.simulate(graph, exp, with_estimate=True)
+    assert "pose reads what Encoder, Odometry sample at their own period" in \
+        results.extra["pair"]["found"]
+    assert master.estimate_error(graph, results)["error_estimate"] is None

@@ -43,6 +43,8 @@ Jacobi (a value the network makes carries its lag as an error instead).
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..masters import entry as master_entry
@@ -54,6 +56,8 @@ METHOD = ("the embedded pair: per step, each held input's hold against the mean 
           "through its nearest values in the same smooth piece (no extra doStep), carried "
           "into the outputs by their FMUs' error models ({models}){loop}; outputs of {other}"
           "FMUs without a state read their inputs exactly{lag}")
+SAMPLED = ("unresolved ({models} sample at their own period, and this output is theirs or "
+           "made from theirs: the pair does not follow a sample's error)")
 LOOP_METHOD = (", and through the Jacobians of {through}, whose outputs carry it (around a "
                "loop, back into the model's inputs)")
 
@@ -66,6 +70,10 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
     `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives);
     `rolled_back`: the run predicts, rolls back and corrects each step (PairPlan.rolled_back)."""
     how = master_entry(graph.scenario.experiment.master)
+    opaque = _opaque(graph)
+    if isinstance(opaque, str):
+        return opaque
+    graph, unresolved = _without(graph, opaque)
     position = {inst.name: i for i, inst in enumerate(graph.instances)}
     lag: dict[str, int] = {}        # the FMUs whose outputs are exact (Jacobi: late by lag)
     slots: dict[int, int] = {}
@@ -114,7 +122,44 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
         if network is not None:     # and every model's where the network is; the values
             plan.fed = []           # it makes carry their own lag under Jacobi
             plan.lagged = [l for l in plan.lagged if l[0] not in network.made]
+        plan.unresolved = unresolved
     return plan
+
+
+def _opaque(graph: Graph) -> set[str] | str:
+    """The FMUs whose outputs the pair leaves unresolved: those that sample at their own
+    period (Graph.sampled: the sensors) and have no error model, and every FMU that reads
+    theirs (to a fixpoint: a loop may close through them); or why the pair cannot leave them
+    out: an FMU with an error model is among them (the loop closes through the samples)."""
+    models = dict(graph.error_models)
+    opaque = {i.name for i in graph.instances
+              if i.model_name in graph.sampled and i.name not in models}
+    while True:
+        readers = {l.target.ref.instance for l in graph.links
+                   if l.source.ref.instance in opaque} - opaque
+        if not readers:
+            break
+        opaque |= readers
+    modelled = [i.name for i in graph.instances if i.name in opaque and i.name in models]
+    if modelled:
+        return (f"{modelled[0]} reads what {', '.join(graph.sampled)} sample at their own "
+                "period (directly or through other FMUs), whose error the pair does not follow")
+    return opaque
+
+
+def _without(graph: Graph, opaque: set[str]) -> tuple[Graph, dict[str, str]]:
+    """The graph without the FMUs in `opaque`, and their recorded Real outputs, unresolved."""
+    if not opaque:
+        return graph, {}
+    kept = tuple(i for i in graph.instances if i.name not in opaque)
+    links = tuple(l for l in graph.links if l.target.ref.instance not in opaque)
+    recorded = tuple(p for p in graph.recorded if p.ref.instance not in opaque)
+    models = sorted({i.model_name for i in graph.instances if i.name in opaque
+                     and i.model_name in graph.sampled})
+    text = SAMPLED.format(models=", ".join(models))
+    return (dataclasses.replace(graph, instances=kept, links=links, recorded=recorded),
+            {str(p.ref): text for p in graph.recorded
+             if p.ref.instance in opaque and p.type == "Real"})
 
 
 def _network(graph: Graph, groups: list[Group], col, real_slots: dict, into: dict

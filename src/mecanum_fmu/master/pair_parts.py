@@ -37,6 +37,8 @@ class PairPlan:
     rolled_back: bool = False    # the quadratic master predicts, rolls back, corrects a loop
     loop: "Loop | None" = None   # a model's error carried through FMUs without a state
     network: "Network | None" = None    # FMUs with a state that feed one another
+    # the recorded outputs of the sensors (and of what reads them): name -> why unresolved
+    unresolved: dict = field(default_factory=dict)
 
 
 @dataclass

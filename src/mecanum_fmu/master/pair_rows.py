@@ -173,7 +173,7 @@ class PairRows:
         """The chain's outputs whose estimate is unresolved: their divisor's error is not
         small against it on some row, or it comes near 0 (within NEAR_ZERO of its largest
         |value|), where 1 / its square magnifies the error of one row."""
-        ill = dict(self.ill)
+        ill = {**self.plan.unresolved, **self.ill}
         for name in self.net.cancelled(self.worst) if self.net is not None else ():
             ill[name] = CANCELLED
         for name, (low, high) in self.divisors.items():
