@@ -68,12 +68,22 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
     (an FMU with a state and no model) exact if its held inputs do not move; an FMU that
     reads a model's outputs (or closes a loop) holds them exact if they carry no error.
     `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives);
-    `rolled_back`: the run predicts, rolls back and corrects each step (PairPlan.rolled_back)."""
-    how = master_entry(graph.scenario.experiment.master)
+    `rolled_back`: the run predicts, rolls back and corrects each step (PairPlan.rolled_back).
+    The sensors that sample at their own period, and what reads them, are left out (_opaque):
+    their outputs are unresolved."""
     opaque = _opaque(graph)
     if isinstance(opaque, str):
         return opaque
     graph, unresolved = _without(graph, opaque)
+    plan = _plan(graph, real_slots, rolled_back)
+    if isinstance(plan, PairPlan):
+        plan.unresolved = unresolved
+    return plan
+
+
+def _plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
+    """pair_plan's, on a graph without the sensors."""
+    how = master_entry(graph.scenario.experiment.master)
     position = {inst.name: i for i, inst in enumerate(graph.instances)}
     lag: dict[str, int] = {}        # the FMUs whose outputs are exact (Jacobi: late by lag)
     slots: dict[int, int] = {}
@@ -122,7 +132,6 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
         if network is not None:     # and every model's where the network is; the values
             plan.fed = []           # it makes carry their own lag under Jacobi
             plan.lagged = [l for l in plan.lagged if l[0] not in network.made]
-        plan.unresolved = unresolved
     return plan
 
 
