@@ -69,6 +69,10 @@ class NetworkCarry:
         self.of_x = [c for c in self.cols if c not in integral]
         self.of_e = [integral[c] for c in self.cols if c in integral]
         self.where = np.array([c in integral for c in self.cols])
+        # where steps() puts the recorded outputs and the checked values among self.cols
+        at = {c: j for j, c in enumerate(self.cols)}
+        self.recorded_at = np.array([at[c] for _, c in net.recorded], dtype=np.intp)
+        self.checked_at = [at[c] for _, c, _ in net.checked]
 
     def steps(self, ks: np.ndarray, h: np.ndarray, holds: dict, window) -> np.ndarray:
         """The errors of self.cols at nodes ks + 1 (steps, columns). `holds`: per node's group
@@ -127,8 +131,7 @@ class NetworkCarry:
         table = np.stack([sens.get(c, zero)[1:] for c in self.of_x], axis=1)  # (steps, cols, X)
         out[:, ~self.where] = np.einsum("kcx,kx->kc", table, xs[1:])
         if times:
-            out[:, ~self.where] += np.column_stack([times.get(c, np.zeros(len(rows)))[1:]
-                                                    for c in self.of_x])
+            out[:, ~self.where] += self._own(times, self.of_x, len(rows))[1:]
         out[:, self.where] = es[:, self.of_e]
         return out
 

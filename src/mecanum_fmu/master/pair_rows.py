@@ -258,11 +258,10 @@ class PairRows:
         """The network's errors (pair_network.py): its recorded outputs' kept, and the
         largest of those it hands to FMUs outside it."""
         errors = self.net.steps(ks, h, holds, self._rows)
-        where = {c: j for j, c in enumerate(self.net.cols)}
         net = self.plan.network
-        self._keep([n for n, _ in net.recorded], errors[:, [where[c] for _, c in net.recorded]])
-        for name, c, _ in net.checked:
-            self.fed[name] = max(self.fed[name], float(np.max(np.abs(errors[:, where[c]]))))
+        self._keep([n for n, _ in net.recorded], errors[:, self.net.recorded_at])
+        for (name, _, _), j in zip(net.checked, self.net.checked_at):
+            self.fed[name] = max(self.fed[name], float(np.max(np.abs(errors[:, j]))))
 
     def _late_carried(self, names: list[str], nodes: np.ndarray) -> np.ndarray | float:
         """The error the loop carries into Jacobi's late outputs `names` at `nodes` (0 for

@@ -21,6 +21,7 @@ import numpy as np
 from .blocks.kinematics import DEFAULT_GEOMETRY
 from .blocks.motor import DEFAULT_MOTOR, Motor
 from .blocks.traction import BODY, Chassis
+from .responses import all_inputs
 
 _MOTOR_IN = ("w_ref", "tau_load")
 _MOTOR_OUT = ("w", "i", "V", "tau", "E_electrical", "E_copper", "E_viscous", "E_gear",
@@ -37,18 +38,17 @@ _ON_CLAMP = 1e-12
 
 
 class Linear:
-    """The part every linearised model shares: the linked inputs' places among its own."""
+    """The part every linearised model shares: the linked inputs' places among its own, the
+    others at their start values (`fixed`)."""
 
-    def __init__(self, names: list[str], own: tuple, outputs: tuple, reads: tuple,
-                 states: int, integrals: dict):
+    def __init__(self, names: list[str], own: tuple, fixed: list[float], outputs: tuple,
+                 reads: tuple, states: int, integrals: dict):
         self.inputs, self.outputs, self.reads, self.states = tuple(names), outputs, reads, states
         self.integrals = integrals
-        self.order = [own.index(n) for n in names]
+        self.order, self.fixed = [own.index(n) for n in names], np.array(fixed)
 
     def linearised(self, ins: np.ndarray, outs: np.ndarray) -> tuple:
-        values = np.zeros((len(ins), self.width))
-        values[:, self.order] = ins
-        a, b, c, d = self.full(values, outs)
+        a, b, c, d = self.full(all_inputs(ins, self.order, self.fixed), outs)
         return a, b[:, :, self.order], c, d[:, :, self.order]
 
 
@@ -67,18 +67,14 @@ class MotorLinear(Linear):
     voltage is the PI's V* = kp (w_ref - w) + z, or the current limit k_e w +- R_a i_max, or
     the supply +-V_supply, whichever is in force on the row (from its V and w): dV is kp
     (dw_ref - dw) + dz, k_e dw or 0; i = (V - k_e w) / R_a."""
-    width = 2
 
     def __init__(self, names, motor: Motor, w_ref: float, tau_load: float):
-        super().__init__(names, _MOTOR_IN, _MOTOR_OUT, MOTOR_READS, 7,
+        super().__init__(names, _MOTOR_IN, [w_ref, tau_load], _MOTOR_OUT, MOTOR_READS, 7,
                          {n: 2 + k for k, n in enumerate(_MOTOR_OUT[4:9])})
-        self.m, self.fixed = motor, np.array([w_ref, tau_load])
+        self.m = motor
 
     def full(self, values: np.ndarray, outs: np.ndarray) -> tuple:
         m, rows = self.m, len(values)
-        for j in range(2):          # an input not linked stays at its start value
-            if j not in self.order:
-                values[:, j] = self.fixed[j]
         tau = values[:, 1]
         w, V = outs[:, 0], outs[:, 1]
         i = (V - m.k_e * w) / m.R_a
@@ -127,20 +123,16 @@ class BodyLinear(Linear):
     """A MecanumDynamics, state (vx, vy, w, E_slip, E_drive), inputs the wheel speeds. Contact
     i slips at s_i = u_i . (v + w x r_i) - rim w_i and is pushed by F_i = -mu N tanh(s_i /
     eps): dF_i = -(mu N / eps) sech^2(s_i / eps) ds_i."""
-    width = 4
 
     def __init__(self, names, chassis: Chassis, wheels: list[float]):
-        super().__init__(names, _WHEELS, _BODY_OUT, BODY_READS, 5,
+        super().__init__(names, _WHEELS, wheels, _BODY_OUT, BODY_READS, 5,
                          {"E_slip": 3, "E_drive": 4})
-        self.c, self.fixed = chassis, np.array(wheels)
+        self.c = chassis
         self.axes, self.levers = np.array(chassis.axes), np.array(chassis.levers)
         self.arms = np.array(chassis.arms)
 
     def full(self, values: np.ndarray, outs: np.ndarray) -> tuple:
         c, rows = self.c, len(values)
-        for j in range(4):
-            if j not in self.order:
-                values[:, j] = self.fixed[j]
         vx, vy, w = outs[:, 0], outs[:, 1], outs[:, 2]
         ux, uy = self.axes[:, 0], self.axes[:, 1]
         x, y = self.arms[:, 0], self.arms[:, 1]

@@ -47,9 +47,15 @@ class Response:
     def jacobian(self, ins: np.ndarray, outs: np.ndarray) -> np.ndarray:
         if self.whole:
             return self.full(ins, outs)
-        values = np.broadcast_to(self.fixed, (len(ins), len(self.fixed))).copy()
-        values[:, self.order] = ins
-        return self.full(values, outs)[:, :, self.order]
+        return self.full(all_inputs(ins, self.order, self.fixed), outs)[:, :, self.order]
+
+
+def all_inputs(ins: np.ndarray, order: list[int], fixed: np.ndarray) -> np.ndarray:
+    """A model's every input per row: the linked ones `ins` at their places `order` among its
+    own, the others at their start values `fixed`."""
+    values = np.broadcast_to(fixed, (len(ins), len(fixed))).copy()
+    values[:, order] = ins
+    return values
 
 
 def response(names: list[str], inst) -> Response | None:
