@@ -194,23 +194,10 @@ def _network(graph: Graph, groups: list[Group], col, real_slots: dict, into: dic
     fed = [name for name, _ in integrals if name in read]
     if fed:
         return f"{fed[0]} is an integral of its FMU's error model, which the pair does not feed on"
-    stateful, responses = {g.name for g in groups}, dict(graph.responses)
-    steps, checked = [], {}
-    for inst in graph.instances:
-        if inst.name in nodes:
-            steps.append(("node", nodes[inst.name]))
-            continue
-        links = [l for l in into[inst.name] if l.target.type == "Real"]
-        hot = [str(l.source.ref) for l in links if str(l.source.ref) in made]
-        through = None if not hot or inst.name in stateful or inst.name not in responses else \
-            _through(inst, links, responses[inst.name], col, ports, 0)
-        if through is None:
-            for name in hot:
-                checked.setdefault(name, set()).add(inst.name)
-            continue
-        steps.append(("through", through))
-        made.update({f"{inst.name}.{n}": c for n, c in zip(through.response.outputs,
-                                                             through.outs)})
+    throughs, checked = _carried_on(graph, into, made, set(nodes), {g.name for g in groups},
+                                    col, ports, {})
+    steps = [("node", nodes[i.name]) if i.name in nodes else ("through", throughs[i.name])
+             for i in graph.instances if i.name in nodes or i.name in throughs]
     recorded = [(str(p.ref), made[str(p.ref)]) for p in graph.recorded if str(p.ref) in made]
     return Network(list(nodes.values()), steps, recorded,
                    [(name, made[name], sorted(r)) for name, r in checked.items()], offset,
@@ -250,24 +237,9 @@ def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, i
     carried = {name: c for name, _, _, c, _ in fed}
     starts = [(c, index) for _, _, index, c, _ in fed]
     ports = {str(p.ref): p for p in real_slots}
-    responses = dict(graph.responses)
-    stateful = {g.name for g in groups}
-    chain, checked = [], {}
-    for inst in graph.instances:
-        links = [l for l in into[inst.name] if l.target.type == "Real"]
-        hot = [l for l in links if str(l.source.ref) in carried]
-        if not hot or inst.name == groups[origin].name:
-            continue
-        through = None if inst.name in stateful or inst.name not in responses else \
-            _through(inst, links, responses[inst.name], col, ports, lag[inst.name])
-        if through is None:
-            for l in hot:
-                checked.setdefault(str(l.source.ref), (carried[str(l.source.ref)], set()))[
-                    1].add(inst.name)
-            continue
-        chain.append(through)
-        carried.update({f"{inst.name}.{n}": c for n, c in zip(through.response.outputs,
-                                                                through.outs)})
+    throughs, checked = _carried_on(graph, into, carried, {groups[origin].name},
+                                    {g.name for g in groups}, col, ports, lag)
+    chain = list(throughs.values())
     if not chain:           # nothing to carry through: the model's outputs are checked (fed)
         return None
     members = {t.name for t in chain}
@@ -277,8 +249,34 @@ def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, i
                for out, (d, floor) in t.response.divides.items()
                if (name := f"{t.name}.{out}") in dict(recorded)]
     return Loop(origin, starts, chain, recorded,
-                [(name, c, sorted(readers)) for name, (c, readers) in checked.items()],
+                [(name, carried[name], sorted(readers)) for name, readers in checked.items()],
                 divided)
+
+
+def _carried_on(graph: Graph, into: dict, carried: dict, skip: set, stateful: set, col,
+                ports: dict, lag: dict) -> tuple[dict, dict]:
+    """In step order, each FMU but those in `skip` that reads a value in `carried` (its name
+    -> its column): one without a state whose response covers its linked inputs carries it
+    on (its Through, at its lag under Jacobi; its outputs join `carried`), any other reads
+    it as it is. (FMU name -> its Through, in step order; value -> the FMUs that read it as
+    it is, to be checked)."""
+    responses = dict(graph.responses)
+    throughs, checked = {}, {}
+    for inst in graph.instances:
+        links = [l for l in into[inst.name] if l.target.type == "Real"]
+        hot = [str(l.source.ref) for l in links if str(l.source.ref) in carried]
+        if not hot or inst.name in skip:
+            continue
+        through = None if inst.name in stateful or inst.name not in responses else \
+            _through(inst, links, responses[inst.name], col, ports, lag.get(inst.name, 0))
+        if through is None:
+            for name in hot:
+                checked.setdefault(name, set()).add(inst.name)
+            continue
+        throughs[inst.name] = through
+        carried.update({f"{inst.name}.{n}": c for n, c in zip(through.response.outputs,
+                                                                through.outs)})
+    return throughs, checked
 
 
 def _through(inst, links: list, factory, col, ports: dict, lag: int) -> Through | None:
