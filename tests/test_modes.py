@@ -231,6 +231,20 @@ def test_animation(max_frames, circle_run, tmp_path):
         assert 100 <= im.width <= 1000 and 100 <= im.height <= 1000
 
 
+def test_animation_frames_keep_their_layout_and_move_the_car(circle_run):
+    # the still parts are drawn once: the y tick labels (the left 40 pixels) are the same in
+    # every frame (when each frame ran the constrained layout again, they moved by a pixel
+    # between frames), while the car and its path change
+    from mecanum_fmu.report.animation import _frames, build_scene, frame_indices
+    outcome = circle_run
+    fig, update, n = build_scene(outcome.results, outcome.evaluation.roles,
+                                 outcome.evaluation.truth, outcome.evaluation.geometry)
+    frames = [np.asarray(f) for f in _frames(fig, update, frame_indices(n, 5))]
+    assert len(frames) == 5
+    assert all(np.array_equal(frames[0][:, :40], f[:, :40]) for f in frames[1:])
+    assert all(not np.array_equal(a, b) for a, b in zip(frames, frames[1:]))
+
+
 def test_run_animate_flag(fmu_dir, tmp_path):
     # what is checked is that run(animate=True) writes the GIF and lists it: 6 rows (6 frames)
     # show that as well as 51 did; test_animation draws the full 100 frames

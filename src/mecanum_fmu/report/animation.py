@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Mapping
 
 import numpy as np
-from matplotlib.animation import PillowWriter
 from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 
@@ -32,6 +31,7 @@ DPI = 80                        # -> 400 x 464 pixels
 WHEEL_POS = ((1, 1), (-1, 1), (-1, -1), (1, -1))   # (sign of X, sign of Y) of wheels 1..4
 WHEEL_COLORS = ("C3", "C1", "C2", "C4")
 ARROWS = "arrows: wheel rim speed R·wi, along body +y"
+MOVING = "moving"               # the gid of the artists each frame draws again
 
 
 def frame_indices(n: int, max_frames: int = MAX_FRAMES) -> np.ndarray:
@@ -58,13 +58,38 @@ def write_animation(results: Results, evaluation: Evaluation, path: Path | str,
     path.parent.mkdir(parents=True, exist_ok=True)
     fig, update, n = build_scene(results, evaluation.roles, evaluation.truth,
                                  evaluation.geometry)
-    writer = PillowWriter(fps=FPS)
-    with writer.saving(fig, str(path), dpi=DPI):
-        for i in frame_indices(n, max_frames):
-            update(int(i))
-            writer.grab_frame()
+    frames = _frames(fig, update, frame_indices(n, max_frames))
     fig.clear()
+    frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:],
+                   duration=int(1000 / FPS), loop=0)
     return path
+
+
+def _frames(fig, update, indices: np.ndarray) -> list:
+    """The frames as images (blitting): the layout and the still parts (axes, ticks, grid,
+    legend, ground truth) are drawn once; each frame restores them and draws only the
+    artists that move (_scene gives them the gid MOVING), in their z-order."""
+    from PIL import Image          # Pillow: matplotlib's own dependency
+    update(int(indices[0]))
+    canvas = fig.canvas
+    canvas.draw()                  # the constrained layout, with every artist in it: it
+    canvas.draw()                  # settles on the second draw
+    fig.set_layout_engine("none")  # kept for every frame
+    moving = sorted((a for ax in fig.axes for a in ax.get_children() if a.get_gid() == MOVING),
+                    key=lambda a: a.get_zorder())
+    for artist in moving:
+        artist.set_animated(True)
+    canvas.draw()
+    still = canvas.copy_from_bbox(fig.bbox)
+    frames = []
+    for i in indices:
+        canvas.restore_region(still)
+        update(int(i))
+        for artist in moving:
+            fig.draw_artist(artist)
+        # opaque: RGB, which Pillow turns into a GIF's palette better (as PillowWriter does)
+        frames.append(Image.fromarray(np.array(canvas.buffer_rgba())).convert("RGB"))
+    return frames
 
 
 def build_scene(results: Results, roles: Roles, truth: Truth | None,
@@ -150,6 +175,8 @@ def _scene(ax, results: Results, track, truth: Truth | None, params: Mapping):
                        color=WHEEL_COLORS, angles="xy", scale_units="xy", scale=1.0,
                        width=0.008, zorder=5)
     title = ax.set_title("")
+    for artist in (trail, body, nose, *wheel_patches, arrows, title):
+        artist.set_gid(MOVING)              # drawn per frame over the still parts (_frames)
 
     def update(i: int) -> None:
         px, py, th = float(x[i]), float(y[i]), float(theta[i])
