@@ -402,3 +402,22 @@ def test_a_loop_closed_through_the_sensors_hands_over(fmu_dir):
     assert "pose reads what Encoder, Odometry sample at their own period" in \
         results.extra["pair"]["found"]
     assert master.estimate_error(graph, results)["error_estimate"] is None
+
+
+def test_a_loop_closed_through_the_sensors_is_first_order_and_the_method_says_how_to_see_it(
+        fmu_dir):
+    """With no estimate, the method tells the user to halve the step (the samples stay where
+    they are). Halving it twice shows what docs/robot.md ("The step's share") says: the true
+    end point moves about half as far the second time, a first-order error (second order
+    would be a quarter)."""
+    base = runner.prepare(SCENARIOS / "robot" / "belief_track_circle.yaml", fmu_dir=fmu_dir)
+    ends, method = [], None
+    for factor in (1, 2, 4):
+        graph, exp = with_experiment(base, stop_time=3.0,
+                                     step_size=base.scenario.experiment.step_size / factor)
+        results = master.simulate(graph, exp, keep_rows=2)
+        ends.append(np.array([results.final("pose.x"), results.final("pose.y")]))
+        method = method or master.estimate_error(graph, results)["error_estimate_method"]
+    assert "a run at half the step keeps them" in method and "The step's share" in method
+    first, second = np.linalg.norm(ends[0] - ends[1]), np.linalg.norm(ends[1] - ends[2])
+    assert second > 0 and 1.6 < first / second < 2.6

@@ -50,7 +50,9 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
         return None
     if graph.sampled:
         return (f"{', '.join(graph.sampled)} sample at their own period: a coarser step moves "
-                "their samples (a different model, not a coarser run of this one)")
+                "their samples (a different model, not a coarser run of this one); a run at "
+                "half the step keeps them, and how far it moves the outputs is the step's "
+                "share (docs/robot.md, \"The step's share\")")
     return coarse_factors(graph, exp, marks) or FEW_STEPS
 
 

@@ -216,7 +216,8 @@ def mismatch_hint(entry: dict) -> str:
                 "a smaller step changes nothing")
     if entry.get("belief", {}).get("closes_the_loop"):
         return ("the follower is fed the odometry's belief, not the true pose: the gap is the "
-                "belief's drift, which a smaller step does not remove")
+                "belief's drift, most of which a smaller step does not remove (halving the "
+                "step shows the step's share: docs/robot.md, \"The step's share\")")
     if "drive_train" in entry:
         return ("motors and floor lie between the command and the pose, and the ground truth "
                 "is the kinematic path: the error estimate says how much of it is the step")
