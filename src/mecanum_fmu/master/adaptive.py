@@ -331,16 +331,19 @@ class Stops:
     interval before it (at most a third of the way back to the stop before it, so that a
     short segment keeps its own steps), then on it, so that the step that sees the new value
     at its end is that short (the hold's mean blends the two values: the jump costs the step
-    before it h |jump| / 2, under every hold, whatever the tolerance). A stop is a breakpoint
-    for the holds too (AdaptiveHolds.at_breakpoint)."""
+    before it h |jump| / 2, under every hold, whatever the tolerance). The number an
+    expression compares t with (Breaks.compared) is taken as a jump; another table's rows (a
+    path's) are no stops. A stop is a breakpoint for the holds too
+    (AdaptiveHolds.at_breakpoint), and the step after it may start shorter (restart_step)."""
 
     JUMP = 1e-6
 
     def __init__(self, graph, start: float, stop: float, interval: float):
         breaks = graph_breaks(graph)
+        jumps = np.unique(np.concatenate([np.asarray(breaks.jumps, dtype=float),
+                                          np.asarray(breaks.compared, dtype=float)]))
         marks = np.unique(np.concatenate([[start], np.asarray(breaks.kinks, dtype=float),
-                                          np.asarray(breaks.jumps, dtype=float)]))
-        jumps = np.asarray(breaks.jumps, dtype=float)
+                                          jumps]))
         gap = jumps - marks[np.maximum(np.searchsorted(marks, jumps) - 1, 0)]
         gap = np.where(gap > 0, gap, interval)
         before = jumps - np.minimum(self.JUMP * interval, gap / 3)
@@ -350,6 +353,8 @@ class Stops:
         times = [float(x) for x in (*breaks.kinks, *jumps, *before)]
         self.times = sorted(x for x in set(times) if start + near < x < stop - near)
         self.before = sorted(float(x) for x in before)
+        self.kinks = sorted(float(x) for x in breaks.kinks)
+        self.compared = sorted(float(x) for x in breaks.compared)
         self.i = 0
 
     def on(self, t: float, times: list[float] | None = None) -> bool:
@@ -361,6 +366,23 @@ class Stops:
     def before_jump(self, t: float) -> bool:
         """Whether t is the stop just before a jump: the next step is the jump's own."""
         return self.on(t, self.before)
+
+    def restart_step(self, t: float, stop: float, first: float) -> float:
+        """The longest first step after the stop at t. After an expression's breakpoint,
+        `first` (first_step): what follows it is unknown, and the holds restart, so a first
+        step's error has no estimate (on quiet_then_busy a 0.67 s step just after t = 8,
+        where w starts to turn, left theta 92x TOL 1e-2 off). After a table's corner, a
+        third of the way to the next stop: the input goes on as a line, which the restarted
+        hold takes exactly, but the rows of a segment of one step lie on the line through its
+        two points, whose error two points cannot estimate (the joystick's theta: 2.3e-5 rad,
+        said to be below round-off); four points give the rows their cubic and its estimate
+        (with three, a bound: 9-11x over on the joystick's x). Else (a jump of a hold table:
+        constant after it) no limit."""
+        if self.on(t, self.compared):
+            return first
+        if self.on(t, self.kinks):
+            return (self.next(t, stop) - t) / 3
+        return math.inf
 
     def next(self, t: float, target: float) -> float:
         """The first stop after t, or target when none comes before it."""
@@ -421,6 +443,10 @@ class Controller:
                           h * r ** (-1 / 3))
         self.ratio_before, self.drift, self.last = r, drift, h
 
+    def restart(self, longest: float) -> None:
+        """After a stop: the next step at most `longest` (Stops.restart_step)."""
+        self.wanted = min(self.wanted, longest)
+
     def reject(self, ratio: float, h: float) -> None:
         ratio = ratio if ratio == ratio else math.inf      # NaN: as far over as can be
         self.wanted = h * max(0.2, min(0.9, SAFETY * ratio ** (-1 / 3)))
@@ -468,6 +494,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
         counts["estimates"].extend(loop.rows.emit(final=at_stop or t == stop))
         if at_stop:
             holds.at_breakpoint(stops.before_jump(t))
+            loop.control.restart(stops.restart_step(t, stop, loop.first))
             loop.rows.restart(t, loop.estimate())
         if progress is not None and _time.perf_counter() >= next_report:
             progress((t - start) / (stop - start))
@@ -488,7 +515,8 @@ class _Loop:
         self.span, self.interval, self.stop = (exp.stop_time - exp.start_time, exp.step_size,
                                                exp.stop_time)
         self.start = exp.start_time
-        self.control = Controller(self.span, first_step(tol[0], self.span), self.span)
+        self.first = first_step(tol[0], self.span)
+        self.control = Controller(self.span, self.first, self.span)
         self.errors = OutputErrors(recorder, holds.clients,
                                    bool(holds.paired) or not holds.clients)
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
