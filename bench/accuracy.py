@@ -53,9 +53,11 @@ def measure(graph, **changes) -> dict:
     err = float(np.hypot(res[pose + ".x"][-1] - truth.x[-1], res[pose + ".y"][-1] - truth.y[-1]))
     own = res.extra.get("error_estimate", {})        # the adaptive master's own, at the end
     ends = [own[pose + k]["end"] for k in (".x", ".y")] if pose + ".x" in own else None
-    # "below round-off" (a string) for both: shown as such; for one: that one counts 0
-    estimate = None if ends is None else BELOW_ROUND_OFF if all(map(_below, ends)) else \
-        float(np.hypot(*(0.0 if _below(e) else e for e in ends)))
+    # "below round-off" (a string) for both: shown as such; for one: that one counts 0; an
+    # end left unresolved (another string: its terms cancel) leaves |(x, y)| unresolved
+    estimate = None if ends is None else "unresolved" if any(
+        isinstance(e, str) and not _below(e) for e in ends) else BELOW_ROUND_OFF if all(
+        map(_below, ends)) else float(np.hypot(*(0.0 if _below(e) else e for e in ends)))
     return {"master": exp.master, "h": exp.step_size, "tol": exp.tolerance, "err": err,
             "estimate": estimate, "passes": _passes(graph, res), "wall": res.wall_time}
 

@@ -10,7 +10,7 @@ from helpers import (ROOT, pose_without_state_save, run_child, run_main, with_ex
                      write_scenario)
 from mecanum_fmu import master, runner
 from mecanum_fmu.report.ground_truth import ground_truth
-from mecanum_fmu.results import BELOW_ROUND_OFF
+from mecanum_fmu.results import BELOW_ROUND_OFF, cancelled
 
 CIRCLE = ROOT / "scenarios" / "circle.yaml"
 QUIET_BUSY = ROOT / "scenarios" / "profiles" / "quiet_then_busy.yaml"
@@ -37,7 +37,7 @@ def test_circle_meets_the_tolerance_on_the_output_grid(tolerance):
     error = np.hypot(results["pose.x"] - (1 - np.cos(t)), results["pose.y"] - np.sin(t))
     assert error.max() <= tolerance
     assert len(t) == 201 and np.allclose(t, np.arange(201) * 0.05, rtol=0, atol=1e-12)
-    estimate = results.extra["error_estimate"]["pose.y"]["end"]
+    estimate = results.extra["error_estimate"]["pose.y"]["max"]
     assert estimate <= tolerance
 
 
@@ -198,17 +198,14 @@ def test_a_cubic_input_is_held_exactly_once_there_is_history(tmp_path):
     assert results.steps_taken + results.steps_rejected <= 1.5 * fixed
 
 
-_END_UNDER = pytest.mark.xfail(strict=True, reason=(
-    "with steps free of the output grid, the pose's end estimate of y (a signed sum that "
-    "nearly cancels) is 5x (1e-4) to 9x (1e-2) under; the max stays within 3x"))
-
-
-@pytest.mark.parametrize("tolerance", [pytest.param(1e-2, marks=_END_UNDER), 1e-3,
-                                       pytest.param(1e-4, marks=_END_UNDER), 1e-5])
+@pytest.mark.parametrize("tolerance", [1e-2, 1e-3, 1e-4, 1e-5])
 def test_circle_estimate_is_within_3x_of_the_closed_form(tolerance):
     # the closed form x = 1 - cos t, y = sin t (docs/spec.md); with the cubic's term taken
     # as a bound on every step the estimate was 3-10x over (y's end at 1e-4: 9.2x); without
-    # the first two steps' trapezoids, 12x under at 1e-2 (their h^3 u''/12 is y's error there)
+    # the first two steps' trapezoids, 12x under at 1e-2 (their h^3 u''/12 is y's error there).
+    # y's end is a signed sum whose terms cancel to 0.02-0.08 of their size: its number was
+    # 5x (1e-4) to 9x (1e-2) under the true error, and it is unresolved (results.cancelled);
+    # x's end (0.2-0.3 of its terms) and every max stay numbers within 3x
     graph, results = _run(CIRCLE, tolerance)
     t = results.time
     true = {"pose.x": np.abs(results["pose.x"] - (1 - np.cos(t))),
@@ -216,7 +213,10 @@ def test_circle_estimate_is_within_3x_of_the_closed_form(tolerance):
     for name, error in true.items():
         e = results.extra["error_estimate"][name]
         for which, value in (("max", error.max()), ("end", error[-1])):
-            assert value / 3 <= e[which] <= 3 * value, (name, which, e, value)
+            if (name, which) == ("pose.y", "end"):
+                assert e[which] == cancelled(), e
+            else:
+                assert value / 3 <= e[which] <= 3 * value, (name, which, e, value)
 
 
 def test_a_table_corner_starts_the_hold_afresh():
@@ -261,6 +261,8 @@ def _within_3x_on_every_output(graph, results) -> list:
         error = np.abs(results[f"pose.{k}"] - getattr(truth, k))
         for which, value in (("max", error.max()), ("end", error[-1])):
             e = results.extra["error_estimate"][f"pose.{k}"][which]
+            if e == cancelled():
+                continue                    # unresolved: no number to miss with
             if value <= 1e-9:
                 ok = e == BELOW_ROUND_OFF or e <= 1e-9
             else:

@@ -10,6 +10,14 @@ import numpy as np
 
 BELOW_ROUND_OFF = "below round-off"    # an error estimate within the outputs' round-off
 _ROUND_OFF = 8 * np.finfo(float).eps    # per step, relative to the output's size
+CANCELS = 0.1   # an error estimate under this share of the size of the terms it sums
+
+
+def cancelled(detail: str = "") -> str:
+    """The words of an error estimate under CANCELS of its terms' size: unresolved (what is
+    left of terms that cancel; the terms are estimates, good to a few tens of percent)."""
+    return (f"unresolved (its error is what is left of terms that cancel to under {CANCELS:g} "
+            f"of their sum{detail})")
 
 
 def round_off(values, steps: int) -> float:

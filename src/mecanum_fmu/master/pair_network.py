@@ -42,13 +42,14 @@ import copy
 
 import numpy as np
 
+from ..results import CANCELS
 from .pair_parts import Group, Network, Node
 
 SUB = 1024          # the steps worked out at once (memory: S is (rows, columns, X) per batch)
-# an integral's error under this share of the sum of its terms' |values|: unresolved (the
-# terms are good to about 20% where the linearisation is worst, on the hard start at twice
-# its step: what is left of them under a tenth of their sum may be off by over 2x)
-CANCELS = 0.1
+# CANCELS (results.py): an integral's error under that share of the sum of its terms' |values|
+# is unresolved (the terms are good to about 20% where the linearisation is worst, on the hard
+# start at twice its step: what is left of them under a tenth of their sum may be off by over
+# 2x)
 SPREAD = 8          # that sum is taken on every SPREAD-th step (times SPREAD)
 
 

@@ -14,17 +14,16 @@ import time as _time
 
 import numpy as np
 
-from ..results import round_off
+from ..results import cancelled, round_off
 from .breakpoints import pieces
 from .pair_parts import Group, PairPlan
 from .pair_loop import LoopCarry
-from .pair_network import CANCELS, NetworkCarry
+from .pair_network import NetworkCarry
 from .stencils import FOUR, means, values, weight_table
 
 # a carried error over this share of the value an output divides by: its linearisation fails
 ILL = 0.1
-CANCELLED = ("unresolved (its error is what is left of terms that cancel to under "
-             f"{CANCELS:g} of their sum, finer than the linearisation resolves)")
+CANCELLED = cancelled(", finer than the linearisation resolves")
 # a divisor that comes within this share of its largest |value| of 0: 1 / its square magnifies
 # one row's error (the ICR's max on a path whose w crosses 0 read 7x over)
 NEAR_ZERO = 0.01

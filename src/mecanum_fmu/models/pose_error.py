@@ -34,7 +34,8 @@ class PoseError:
     The client interface (master/adaptive.py): `outputs` (the variables it covers), step(h,
     left) -> (this step's own error, in the outputs' unit, and an update), after(h, update)
     (the largest accumulated |error| if the step were accepted), accept(h, update), now(signed)
-    (per output: the accumulated error)."""
+    (per output: the accumulated error), terms() (per output: the size of the terms the
+    signed one sums, for the master's test of cancellation)."""
 
     def __init__(self, blend, index: list[int], inst):
         self.blend, self.index, self.name = blend, index, inst.name
@@ -47,6 +48,10 @@ class PoseError:
         self.e = np.zeros((2, 2))
         self.heading = np.zeros(2)
         self.moment = np.zeros((2, 2))
+        # the signed sums' terms taken apart, but for the jumps' own steps (their error is
+        # exact, h (new - old) / 2): |position error| per axis, |heading error|, and |heading
+        # error| x |p_t| per axis
+        self.sizes = np.zeros(5)
 
     @property
     def sources(self):
@@ -72,22 +77,27 @@ class PoseError:
                          (h * signed[ivx] + sx + ty, h * signed[ivy] + sy - tx)])
         e_theta = np.array([h * abs(e[iw]) + abs(uw), h * signed[iw] + sw])
         bound = math.hypot(*body[0]) + e_theta[0] * math.hypot(vx, vy) * left
-        return max(bound, float(e_theta[0])), (body, e_theta, (vx, vy, w))
+        return max(bound, float(e_theta[0])), (body, e_theta, (vx, vy, w), self.blend.exact)
 
     def after(self, h: float, update: tuple) -> float:
         """The largest |error| of x, y, theta if the step were accepted."""
         saved = (self.theta, self.p.copy(), self.e.copy(), self.heading.copy(),
-                 self.moment.copy())
+                 self.moment.copy(), self.sizes.copy())
         self.accept(h, update)
         worst = max(self.now())
-        self.theta, self.p, self.e, self.heading, self.moment = saved
+        self.theta, self.p, self.e, self.heading, self.moment, self.sizes = saved
         return worst
 
     def accept(self, h: float, update: tuple) -> None:
-        body, e_theta, (vx, vy, w) = update
+        body, e_theta, (vx, vy, w), exact = update
         c, s = math.cos(self.theta), math.sin(self.theta)
-        self.e += np.column_stack((c * body[:, 0] - s * body[:, 1],
-                                   s * body[:, 0] + c * body[:, 1]))
+        world = np.column_stack((c * body[:, 0] - s * body[:, 1],
+                                 s * body[:, 0] + c * body[:, 1]))
+        self.e += world
+        if not exact:
+            heading = abs(float(e_theta[1]))
+            self.sizes += (abs(world[1, 0]), abs(world[1, 1]), heading,
+                           heading * abs(self.p[0]), heading * abs(self.p[1]))
         self.p += (h * (c * vx - s * vy), h * (s * vx + c * vy))
         self.theta += h * w
         self.heading += e_theta
@@ -101,6 +111,14 @@ class PoseError:
         carried = self.p * self.heading[k] - self.moment[k]
         return (abs(self.e[k, 0] - carried[1]), abs(self.e[k, 1] + carried[0]),
                 abs(self.heading[k]))
+
+    def terms(self) -> tuple[float, float, float]:
+        """Per x, y, theta, the size of the terms now(signed=True) sums: each step's |error|
+        and, for the heading's lever arm e_t (p - p_t), |e_t| (|p| + |p_t|) (a bound of its
+        size, from two running sums)."""
+        ex, ey, heading, mx, my = self.sizes
+        return (ex + heading * abs(self.p[1]) + my, ey + heading * abs(self.p[0]) + mx,
+                heading)
 
 
 def pose_batch(names: list[str], inst) -> "PoseBatch | None":
