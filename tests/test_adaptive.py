@@ -294,3 +294,11 @@ def test_a_table_corners_segment_takes_enough_steps_for_its_rows_and_their_estim
     graph, results = _run(ROOT / "scenarios" / "profiles" / "joystick.yaml", 1e-3)
     assert _within_3x_on_every_output(graph, results) == []
     assert results.steps_taken + results.steps_rejected < 1200
+    # rows only on the corners (every 0.05 s, as the table's): no row to interpolate, so one
+    # step per segment is enough (240 corners in 12 s), and the estimates hold
+    graph, exp = with_experiment(runner.prepare(ROOT / "scenarios" / "profiles" /
+                                                "joystick.yaml", master_name="adaptive"),
+                                 tolerance=1e-3, step_size=0.05)
+    results = master.simulate(graph, exp)
+    assert _within_3x_on_every_output(graph, results) == []
+    assert results.steps_taken + results.steps_rejected < 1.1 * 240

@@ -373,7 +373,7 @@ class Stops:
         """Whether t is the stop just before a jump: the next step is the jump's own."""
         return self.on(t, self.before)
 
-    def restart_step(self, t: float, stop: float, first: float) -> float:
+    def restart_step(self, t: float, stop: float, first: float, rows) -> float:
         """The longest first step after the stop at t. After an expression's breakpoint,
         `first` (first_step): what follows it is unknown, and the holds restart, so a first
         step's error has no estimate (on quiet_then_busy a 0.67 s step just after t = 8,
@@ -382,12 +382,14 @@ class Stops:
         hold takes exactly, but the rows of a segment of one step lie on the line through its
         two points, whose error two points cannot estimate (the joystick's theta: 2.3e-5 rad,
         said to be below round-off); four points give the rows their cubic and its estimate
-        (with three, a bound: 9-11x over on the joystick's x). Else (a jump of a hold table:
-        constant after it) no limit."""
+        (with three, a bound: 9-11x over on the joystick's x); where no row falls inside
+        the segment (`rows`: dense.DenseRows.row_inside), no limit. Else (a jump of a hold
+        table: constant after it) no limit."""
         if self.on(t, self.compared):
             return first
-        if self.on(t, self.kinks):
-            return (self.next(t, stop) - t) / 3
+        end = self.next(t, stop)
+        if self.on(t, self.kinks) and rows(t, end):
+            return (end - t) / 3
         return math.inf
 
     def next(self, t: float, target: float) -> float:
@@ -500,7 +502,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
         counts["estimates"].extend(loop.rows.emit(final=at_stop or t == stop))
         if at_stop:
             holds.at_breakpoint(stops.before_jump(t))
-            loop.control.restart(stops.restart_step(t, stop, loop.first))
+            loop.control.restart(stops.restart_step(t, stop, loop.first, loop.rows.row_inside))
             loop.rows.restart(t, loop.estimate())
         if progress is not None and _time.perf_counter() >= next_report:
             progress((t - start) / (stop - start))

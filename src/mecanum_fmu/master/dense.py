@@ -84,6 +84,12 @@ class DenseRows:
         self.times: list[float] = []
         self.points: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
+    def row_inside(self, start: float, end: float) -> bool:
+        """Whether an output row falls strictly between start and end (a segment's rows are
+        interpolated from its points; one on either end is that point's values)."""
+        i = int(np.searchsorted(self.row_times, start + self.near, side="right"))
+        return i < len(self.row_times) and self.row_times[i] < end - self.near
+
     def restart(self, t: float, estimate: list[float]) -> None:
         """A new segment from t (a stop, the start): the values now are its first point."""
         self.times, self.points = [], []
