@@ -302,3 +302,24 @@ def test_a_table_corners_segment_takes_enough_steps_for_its_rows_and_their_estim
     results = master.simulate(graph, exp)
     assert _within_3x_on_every_output(graph, results) == []
     assert results.steps_taken + results.steps_rejected < 1.1 * 240
+
+
+def test_a_recorded_path_meets_the_tolerance_with_a_stop_on_every_row():
+    """closed_loop/recorded_path.yaml: the follower's feed-forward jumps at every row of the
+    path (10 Hz). The rows were no stops, so a step spanned each jump: the heading ended 19x
+    TOL 1e-3 off, estimated 95x under, and at 1e-5 the run stopped (the tolerance needed a
+    step of 2e-11 s). As stops, a loop's predictor took the slope over the jump's own step
+    (1e-7 s) for the slope after it and fed that round the loop. Now the recorded path is
+    within a tenth of its tolerance against the quadratic master at 1/64 of the step (which
+    agrees with itself at 1/16 to 5e-8 rad), and each max estimate is 1/3x to 10x the
+    error it estimates (2.8x on x)."""
+    path = ROOT / "scenarios" / "closed_loop" / "recorded_path.yaml"
+    graph, results = _run(path, 1e-3)
+    fine_graph, exp = with_experiment(runner.prepare(path, master_name="quadratic"),
+                                      step_size=0.05 / 64)
+    fine = master.simulate(fine_graph, exp)
+    for k in ("x", "y", "theta"):
+        error = np.abs(results[f"pose.{k}"] - fine[f"pose.{k}"][::64])
+        assert error.max() <= 1e-3 / 10, k
+        estimate = results.extra["error_estimate"][f"pose.{k}"]["max"]
+        assert error.max() / 3 <= estimate <= 10 * error.max(), (k, estimate, error.max())

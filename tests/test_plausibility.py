@@ -119,19 +119,3 @@ def test_the_gain_warning_sits_at_the_stability_limit(tmp_path, fmu_dir, master,
         assert _diverges(path, fmu_dir, tmp_path / f"{master}{factor}") == unstable
         if warned:
             assert f"h k = {2.0 * step:.3g}" in warned[0] and master in warned[0]
-
-
-def test_a_path_table_under_the_adaptive_master_is_named_with_the_fix(fmu_dir):
-    """closed_loop/recorded_path.yaml under the adaptive master: the path's rows are no stops,
-    and the follower's jump at each row inside a step is not in the estimate. Against a run
-    at 1/64 of the step its heading ended 6x (TOL 1e-2) to 19x (1e-3) the tolerance off.
-    Under its own (fixed-step) master: no warning; a twist table (profiles/joystick.yaml)
-    under the adaptive master: none either (its corners are stops)."""
-    path = ROOT / "scenarios" / "closed_loop" / "recorded_path.yaml"
-    found = [w for w in prepare(path, fmu_dir=fmu_dir, master_name="adaptive").warnings
-             if ": components.follower.table: " in w]
-    assert len(found) == 1 and "use a fixed-step master (quadratic)" in found[0], found
-    assert not any(".table:" in w for w in prepare(path, fmu_dir=fmu_dir).warnings)
-    joystick = ROOT / "scenarios" / "profiles" / "joystick.yaml"
-    assert not any(".table:" in w for w in prepare(joystick, fmu_dir=fmu_dir,
-                                                   master_name="adaptive").warnings)

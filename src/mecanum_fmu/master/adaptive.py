@@ -173,7 +173,10 @@ class _VarBlend:
                 self.b[:] = np.where(smooth, third / 6, 0.0)
             mean = mean - correction
         if hs.mode == hs.PREDICT:
-            slope = (u - u1) / g
+            # no slope from before a breakpoint: across a jump's own step (1e-7 s) it is the
+            # jump over that step, and a loop's predictor fed it on (the recorded path's
+            # heading: 2.5e-3 rad in one step after a row)
+            slope = (u - u1) / g if hs.history >= 1 else 0.0
             self.staging[:] = np.where(self.ahead, u + slope * h / 2,
                                        np.where(self.fed, u + slope * h, mean))
         else:
@@ -337,9 +340,9 @@ class Stops:
     interval before it (at most a third of the way back to the stop before it, so that a
     short segment keeps its own steps), then on it, so that the step that sees the new value
     at its end is that short (the hold's mean blends the two values: the jump costs the step
-    before it h |jump| / 2, under every hold, whatever the tolerance). The number an
-    expression compares t with (Breaks.compared) is taken as a jump; another table's rows (a
-    path's) are no stops. A stop is a breakpoint for the holds too
+    before it h |jump| / 2, under every hold, whatever the tolerance). A breakpoint that may
+    be either (Breaks.others: the number an expression compares t with, another table's row,
+    a path's) is taken as a jump. A stop is a breakpoint for the holds too
     (AdaptiveHolds.at_breakpoint), and the step after it may start shorter (restart_step)."""
 
     JUMP = 1e-6
@@ -347,7 +350,7 @@ class Stops:
     def __init__(self, graph, start: float, stop: float, interval: float):
         breaks = graph_breaks(graph)
         jumps = np.unique(np.concatenate([np.asarray(breaks.jumps, dtype=float),
-                                          np.asarray(breaks.compared, dtype=float)]))
+                                          np.asarray(breaks.others, dtype=float)]))
         marks = np.unique(np.concatenate([[start], np.asarray(breaks.kinks, dtype=float),
                                           jumps]))
         gap = jumps - marks[np.maximum(np.searchsorted(marks, jumps) - 1, 0)]
@@ -360,7 +363,7 @@ class Stops:
         self.times = sorted(x for x in set(times) if start + near < x < stop - near)
         self.before = sorted(float(x) for x in before)
         self.kinks = sorted(float(x) for x in breaks.kinks)
-        self.compared = sorted(float(x) for x in breaks.compared)
+        self.others = sorted(float(x) for x in breaks.others)
         self.i = 0
 
     def on(self, t: float, times: list[float] | None = None) -> bool:
@@ -374,10 +377,11 @@ class Stops:
         return self.on(t, self.before)
 
     def restart_step(self, t: float, stop: float, first: float, rows) -> float:
-        """The longest first step after the stop at t. After an expression's breakpoint,
-        `first` (first_step): what follows it is unknown, and the holds restart, so a first
-        step's error has no estimate (on quiet_then_busy a 0.67 s step just after t = 8,
-        where w starts to turn, left theta 92x TOL 1e-2 off). After a table's corner, a
+        """The longest first step after the stop at t. After a breakpoint that may be either
+        (an expression's, a path's row), `first` (first_step): what follows it is unknown,
+        and the holds restart, so a first step's error has no estimate (on quiet_then_busy a
+        0.67 s step just after t = 8, where w starts to turn, left theta 92x TOL 1e-2 off).
+        After a table's corner, a
         third of the way to the next stop: the input goes on as a line, which the restarted
         hold takes exactly, but the rows of a segment of one step lie on the line through its
         two points, whose error two points cannot estimate (the joystick's theta: 2.3e-5 rad,
@@ -385,7 +389,7 @@ class Stops:
         (with three, a bound: 9-11x over on the joystick's x); where no row falls inside
         the segment (`rows`: dense.DenseRows.row_inside), no limit. Else (a jump of a hold
         table: constant after it) no limit."""
-        if self.on(t, self.compared):
+        if self.on(t, self.others):
             return first
         end = self.next(t, stop)
         if self.on(t, self.kinks) and rows(t, end):

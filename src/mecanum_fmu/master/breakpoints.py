@@ -1,9 +1,9 @@
 """Where the sources' values jump or kink: the one reader of a graph's breakpoints for the
 master (the graph carries them; this module knows no model). The adaptive master ends its
-steps on the twist tables' and the expressions' (not on a path's rows: Stops,
-master/adaptive.py); the fixed-step masters cut the step that ends on a jump (step_cuts);
-the error estimate keeps all of them on its coarser grids (master/richardson.py); the
-embedded pair reads the sources' smooth pieces on the grid (pieces)."""
+steps on every one of them (Stops, master/adaptive.py); the fixed-step masters cut the step
+that ends on a jump (step_cuts); the error estimate keeps all of them on its coarser grids
+(master/richardson.py); the embedded pair reads the sources' smooth pieces on the grid
+(pieces)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

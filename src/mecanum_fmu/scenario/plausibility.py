@@ -11,9 +11,6 @@ Graph.warnings.
   (masters.py, docs/masters.md).
 - A sampled block (Encoder, Gyro, Odometry) whose period is not a whole number of steps:
   its samples do not land on communication points (docs/robot.md, Sample times).
-- A path table (any table but a twist's) under the adaptive master: its rows are no stops,
-  and what the block does at each of them inside a step its error estimate does not see
-  (docs/masters.md, "The adaptive master").
 
 Instances are duck-typed (graph.Instance): .name, .model_name, .declared_at, .start_values,
 .value(name), .can_get_set_state, .table (tables.Table); this module imports nothing of
@@ -50,7 +47,7 @@ def problems(scenario, instances) -> list[Problem]:
     for inst in instances:
         for place, message in (_units(scenario, inst) + _table_span(scenario, inst)
                                + _stability(scenario, inst, instances)
-                               + _sampling(scenario, inst) + _path_rows(scenario, inst)):
+                               + _sampling(scenario, inst)):
             problem = Problem(scenario.label, place, message)
             if problem not in found:        # a shared parameter is seen by every taker
                 found.append(problem)
@@ -136,19 +133,6 @@ def _sampling(scenario, inst) -> list[tuple[str, str]]:
     return [(_place(scenario, inst, "period"),
              f"period = {period:g} s is not a whole number of steps of {exp.step_size:g} s: "
              f"{what}; use a step of period/n (e.g. {period / max(1, math.ceil(ratio)):g} s)")]
-
-
-def _path_rows(scenario, inst) -> list[tuple[str, str]]:
-    """A path table's rows under the adaptive master (a twist table's corners and jumps are
-    its stops; another table's rows are not: taken as stops, they did worse)."""
-    if inst.table is None or inst.table.is_twist or not master_entry(
-            scenario.experiment.master).adaptive:
-        return []
-    return [(f"{inst.declared_at}.table",
-             "the adaptive master does not stop on this table's rows, and what the block "
-             "does at a row inside a step its error estimate does not see (on "
-             "closed_loop/recorded_path.yaml the heading ends 6x to 19x its tolerance off); "
-             "use a fixed-step master (quadratic) with a step that divides the rows' spacing")]
 
 
 def _stability(scenario, inst, instances) -> list[tuple[str, str]]:

@@ -13,7 +13,7 @@ and from the numbers the expressions compare t with; the graph carries them too 
 from __future__ import annotations
 
 import ast
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -88,8 +88,6 @@ class Breaks:
     jumps: np.ndarray    # a twist table's value jumps: a hold table's changes (segments)
     others: np.ndarray   # either, or neither: the numbers an expression compares t with
     # (`where(t < 8, ...)`) and the rows of any other table (a path's)
-    # those of `others` that an expression compares t with (what follows them is unknown)
-    compared: np.ndarray = field(default_factory=lambda: np.array([]))
 
     def times(self) -> np.ndarray:
         """Every breakpoint, sorted, once."""
@@ -99,7 +97,7 @@ class Breaks:
 def source_breaks(instances) -> Breaks:
     """The breakpoints of every source among `instances` (graph.Instance: .table,
     .start_values, .value(name))."""
-    kinks, jumps, others, compared = ([np.array([])] for _ in range(4))
+    kinks, jumps, others = [np.array([])], [np.array([])], [np.array([])]
     for inst in instances:
         table = inst.table
         if table is not None and table.is_twist:
@@ -110,9 +108,8 @@ def source_breaks(instances) -> Breaks:
             others.append(table.times)
         for name, value in inst.start_values.items():
             if name.endswith("_expr") and isinstance(value, str):
-                compared.append(np.array(compared_times(value), dtype=float))
-    others += compared
-    return Breaks(*(np.unique(np.concatenate(p)) for p in (kinks, jumps, others, compared)))
+                others.append(np.array(compared_times(value), dtype=float))
+    return Breaks(*(np.unique(np.concatenate(p)) for p in (kinks, jumps, others)))
 
 
 def compared_times(text: str) -> list[float]:
