@@ -377,18 +377,20 @@ class Stops:
         return self.on(t, self.before)
 
     def restart_step(self, t: float, stop: float, first: float, rows) -> float:
-        """The longest first step after the stop at t. After a breakpoint that may be either
-        (an expression's, a path's row), `first` (first_step): what follows it is unknown,
-        and the holds restart, so a first step's error has no estimate (on quiet_then_busy a
-        0.67 s step just after t = 8, where w starts to turn, left theta 92x TOL 1e-2 off).
-        After a table's corner, a
-        third of the way to the next stop: the input goes on as a line, which the restarted
-        hold takes exactly, but the rows of a segment of one step lie on the line through its
-        two points, whose error two points cannot estimate (the joystick's theta: 2.3e-5 rad,
-        said to be below round-off); four points give the rows their cubic and its estimate
-        (with three, a bound: 9-11x over on the joystick's x); where no row falls inside
-        the segment (`rows`: dense.DenseRows.row_inside), no limit. Else (a jump of a hold
-        table: constant after it) no limit."""
+        """The longest first step after the stop at t.
+        - After a breakpoint that may be either (an expression's, a path's row), `first`
+          (first_step): what follows it is unknown, and the holds restart, so a first step's
+          error has no estimate (on quiet_then_busy a 0.67 s step just after t = 8, where w
+          starts to turn, left theta 92x TOL 1e-2 off).
+        - After a table's corner, where a row falls inside the segment (`rows`:
+          dense.DenseRows.row_inside), a third of the way to the next stop: the input goes on
+          as a line, which the restarted hold takes exactly, but the rows of a segment of one
+          step lie on the line through its two points, whose error two points cannot
+          estimate (the joystick's theta: 2.3e-5 rad, said to be below round-off); four
+          points give the rows their cubic and its estimate (with three, a bound: 9-11x over
+          on the joystick's x).
+        - Else (a jump of a hold table: constant after it; a corner with no row inside its
+          segment) no limit."""
         if self.on(t, self.others):
             return first
         end = self.next(t, stop)
