@@ -1,6 +1,6 @@
 """Where the sources' values jump or kink: the one reader of a graph's breakpoints for the
 master (the graph carries them; this module knows no model). The adaptive master ends its
-steps on every one of them (Stops, master/adaptive.py); the fixed-step masters cut the step
+steps on every one of them (Stops, master/step_control.py); the fixed-step masters cut the step
 that ends on a jump (step_cuts); the error estimate keeps all of them on its coarser grids
 (master/richardson.py); the embedded pair reads the sources' smooth pieces on the grid
 (pieces)."""
