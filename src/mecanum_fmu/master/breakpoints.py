@@ -104,7 +104,7 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     def mark(j: int, kind: str) -> None:
         if _RANK[kind] >= _RANK[bounds.get(j, "kink")]:
             bounds[j] = kind
-    for times, kind in ((breaks.kinks, "kink"), (breaks.jumps, "jump"), (breaks.others, "jump")):
+    for times, kind in ((breaks.kinks, "kink"), (breaks.taken_as_jumps(), "jump")):
         for b in np.asarray(times, dtype=float):
             x = (b - start) / h
             j = int(round(x))

@@ -39,8 +39,7 @@ class Stops:
 
     def __init__(self, graph, start: float, stop: float, interval: float):
         breaks = graph_breaks(graph)
-        jumps = np.unique(np.concatenate([np.asarray(breaks.jumps, dtype=float),
-                                          np.asarray(breaks.others, dtype=float)]))
+        jumps = breaks.taken_as_jumps()
         marks = np.unique(np.concatenate([[start], np.asarray(breaks.kinks, dtype=float),
                                           jumps]))
         gap = jumps - marks[np.maximum(np.searchsorted(marks, jumps) - 1, 0)]

@@ -123,7 +123,7 @@ def jump_cuts(graph: Graph, exp, n_steps: int) -> dict[int, Cut]:
     (an expression's comparison with t, a path's row): breakpoints.step_cuts. A kink needs no
     cut (the limited holds integrate a piecewise-linear input exactly)."""
     breaks = graph_breaks(graph)
-    return step_cuts(np.concatenate((breaks.jumps, breaks.others)), exp.start_time,
+    return step_cuts(breaks.taken_as_jumps(), exp.start_time,
                      exp.step_size, n_steps, exp.stop_time)
 
 

@@ -93,6 +93,11 @@ class Breaks:
         """Every breakpoint, sorted, once."""
         return np.unique(np.concatenate((self.kinks, self.jumps, self.others)))
 
+    def taken_as_jumps(self) -> np.ndarray:
+        """The jumps and the breakpoints that may be one (`others`), sorted, once: what the
+        masters treat as a jump (the fixed-step cuts, the adaptive stops, the pair's pieces)."""
+        return np.unique(np.concatenate((self.jumps, self.others)))
+
 
 def source_breaks(instances) -> Breaks:
     """The breakpoints of every source among `instances` (graph.Instance: .table,
