@@ -427,8 +427,10 @@ def test_a_loop_on_belief_reports_the_drift(fmu_dir, tmp_path):
     belief = summary["belief"]
     assert belief["instance"] == "odom" and belief["closes_the_loop"] is True
     ref, end = summary["reference_end_pose"], summary["end_pose"]
-    # the belief ends on the reference (within the follower's lag), the truth 27 mm off it
-    assert math.dist((belief["end_pose"]["x"], belief["end_pose"]["y"]), (ref["x"], ref["y"])) < 1e-3
+    # the belief ends on the reference within the follower's lag: it acts on a belief up to a
+    # sample period old (docs/masters.md, "Samples"), and the reference moves at 1 m/s, so
+    # less than one period of travel, 1 m/s x 0.01 s; the truth is 27 mm off it
+    assert math.dist((belief["end_pose"]["x"], belief["end_pose"]["y"]), (ref["x"], ref["y"])) < 1e-2
     drift = math.dist((belief["end_pose"]["x"], belief["end_pose"]["y"]), (end["x"], end["y"]))
     assert belief["drift"]["position"] == pytest.approx(drift, rel=1e-12) and drift > 0.01
     assert any("fed the odometry's belief" in line for line in lines)

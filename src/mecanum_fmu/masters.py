@@ -25,6 +25,11 @@ class Master:
     # pass and, for a master that rolls back, rolled back (tests/test_plausibility.py)
     loop_limit: float | None = None
     rolled_back_loop_limit: float | None = None
+    # a discrete output (a sensor's sample) is read by an FMU with a continuous output at its
+    # value at the step's start, the value it holds over the step (Graph.held); after it
+    # changes, the outputs are read again with the new sample (stepping.settle) and the
+    # holds' history moves by the jump they made (docs/masters.md, "Samples")
+    holds_samples: bool = False
 
 
 # The loop limits, measured on track_circle with a fixed reference and no heading error: the
@@ -38,10 +43,10 @@ REGISTRY: dict[str, Master] = {m.name: m for m in (
     Master("quadratic", "quadratic", False, True, 3,
            "Gauss-Seidel order; state-only inputs held at the limited parabola's mean; "
            "loops predicted, rolled back and corrected", loop_limit=1.0,
-           rolled_back_loop_limit=2.0),
+           rolled_back_loop_limit=2.0, holds_samples=True),
     Master("trapezoidal", "trapezoidal", False, False, 2,
            "Gauss-Seidel order; state-only inputs held at the mean of the step's end values",
-           loop_limit=1.0),
+           loop_limit=1.0, holds_samples=True),
     Master("gauss-seidel", "zoh", False, False, 1,
            "dependency order, zero-order hold of the newest values", loop_limit=2.0),
     Master("jacobi", "zoh", True, False, 1,

@@ -59,7 +59,7 @@ def simulate(graph: Graph, experiment: Experiment,
         running = _start_instances(graph, stack)
         holds = plan_transfers(running, graph, buffers, how.hold,
                                AdaptiveHolds(how.hold, graph.error_models) if how.adaptive
-                               else None)
+                               else None, how.holds_samples)
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)

@@ -95,6 +95,7 @@ class RunningInstance:
         self.reads: list = []     # (c_get, vrs, n, pointer), filled by the plan
         self.writes: list = []    # (fill, c_set, vrs, n, pointer)
         self.resets: list = []    # the same, set after doStep and before the reads (plan.py)
+        self.settles: list = []   # the writes of a settle (stepping.settle): the newest values
 
     def function_name(self, name: str) -> str:
         """This instance's name for an FMI 2.0 function the stepping code names in a failure

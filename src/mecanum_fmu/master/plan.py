@@ -37,6 +37,10 @@ class Buffers:
         self.frozen = freeze
         self.real_in, self.int_in = ((self.real.copy(), self.int.copy()) if freeze
                                      else (self.real, self.int))
+        # The discrete outputs an FMU with continuous outputs reads, at the step's start
+        # (masters.Master.holds_samples): their values then, and their slots per kind
+        self.real_held, self.int_held = self.real.copy(), self.int.copy()
+        self.held_slots: dict[str, np.ndarray] = {}
 
     def slots(self, port: Port) -> dict[Port, int]:
         return self.real_slots if port.type == "Real" else self.int_slots
@@ -49,6 +53,19 @@ class Buffers:
 
     def inp(self, kind: str) -> np.ndarray:
         return self.real_in if kind == "Real" else self.int_in
+
+    def held(self, kind: str) -> np.ndarray:
+        return self.real_held if kind == "Real" else self.int_held
+
+    def hold(self) -> None:
+        """A step starts: the held discrete outputs' values over it."""
+        self.real_held[:] = self.real
+        self.int_held[:] = self.int
+
+    def changed(self) -> bool:
+        """Whether a held discrete output changed in the step (after hold())."""
+        return any(bool((self.out(kind)[s] != self.held(kind)[s]).any())
+                   for kind, s in self.held_slots.items())
 
     def freeze(self) -> None:
         """Jacobi: copy the values at t_k into the input buffers."""
@@ -68,15 +85,23 @@ def _outputs_of(graph: Graph) -> dict[str, list[Port]]:
 
 
 def plan_transfers(running: list[RunningInstance], graph: Graph, buffers: Buffers,
-                   hold: str, holds: "Holds | None" = None) -> Holds:
+                   hold: str, holds: "Holds | None" = None, samples: bool = False) -> Holds:
     """Preallocate, per instance and type, one batched get and one batched set (see
     _plan_writes). `hold`: "zoh" (Gauss-Seidel, Jacobi), "trapezoidal" or "quadratic";
-    `holds`: where the blended inputs go (default: a Holds of that hold's fixed weights)."""
+    `holds`: where the blended inputs go (default: a Holds of that hold's fixed weights);
+    `samples`: discrete outputs are held at the step's start (masters.Master.holds_samples)."""
     position = {r.name: i for i, r in enumerate(running)}
     holds = Holds(hold) if holds is None else holds
     for r in running:
         _plan_reads(r, buffers)
-        _plan_writes(r, graph, buffers, position, hold, holds)
+        held = [l for l in graph.held if l.target.ref.instance == r.name] if samples else []
+        _plan_held(r, held, buffers)
+        _plan_writes(r, graph, buffers, position, hold, holds, held)
+    if buffers.held_slots:          # a settle's writes: a blend's inputs at their newest
+        newest = {b.fill: b.newest for b in holds.blends}
+        for r in running:
+            if r.name in graph.settled:
+                r.settles = [(newest.get(fill, fill), *rest) for fill, *rest in r.writes]
     return holds
 
 
@@ -92,13 +117,29 @@ def _plan_reads(r: RunningInstance, buffers: Buffers) -> None:
                             _pointer(buffers.out(kind), first, _C_TYPES[kind][0])))
 
 
+def _plan_held(r: RunningInstance, held: list, buffers: Buffers) -> None:
+    """The held links' sets: from the values at the step's start (Buffers.hold)."""
+    for kind in ("Real", "Integer", "Boolean"):
+        mine = [l for l in held if l.target.type == kind]
+        if not mine:
+            continue
+        ctype, dtype = _C_TYPES[kind]
+        src = np.array([buffers.slot(l.source) for l in mine], dtype=np.intp)
+        slots = buffers.held_slots.get(kind, np.zeros(0, dtype=np.intp))
+        buffers.held_slots[kind] = np.union1d(slots, src).astype(np.intp)
+        staging = np.zeros(len(mine), dtype=dtype)
+        r.writes.append((_take(buffers.held(kind), src, staging), r.c_set[kind],
+                         _vr_array([l.target.vr for l in mine]), len(mine),
+                         _pointer(staging, 0, ctype)))
+
+
 def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: dict,
-                 hold: str, holds: Holds) -> None:
+                 hold: str, holds: Holds, held: list) -> None:
     """A set takes its values straight from the input buffer when its sources sit in one
     contiguous run in the right order (the usual chain), else from a staging array filled by
     one np.take. Real inputs that a hold blends (see HOLDS) get a staging array filled from
     their history."""
-    links = [l for l in graph.links if l.target.ref.instance == r.name]
+    links = [l for l in graph.links if l.target.ref.instance == r.name and l not in held]
     roles = _blend_roles(r, links, position, holds.through) if hold != "zoh" else {}
     real = [l for l in links if l.target.type == "Real"]
     groups = (("Real", [l for l in real if l.target.ref.variable not in roles]),
@@ -225,6 +266,13 @@ class Holds:
                 b.commit()
         self.steps = 0
 
+    def shift(self) -> None:
+        """The inputs jumped (a discrete output changed): the history moves by the jump, its
+        slope and curvature kept (the step before held the left values)."""
+        for b in self.blends:
+            b.shift()
+        self.mode = self.PREDICT
+
     def commit(self) -> None:
         """The step is final: its end values become u_k, and the history moves back one."""
         for b in self.blends:
@@ -266,6 +314,7 @@ class _Blend:
         # as the arithmetic on these few values)
         self.first3, self.first2 = self.history[:3 * m], self.history[:2 * m]
         self.middle2, self.last2 = self.history[m:3 * m], self.history[2 * m:]
+        self.behind, self.jump = self.history[m:].reshape(3, m), np.zeros(m)     # (shift)
 
     def fill(self) -> None:
         self.buffer.take(self.src, out=self.now)     # np.take without its Python wrapper
@@ -287,6 +336,15 @@ class _Blend:
             np.maximum(self.b, self.low, out=self.low)
             np.minimum(self.low, self.high, out=self.low)
             np.subtract(self.staging, self.low, out=self.staging)
+
+    def newest(self) -> None:
+        """The inputs at their newest values (a settle: plan.Buffers.hold)."""
+        self.buffer.take(self.src, out=self.staging)
+
+    def shift(self) -> None:
+        self.buffer.take(self.src, out=self.jump)
+        self.jump -= self.u_k
+        self.behind += self.jump            # u_k, u_k-1 and u_k-2 each move by the jump
 
     def commit(self) -> None:
         self.older[:] = self.old            # u_k-1 -> u_k-2, u_k -> u_k-1 (numpy copies

@@ -86,6 +86,9 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
     start, stop, h, n_steps = exp.start_time, exp.stop_time, exp.step_size, recorder.n_steps
     program = programs(running)
     record, commit = recorder.record, (holds.commit if holds.blends else None)
+    buffers = recorder.buffers
+    held = bool(buffers.held_slots)      # a sample an FMU holds (plan.Buffers.hold)
+    settling = [p for p in program if p[0].settles]
     cuts = jump_cuts(recorder.graph, exp, n_steps) if freeze is None else {}
     # One dot product per step finds any NaN or infinity in the Real values (0 * inf is NaN,
     # 0 * finite is 0, and a sum of zeros cannot overflow).
@@ -98,6 +101,8 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
         h_k = h if k < n_steps - 1 else stop - t
         if freeze is not None:
             freeze()
+        if held:
+            buffers.hold()
         if k in cuts:
             _pieces(running, program, holds, rollback, t, t + h_k, cuts[k], real_dot, zeros)
         else:
@@ -106,6 +111,10 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
             one_pass(program, t, h_k)
             if commit is not None:
                 commit()
+            if real_dot(zeros) != 0.0:
+                raise NonFinite(t + h_k)
+        if held and buffers.changed():
+            settle(settling, buffers, holds, t + h_k)
             if real_dot(zeros) != 0.0:
                 raise NonFinite(t + h_k)
         record()
@@ -125,6 +134,24 @@ def jump_cuts(graph: Graph, exp, n_steps: int) -> dict[int, Cut]:
     breaks = graph_breaks(graph)
     return step_cuts(breaks.taken_as_jumps(), exp.start_time,
                      exp.step_size, n_steps, exp.stop_time)
+
+
+def settle(settling: list, buffers, holds: Holds, t: float) -> None:
+    """A held discrete output (a sample) changed in the step that ended at t: each instance
+    whose outputs it moves at once (Graph.settled; `settling`: their entries of programs(),
+    in step order) is set its newest inputs, the new sample among them, and its outputs are
+    read again, with no doStep (an output with direct feedthrough follows its inputs at
+    once). The outputs made from the sample jump at t: the step's blends took their left
+    values, the next step starts from the right ones, the holds' history moved by the jump
+    (Holds.shift)."""
+    for r, comp, _, _, _, reads in settling:
+        buffers.hold()          # the newest values, those settled before it among them
+        _set(r, comp, r.settles, t, 0.0)
+        for c_get, vrs, n, pointer in reads:
+            st = c_get(comp, vrs, n, pointer)
+            if st > 1:
+                raise StepFailure(r, "get", st, t, t)
+    holds.shift()
 
 
 def _pieces(running: list[RunningInstance], program: list, holds: Holds, rollback: bool,

@@ -97,11 +97,40 @@ class Graph:
         runs with (a sweep's graph has its own)."""
         return source_breaks(self.instances)
 
+    @cached_property
+    def held(self) -> tuple[Link, ...]:
+        """The links from a discrete output (a sample: it changes at its own instants) into
+        an FMU with a continuous output: the masters that hold samples hold them at their
+        value at the step's start (masters.Master.holds_samples). A reader whose outputs are
+        all discrete samples at the same instants as its sources and reads their newest (the
+        Odometry its Encoders')."""
+        return tuple(l for l in self.links
+                     if _variability(self.instance(l.source.ref.instance), l.source) ==
+                     "discrete" and _continuous_output(self.instance(l.target.ref.instance)))
+
+    @cached_property
+    def settled(self) -> frozenset[str]:
+        """The FMUs whose outputs a new sample moves at once: the readers of `held` links
+        with an output that depends on an input, and what they feed through such outputs
+        (the PathFollower fed the belief, then Center2Wheel, Wheel2Center); what the master
+        reads again after a sample (stepping.settle)."""
+        through = {i.name for i in self.instances
+                   if any(u.dependencies != [] for u in i.model.outputs)}
+        reached = {l.target.ref.instance for l in self.held} & through
+        while True:
+            more = {l.target.ref.instance for l in self.links
+                    if l.source.ref.instance in reached} & through - reached
+            if not more:
+                return frozenset(reached)
+            reached |= more
+
     @property
     def sampled(self) -> list[str]:
-        """The models in it that sample at their own period (Encoder, Gyro, Odometry): a
-        coarser step samples them differently (the Richardson estimate says so)."""
-        return sorted({i.model_name for i in self.instances} & set(SAMPLED_MODELS))
+        """The models in it that sample at their own period (Encoder, Gyro, Odometry) or whose
+        discrete outputs an FMU with a continuous output reads (`held`): a coarser step
+        samples them differently (the Richardson estimate says so)."""
+        return sorted(({i.model_name for i in self.instances} & set(SAMPLED_MODELS)) |
+                      {self.instance(l.source.ref.instance).model_name for l in self.held})
 
     def find_model(self, model_name: str) -> Instance | None:
         """The single instance of a model, or None when there is none or several."""
@@ -111,6 +140,15 @@ class Graph:
 
 # FMI 3.0 types the master's kinds hold exactly (Float64 is FMI 2.0's Real, Int32 its Integer)
 _FMI3_KINDS = {"Float64": "Real", "Int32": "Integer"}
+
+
+def _variability(inst: Instance, port: Port) -> str:
+    return next(v.variability for v in inst.model.modelVariables if v.name == port.ref.variable)
+
+
+def _continuous_output(inst: Instance) -> bool:
+    return any(v.causality == "output" and v.variability == "continuous"
+               for v in inst.model.modelVariables)
 
 
 def port_type(var: ScalarVariable) -> str:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
 from ..errors import Problem
 from ..models.blocks.profile_table import TableError, parse_table

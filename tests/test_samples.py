@@ -1,0 +1,86 @@
+"""A discrete output (a sample) read by an FMU with continuous outputs, under the masters that
+hold samples (masters.Master.holds_samples: quadratic, trapezoidal): the reader steps on the
+sample's value at the step's start, the value it holds over the step, and after a sample
+changes the master reads the reader's outputs again (stepping.settle), so that an integrator
+downstream integrates a sampled-and-held input exactly. Third-party style FMUs
+(tests/fmu_sources/sampled), references from the closed forms."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mecanum_fmu import master, runner
+
+from helpers import ROOT, with_experiment, write_scenario
+from test_estimate_any_fmu import _declare_no_dependencies
+
+SOURCES = ROOT / "tests" / "fmu_sources" / "sampled"
+PERIOD, STOP = 0.1, 2.0
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    """The sampler, the ramp y = s + t and the integrator (its x declared free of u)."""
+    from pythonfmu import FmuBuilder
+    dest = tmp_path_factory.mktemp("sampled_fmus")
+    built = {script.stem: FmuBuilder.build_FMU(script, dest=dest, canGetAndSetFMUstate=True)
+             for script in sorted(SOURCES.glob("stest_*.py"))}
+    _declare_no_dependencies(built["stest_integral"])
+    return built
+
+
+def _scenario(folder, fmus, master_name: str):
+    return write_scenario(folder, "sampled", f"""\
+name: sampled
+experiment: {{start_time: 0.0, stop_time: {STOP}, step_size: {PERIOD}, master: {master_name}}}
+components:
+  sampler: {{fmu: {fmus["stest_sampler"]}, parameters: {{period: {PERIOD}}}}}
+  ramp: {{fmu: {fmus["stest_ramp"]}}}
+  integral: {{fmu: {fmus["stest_integral"]}}}
+connections:
+  - [sampler.s, ramp.s]
+  - [ramp.y, integral.u]
+""")
+
+
+def _sample(t: float) -> float:
+    """The held sample at t: sin(t_j), t_j the last sample time at or before t."""
+    return math.sin(math.floor(t / PERIOD + 1e-9) * PERIOD)
+
+
+def _integral(t: float) -> float:
+    """x(t) = the integral of s + tau from 0 to t, s held between samples."""
+    j = math.floor(t / PERIOD + 1e-9)
+    held = sum(math.sin(i * PERIOD) * PERIOD for i in range(j))
+    return held + _sample(t) * (t - j * PERIOD) + t * t / 2
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal"])
+@pytest.mark.parametrize("divide", [1, 2, 4])
+def test_a_sampled_and_held_input_is_integrated_exactly(tmp_path, fmus, master_name, divide):
+    graph = runner.prepare(_scenario(tmp_path, fmus, master_name))
+    graph, exp = with_experiment(graph, step_size=PERIOD / divide, estimate="none")
+    res = master.simulate(graph, exp)
+    truth = np.array([_integral(t) for t in res.time])
+    assert np.max(np.abs(res["integral.x"] - truth)) < 1e-12
+    # every row shows the reader's output after the sample of its own time (the right value)
+    ramp = np.array([_sample(t) + t for t in res.time])
+    assert np.max(np.abs(res["ramp.y"] - ramp)) < 1e-12
+    assert np.array_equal(res["sampler.s"], [_sample(t) for t in res.time])
+
+
+def test_gauss_seidel_reads_the_newest_sample_a_step_early(tmp_path, fmus):
+    """Gauss-Seidel holds every input at its newest value, a sample's too (docs/masters.md):
+    over [t_k, t_k+1] the ramp sees the sample of t_k+1, and the integral is the right
+    Riemann sum of s + t at the samples, an error of the first order."""
+    graph = runner.prepare(_scenario(tmp_path, fmus, "gauss-seidel"))
+    graph, exp = with_experiment(graph, estimate="none")
+    res = master.simulate(graph, exp)
+    t = res.time
+    right = np.concatenate(([0.0], np.cumsum([(_sample(b) + b) * (b - a)
+                                               for a, b in zip(t, t[1:])])))
+    assert np.max(np.abs(res["integral.x"] - right)) < 1e-12
+    truth = np.array([_integral(x) for x in t])
+    assert abs(res["integral.x"][-1] - truth[-1]) > 0.05      # about h/2 per unit of time
