@@ -254,6 +254,22 @@ def test_run_animate_flag(fmu_dir, tmp_path):
     assert gif in outcome.files and gif.is_file()
 
 
+def test_an_interrupted_animation_leaves_no_gif(fmu_dir, tmp_path, monkeypatch):
+    """Ctrl-C while the GIF is being written: no animation.gif (nor its temporary file) is
+    left that looks complete; the results before it are kept."""
+    from PIL import Image
+    def half_written(self, fp, *args, **kwargs):
+        Path(fp).write_bytes(b"GIF89a")          # a GIF's first bytes, then the interrupt
+        raise KeyboardInterrupt
+    monkeypatch.setattr(Image.Image, "save", half_written)
+    graph = runner.prepare(MODES_DIR / "spin_ccw.yaml", fmu_dir=fmu_dir, stop_time=0.05)
+    with pytest.raises(KeyboardInterrupt):
+        runner.run(graph, tmp_path, plots=False, animate=True, log=lambda line: None)
+    assert not (tmp_path / "animation.gif").exists()
+    assert not [p.name for p in tmp_path.iterdir() if "animation" in p.name]
+    assert (tmp_path / "results.csv").is_file()
+
+
 def test_icr_panel(mode_runs, fmu_dir, tmp_path):
     from mecanum_fmu.report import plots
     outcome = mode_runs["spin_ccw"]

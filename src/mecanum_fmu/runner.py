@@ -186,7 +186,9 @@ def _run_in(graph: Graph, topo: Topology, out: OutputFolder, *, plotter: PlotWor
         stage = "animation"
         if animate:
             from .report.animation import write_animation   # startup: matplotlib
-            files.append(write_animation(results, evaluation, out.path / "animation.gif"))
+            with out.atomic("animation.gif") as temp:       # no half-written GIF
+                write_animation(results, evaluation, temp)
+            files.append(out.path / "animation.gif")
     except Exception as err:    # the results are written: report the figure, keep the rest
         failed = MecanumError(f"writing the {stage} into {out.path} failed: "
                               f"{type(err).__name__}: {err}", files=files)
