@@ -33,8 +33,11 @@ With --drive: the robots with motors and a floor (no sampled sensor), every reco
 over their first DRIVE_STOP s against the same graph at 1/DRIVE_REFINE of the step (one model:
 the graph keeps body.h_ref), at the scenario's step and 2x.
 
+With --samples: the same for the robots with sampled sensors (scenarios/robot/belief_*), under
+--estimate richardson: the run repeated at h/2 (a coarser step would move the samples).
+
 Run: .venv/bin/python bench/estimates.py [--quick] [--only SUBSTRING] [--estimate richardson]
-     [--loops] [--adaptive] [--drive]
+     [--loops] [--adaptive] [--drive] [--samples]
 """
 from __future__ import annotations
 
@@ -232,15 +235,17 @@ DRIVE_STOP = 2.0        # --drive: the first 2 s of each robot scenario
 DRIVE_REFINE = 16       # its reference run's step, 1/16 of the run's
 
 
-def drive_scenarios() -> list[str]:
-    """The bundled robots with motors and a floor and no sampled sensor (--drive)."""
+def drive_scenarios(sampled: bool = False) -> list[str]:
+    """The bundled robots with motors and a floor and no sampled sensor (--drive), or with
+    `sampled` those with sampled sensors (--samples)."""
     found = []
     for path in sorted((ROOT / "scenarios" / "robot").glob("*.yaml")):
         try:
             graph = prepare(path)
         except MecanumError:
             continue                 # a sweep file, not a scenario
-        if not graph.sampled and any(i.model_name in DYNAMIC for i in graph.instances):
+        if sampled and graph.sampled or not sampled and not graph.sampled and any(
+                i.model_name in DYNAMIC for i in graph.instances):
             found.append(str(path.relative_to(ROOT / "scenarios")))
     return found
 
@@ -310,7 +315,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--drive", action="store_true",
                         help="the robots with motors and a floor instead, every recorded "
                              f"output against a run at 1/{DRIVE_REFINE} of the step")
+    parser.add_argument("--samples", action="store_true",
+                        help="the robots with sampled sensors instead, as --drive, under "
+                             "--estimate richardson (the run at h/2)")
     args = parser.parse_args(argv)
+    if args.samples:
+        return drive_table([s for s in drive_scenarios(True) if args.only in s],
+                           args.master or FIXED, "richardson")
     if args.drive:
         return drive_table([s for s in drive_scenarios() if args.only in s],
                            args.master or FIXED, args.estimate)

@@ -84,3 +84,31 @@ def test_gauss_seidel_reads_the_newest_sample_a_step_early(tmp_path, fmus):
     assert np.max(np.abs(res["integral.x"] - right)) < 1e-12
     truth = np.array([_integral(x) for x in t])
     assert abs(res["integral.x"][-1] - truth[-1]) > 0.05      # about h/2 per unit of time
+
+
+def test_by_name_richardson_repeats_a_sampled_run_at_half_the_step(tmp_path, fmus):
+    """A coarser step would move the samples; `--estimate richardson` repeats the run at h/2,
+    which keeps them. Gauss-Seidel's error here is first order (the right Riemann sum): the
+    estimate's largest value is within 3x of the closed form's; the quadratic master's run is
+    exact, and so is its estimate (below round-off). Under `auto` the pair leaves every
+    output made from the samples unresolved, and says how to get a number."""
+    path = _scenario(tmp_path, fmus, "gauss-seidel")
+    graph, exp = with_experiment(runner.prepare(path), estimate="richardson")
+    res = master.simulate(graph, exp)
+    found = master.estimate_error(graph, res)
+    assert "repeated at h/2" in found["error_estimate_method"]
+    error = np.abs(res["integral.x"] - np.array([_integral(t) for t in res.time]))
+    estimate = found["error_estimate"]["integral.x"]["max"]
+    assert error.max() / 3 <= estimate <= 3 * error.max(), (estimate, error.max())
+    graph, exp = with_experiment(runner.prepare(_scenario(tmp_path, fmus, "quadratic")),
+                                 estimate="richardson")
+    found = master.estimate_error(graph, master.simulate(graph, exp))
+    assert found["error_estimate"]["integral.x"] == {"max": "below round-off",
+                                                     "end": "below round-off"}
+    graph = runner.prepare(path)
+    found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
+    for name in ("ramp.y", "integral.x"):
+        for which in ("max", "end"):
+            words = found["error_estimate"][name][which]
+            assert words.startswith("unresolved (StestSampler sample at their own period")
+            assert "--estimate richardson repeats the run at h/2" in words

@@ -71,7 +71,8 @@ ZOH_HOST = "jacobi"     # the master that steps as a plain fixed-step host does 
 # turns the estimate off
 ESTIMATES = {"auto": "the fixed-step masters: the embedded pair from the run's own values "
                      "(Richardson where it does not apply); the adaptive master: its own",
-             "richardson": "the run repeated at two coarser steps (fixed-step masters)",
+             "richardson": "the run repeated at two coarser steps (fixed-step masters); "
+                           "where FMUs sample at their own period, at half the step",
              "none": "no estimate (summary.json says why)"}
 DEFAULT_ESTIMATE = "auto"
 

@@ -19,7 +19,7 @@ from .breakpoints import graph_breaks
 from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
 from .pair_parts import PairPlan
 from .pair_rows import PairRows
-from .richardson import coarse_experiment, coarse_factors, coarse_run, richardson
+from .richardson import FINER, coarse_experiment, coarse_factors, coarse_run, richardson
 
 ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
                    "the run and the same run stepped whole on its accepted steps (each step "
@@ -48,11 +48,14 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
         return TURNED_OFF
     if not _fixed_with_reals(graph, exp):
         return None
+    if graph.sampled and exp.estimate == "richardson":
+        return (FINER,)
     if graph.sampled:
         return (f"{', '.join(graph.sampled)} sample at their own period: a coarser step moves "
                 "their samples (a different model, not a coarser run of this one); a run at "
                 "half the step keeps them, and how far it moves the outputs is the step's "
-                "share (docs/robot.md, \"The step's share\")")
+                "share (docs/robot.md, \"The step's share\"; --estimate richardson makes "
+                "that run, at twice the run's cost)")
     return coarse_factors(graph, exp, marks) or FEW_STEPS
 
 

@@ -57,7 +57,8 @@ METHOD = ("the embedded pair: per step, each held input's hold against the mean 
           "into the outputs by their FMUs' error models ({models}){loop}; outputs of {other}"
           "FMUs without a state read their inputs exactly{lag}")
 SAMPLED = ("unresolved ({models} sample at their own period, and this output is theirs or "
-           "made from theirs: the pair does not follow a sample's error)")
+           "made from theirs: the pair does not follow a sample's error; --estimate "
+           "richardson repeats the run at h/2)")
 LOOP_METHOD = (", and through the Jacobians of {through}, whose outputs carry it (around a "
                "loop, back into the model's inputs)")
 

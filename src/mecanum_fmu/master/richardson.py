@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..masters import entry as master_entry
-from ..results import BELOW_ROUND_OFF, Results, round_off
+from ..results import BELOW_ROUND_OFF, CANCELS, Results, round_off
 from ..scenario.graph import Graph
 from .breakpoints import graph_breaks
 
@@ -50,6 +50,16 @@ SINGLE = tuple(Fraction(r) for r in ("2", "3", "4", "5"))
 SINGLE_METHOD = ("Richardson extrapolation: the run repeated at {r1} h, e ~ (y_h - y_r1h)/"
                  "(r1^p - 1) with p = {order}, the master's order (no second coarser step "
                  "steps on the run's breakpoints, and one difference does not tell the order)")
+# where FMUs sample at their own period (Graph.sampled), the one run the estimate steps, by
+# name only (estimate.coarse_plan): a coarser step would move the samples, half of it keeps
+# them (twice the run's doStep calls)
+FINER = Fraction(1, 2)
+FINER_METHOD = ("Richardson extrapolation: the run repeated at h/2 ({sampled} sample at their "
+                "own period: a coarser step would move the samples, half of it keeps them), e ~ "
+                "(y_h - y_h/2)/(1 - 2^-p) with p = {order}, the master's order")
+FINER_END = (f"unresolved (its difference from the run at h/2 is under {CANCELS:g} of the "
+             "largest: one difference does not tell an end whose error cancels from two runs "
+             "that meet there by chance, as a count's ticks make them)")
 _END = np.iinfo(np.int64).max
 # the coarser runs' differences growing more than this times as fast as the master's order
 # allows: they are out of the range where the error goes as h^p, and no number is given
@@ -258,14 +268,17 @@ def _grows(r1: float, r2: float, p: float) -> float:
 
 
 def _single(steps: int, r: float, values: tuple, rows: list, p: int) -> dict:
-    """{"max", "end"} of one output from the run and one coarser run (SINGLE), at order p."""
+    """{"max", "end"} of one output from the run and one coarser run (SINGLE), at order p,
+    or the run at h/2 (FINER: an end under CANCELS of the largest is unresolved)."""
     fine, mid = values
     d1 = fine[rows[0]] - mid[rows[1]]
     if float(np.max(np.abs(d1))) <= (floor := round_off(fine[rows[0]], steps)):
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
-    e = np.abs(d1) / (r ** p - 1.0)
-    end = float(e[-1])
-    return {"max": float(e.max()), "end": end if end > floor else BELOW_ROUND_OFF}
+    e = np.abs(d1) / abs(r ** p - 1.0)
+    end, largest = float(e[-1]), float(e.max())
+    if r == FINER and end < CANCELS * largest:
+        return {"max": largest, "end": FINER_END}
+    return {"max": largest, "end": end if end > floor else BELOW_ROUND_OFF}
 
 
 def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
@@ -280,7 +293,9 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
                        coarse[0][1])
         estimate = {n: _single(results.steps, float(factors[0]), (np.asarray(
             results[n], dtype=float), coarse[0][2][n]), rows, orders[1]) for n in names}
-        method = SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1])
+        method = (FINER_METHOD.format(sampled=", ".join(graph.sampled), order=orders[1])
+                  if factors[0] == FINER else
+                  SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1]))
     else:
         rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
         estimate = {n: _richardson(exp, results.steps, factors, (np.asarray(
