@@ -300,3 +300,40 @@ def test_bad_waypoints_are_named(tmp_path, spec, words):
             f"  follower: {{fmu: PathFollower, {spec}}}\n")
     with pytest.raises(ScenarioError, match=re.escape(words)):
         load_scenario(write_scenario(tmp_path, "bad", text))
+
+
+def test_a_recorded_path_stepped_at_its_rows_gets_richardson_at_half_the_step(fmu_dir):
+    """At 0.1 s (2x the scenario's step) every step ends on a row of the path, whose feed-
+    forward jumps there: no coarser step steps on every row, and the pair cannot tell how the
+    loop moves between two jumps (LONE_PIECES). The estimate repeats the run at h/2, whose grid
+    holds every row: against the closed loop's ODE solved row interval by row interval (as
+    above), the pose's largest errors are within 3x, and its ends (the loop damps them to
+    1e-4 of the largest or less) within 3x or unresolved. The coarser runs it took before
+    stepped across the rows: the heading's largest error read 22x over, the ends up to 420x."""
+    T, ref = _recorded_reference()
+
+    def rhs(t, p):
+        (xr, yr, tr), (dx, dy, dt) = ref(t)
+        return [dx + K_POS * (xr - p[0]), dy + K_POS * (yr - p[1]),
+                dt + K_THETA * math.atan2(math.sin(tr - p[2]), math.cos(tr - p[2]))]
+    graph = prepare(RECORDED, fmu_dir=fmu_dir, step_size=0.1)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    found = master.estimate_error(graph, results)
+    assert "repeated at h/2" in found["error_estimate_method"]
+    assert "the embedded pair does not apply" in found["error_estimate_method"]
+    t, p = results.time, [0.2, -0.15, 0.3]
+    truth = np.empty((len(t), 3))
+    edges = np.unique(np.r_[0.0, T[(T > 0) & (T < t[-1])], t[-1]])
+    for a, b in zip(edges[:-1], edges[1:]):
+        sol = solve_ivp(rhs, (a, b), p, method="DOP853", rtol=1e-12, atol=1e-12,
+                        dense_output=True)
+        at = (t >= a) & (t <= b)
+        truth[at] = sol.sol(t[at]).T
+        p = sol.y[:, -1]
+    for i, axis in enumerate(("x", "y", "theta")):
+        error = np.abs(results[f"pose.{axis}"] - truth[:, i])
+        estimate = found["error_estimate"][f"pose.{axis}"]
+        assert error.max() / 3 <= estimate["max"] <= 3 * error.max(), (axis, estimate, error.max())
+        end = estimate["end"]
+        assert (isinstance(end, str) and end.startswith("unresolved")) or \
+            error[-1] / 3 <= end <= 3 * error[-1], (axis, end, error[-1])

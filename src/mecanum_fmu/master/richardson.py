@@ -50,13 +50,16 @@ SINGLE = tuple(Fraction(r) for r in ("2", "3", "4", "5"))
 SINGLE_METHOD = ("Richardson extrapolation: the run repeated at {r1} h, e ~ (y_h - y_r1h)/"
                  "(r1^p - 1) with p = {order}, the master's order (no second coarser step "
                  "steps on the run's breakpoints, and one difference does not tell the order)")
-# where FMUs sample at their own period (Graph.sampled), the one run the estimate steps, by
-# name only (estimate.coarse_plan): a coarser step would move the samples, half of it keeps
-# them (twice the run's doStep calls)
+# the one run at h/2 (twice the run's doStep calls): where no coarser step steps on every
+# breakpoint the run steps on (a path's rows at every step: coarse_factors), and, by name
+# only, where FMUs sample at their own period (Graph.sampled, estimate.coarse_plan): a coarser
+# step would move the samples. Half the step keeps both
 FINER = Fraction(1, 2)
-FINER_METHOD = ("Richardson extrapolation: the run repeated at h/2 ({sampled} sample at their "
-                "own period: a coarser step would move the samples, half of it keeps them), e ~ "
-                "(y_h - y_h/2)/(1 - 2^-p) with p = {order}, the master's order")
+FINER_METHOD = ("Richardson extrapolation: the run repeated at h/2 ({why}), e ~ (y_h - y_h/2)/"
+                "(1 - 2^-p) with p = {order}, the master's order")
+FINER_SAMPLED = "{sampled} sample at their own period: a coarser step would move the samples"
+FINER_BREAKS = ("no coarser step steps on every breakpoint the run steps on: a path's or a "
+                "table's rows")
 FINER_END = (f"unresolved (its difference from the run at h/2 is under {CANCELS:g} of the "
              "largest: one difference does not tell an end whose error cancels from two runs "
              "that meet there by chance, as a count's ticks make them)")
@@ -98,10 +101,10 @@ def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
                    ) -> tuple[Fraction, ...] | None:
     """The coarser steps (r1 h, r2 h) of the estimate: the first pair of CANDIDATES whose
     grids step on the same breakpoints (of tables and segments) as the run's own grid, with
-    room for 2 steps of r2 h; else the first one of SINGLE that does (r1 h alone); else 2h
-    and 4h. A coarser run that steps over a breakpoint the run steps on (or the reverse) has
-    an error of another kind there (a jump inside a step): comparing the two says nothing of
-    the run's. None when the run has fewer than 4 steps. `marks`:
+    room for 2 steps of r2 h; else the first one of SINGLE that does (r1 h alone); else the
+    run at h/2 (FINER), whose grid holds the run's. A coarser run that steps over a
+    breakpoint the run steps on (or the reverse) has an error of another kind there (a jump
+    inside a step): comparing the two says nothing of the run's. None when the run has fewer than 4 steps. `marks`:
     graph_breaks(graph).times(), when known."""
     h, span = exp.step_size, exp.stop_time - exp.start_time
     if span < 4 * h * (1 - 1e-9):
@@ -113,8 +116,7 @@ def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
     kept = lambda r: bool(np.array_equal(_on_grid(k, float(r)), mine))  # noqa: E731
     room = lambda r: 2 * r * h <= span * (1 + 1e-9)     # noqa: E731
     return next((pair for pair in CANDIDATES if all(map(kept, pair)) and room(pair[1])),
-                next(((r,) for r in SINGLE if kept(r) and room(r)),
-                     (Fraction(2), Fraction(4))))
+                next(((r,) for r in SINGLE if kept(r) and room(r)), (FINER,)))
 
 
 def coarse_experiment(exp, factor: Fraction):
@@ -293,8 +295,9 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
                        coarse[0][1])
         estimate = {n: _single(results.steps, float(factors[0]), (np.asarray(
             results[n], dtype=float), coarse[0][2][n]), rows, orders[1]) for n in names}
-        method = (FINER_METHOD.format(sampled=", ".join(graph.sampled), order=orders[1])
-                  if factors[0] == FINER else
+        why = (FINER_SAMPLED.format(sampled=", ".join(graph.sampled)) if graph.sampled
+               else FINER_BREAKS)
+        method = (FINER_METHOD.format(why=why, order=orders[1]) if factors[0] == FINER else
                   SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1]))
     else:
         rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
