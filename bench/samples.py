@@ -17,7 +17,8 @@ import numpy as np
 from mecanum_fmu import master
 from mecanum_fmu.runner import prepare
 
-SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "robot" / "belief_track_circle.yaml"
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIO = ROOT / "scenarios" / "robot" / "belief_track_circle.yaml"
 MASTERS = ("quadratic", "trapezoidal", "gauss-seidel", "jacobi")
 DIVIDE = (1, 2, 4, 16)
 IDEAL = {"cpr": 0, "sigma": 0.0}

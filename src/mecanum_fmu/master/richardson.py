@@ -104,8 +104,8 @@ def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
     room for 2 steps of r2 h; else the first one of SINGLE that does (r1 h alone); else the
     run at h/2 (FINER), whose grid holds the run's. A coarser run that steps over a
     breakpoint the run steps on (or the reverse) has an error of another kind there (a jump
-    inside a step): comparing the two says nothing of the run's. None when the run has fewer than 4 steps. `marks`:
-    graph_breaks(graph).times(), when known."""
+    inside a step): comparing the two says nothing of the run's. None when the run has
+    fewer than 4 steps. `marks`: graph_breaks(graph).times(), when known."""
     h, span = exp.step_size, exp.stop_time - exp.start_time
     if span < 4 * h * (1 - 1e-9):
         return None
@@ -295,10 +295,11 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
                        coarse[0][1])
         estimate = {n: _single(results.steps, float(factors[0]), (np.asarray(
             results[n], dtype=float), coarse[0][2][n]), rows, orders[1]) for n in names}
-        why = (FINER_SAMPLED.format(sampled=", ".join(graph.sampled)) if graph.sampled
-               else FINER_BREAKS)
-        method = (FINER_METHOD.format(why=why, order=orders[1]) if factors[0] == FINER else
-                  SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1]))
+        method = SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1])
+        if factors[0] == FINER:
+            why = (FINER_SAMPLED.format(sampled=", ".join(graph.sampled)) if graph.sampled
+                   else FINER_BREAKS)
+            method = FINER_METHOD.format(why=why, order=orders[1])
     else:
         rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
         estimate = {n: _richardson(exp, results.steps, factors, (np.asarray(
