@@ -21,6 +21,7 @@ import estimates
 import loop_overhead
 import memory
 import other_hosts
+import samples
 import sweep
 import table_lookup
 import turnaround
@@ -51,6 +52,8 @@ LONG = (
      lambda: estimates.main(["--adaptive"])),
     ("the closed loops' estimate against a run at 1/32 of the step (bench/estimates.py "
      "--loops)", lambda: estimates.main(["--loops"])),
+    ("a loop closed through sampled sensors, per master (bench/samples.py)",
+     lambda: samples.main([])),
     ("peak memory against run length (bench/memory.py)", memory.main),
     ("sweeps on Dask, the whole 1000-sample study (bench/sweep.py)", lambda: sweep.main([])),
     ("command-line turnaround, 7 repetitions (bench/turnaround.py)", turnaround.main),

@@ -38,10 +38,10 @@ def runs(master_name: str, stop: float, parameters: dict | None) -> dict:
     return out
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stop", type=float, default=10.0)
-    stop = parser.parse_args().stop
+    stop = parser.parse_args(argv).stop
     print(f"{SCENARIO.name}, 0 .. {stop:g} s: the true pose's largest distance from the run at "
           f"1/{DIVIDE[-1]} of the step, at the step / 2 / 4 (ratios), and the run's seconds")
     for label, parameters in (("encoders", None), ("ideal", IDEAL)):
