@@ -7,13 +7,14 @@ downstream integrates a sampled-and-held input exactly. Third-party style FMUs
 from __future__ import annotations
 
 import math
+import subprocess
 
 import numpy as np
 import pytest
 
 from mecanum_fmu import master, runner
 
-from helpers import ROOT, with_experiment, write_scenario
+from helpers import ROOT, cli_args, with_experiment, write_scenario
 from test_estimate_any_fmu import _declare_no_dependencies
 
 SOURCES = ROOT / "tests" / "fmu_sources" / "sampled"
@@ -112,3 +113,25 @@ def test_by_name_richardson_repeats_a_sampled_run_at_half_the_step(tmp_path, fmu
             words = found["error_estimate"][name][which]
             assert words.startswith("unresolved (StestSampler sample at their own period")
             assert "--estimate richardson repeats the run at h/2" in words
+
+
+def test_the_adaptive_master_refuses_fmus_that_sample(tmp_path, fmus):
+    """Each sample is a jump inside some step, which the adaptive master's step control
+    would shrink the step to bracket until it stopped at the first sample: a tolerance on a
+    graph with samples is refused before anything runs, naming the sampling FMUs, for a
+    third-party sampler and for the bundled sensors, from the API (also when the experiment
+    is changed after the graph is compiled) and from the command line (exit 2, one message)."""
+    from mecanum_fmu.errors import ScenarioError
+    with pytest.raises(ScenarioError, match="adaptive master cannot step StestSampler"):
+        runner.prepare(_scenario(tmp_path, fmus, "quadratic"), tolerance=1e-4)
+    graph = runner.prepare(_scenario(tmp_path, fmus, "quadratic"))
+    graph, exp = with_experiment(graph, master="adaptive", tolerance=1e-4)
+    with pytest.raises(ScenarioError, match="choose a fixed-step master"):
+        master.simulate(graph, exp)
+    belief = ROOT / "scenarios" / "robot" / "belief_track_circle.yaml"
+    proc = subprocess.run(cli_args("run", str(belief), "--tolerance", "1e-3", "--no-plots",
+                                   "--out", str(tmp_path / "out")),
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    assert "the adaptive master cannot step Encoder, Odometry" in proc.stderr
+    assert "Traceback" not in proc.stderr

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..scenario.arguments import check_simulate
 from ..errors import Interrupted, Problem, ScenarioError, SimulationError
-from ..scenario.graph import Graph
+from ..scenario.graph import Graph, adaptive_samples
 from ..masters import (DEFAULT, DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, Master,
                        entry as master_entry)
 from ..process import ctrl_c_latched
@@ -107,6 +107,8 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
                                          repr(r.name) for r in running if not r.can_roll_back)
                                      + f" cannot do; choose a fixed-step master (e.g. "
                                      f"{DEFAULT})")])
+    if adaptive_samples(recorder.graph, how.name):
+        raise ScenarioError(adaptive_samples(recorder.graph, how.name))
     counts = {"steps_taken": 0, "steps_rejected": 0, "passes": 0}
     exp = recorder.experiment
     tol = (exp.tolerance or DEFAULT_TOLERANCE,

@@ -190,11 +190,14 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
     if refused:
         raise ScenarioError(refused)
     models = _error_models(order)
-    return Graph(scenario, tuple(order), tuple(link_order), tuple(recorded),
-                 tuple(check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
-                       + _rollback_warning(scenario, order, links)
-                       + plausibility.warnings(scenario, order)), models,
-                 _responses(order), _watched(order, models, recorded, links))
+    graph = Graph(scenario, tuple(order), tuple(link_order), tuple(recorded), (), models,
+                  _responses(order), _watched(order, models, recorded, links))
+    refused = adaptive_samples(graph)
+    if refused:
+        raise ScenarioError(refused)
+    return dataclasses.replace(graph, warnings=tuple(
+        check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
+        + _rollback_warning(scenario, order, links) + plausibility.warnings(scenario, order)))
 
 
 def _watched(order: list[Instance], models: tuple, recorded: list[Port], links: list[Link]
@@ -229,6 +232,23 @@ def _adaptive_problems(scenario: Scenario, order: list[Instance]) -> list[Proble
                     "retakes steps with fmi2Get/SetFMUstate, which "
                     + ", ".join(repr(n) for n in unable) + " cannot do (canGetAndSetFMUstate "
                     f"is false); choose a fixed-step master (e.g. {DEFAULT}) and drop the "
+                    "tolerance")]
+
+
+def adaptive_samples(graph: Graph, master_name: str | None = None) -> list[Problem]:
+    """The adaptive master cannot step FMUs that sample at their own instants: each sample
+    is a jump inside some step, which its step control shrinks the step to bracket, down to
+    the smallest step, at the first sample (the fixed-step masters hold samples exactly:
+    docs/masters.md, "Samples"). Checked at compile time and again by master.simulate (an
+    experiment changed after it: `master_name`, the master it runs under)."""
+    how = master_entry(master_name or graph.scenario.experiment.master)
+    if not how.adaptive or not graph.sampled:
+        return []
+    return [Problem(graph.scenario.label, "experiment.master", f"the {how.name} master cannot "
+                    f"step {', '.join(graph.sampled)}, which sample at their own instants: "
+                    "each sample is a jump its step control cannot bracket (the run would "
+                    "stop at the first one); choose a fixed-step master (e.g. "
+                    f"{DEFAULT}) with a step that divides the sample period, and drop the "
                     "tolerance")]
 
 

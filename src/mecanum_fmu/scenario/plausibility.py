@@ -117,13 +117,8 @@ def _sampling(scenario, inst) -> list[tuple[str, str]]:
     if inst.model_name not in SAMPLED_MODELS:
         return []
     period, exp = inst.value("period"), scenario.experiment
-    if not (is_finite(period) and period > 0):
-        return []
-    if master_entry(exp.master).adaptive:
-        return [(_place(scenario, inst, "period"),
-                 f"period = {period:g} s: the adaptive master's steps do not land on the "
-                 f"sample times, so each sample is seen up to a step late; use a fixed-step "
-                 f"master (quadratic) with a step that divides the period")]
+    if not (is_finite(period) and period > 0) or master_entry(exp.master).adaptive:
+        return []           # (the adaptive master is refused: graph.adaptive_samples)
     ratio = period / exp.step_size
     if abs(ratio - round(ratio)) <= 1e-9 * max(1.0, ratio) and round(ratio) >= 1:
         return []
