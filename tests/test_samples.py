@@ -135,3 +135,19 @@ def test_the_adaptive_master_refuses_fmus_that_sample(tmp_path, fmus):
     assert proc.returncode == 2, proc.stderr
     assert "the adaptive master cannot step Encoder, Odometry" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal"])
+def test_a_sample_into_a_state_is_held_not_blended(tmp_path, fmus, master_name):
+    """The sampler straight into the integrator (a state-only input, which these masters
+    otherwise blend): x is the sum of the held samples, exactly; a trapezoid or a parabola
+    through the samples would have taken the next sample half a step early."""
+    text = _scenario(tmp_path, fmus, master_name).read_text()
+    text = text.replace("  - [sampler.s, ramp.s]\n  - [ramp.y, integral.u]\n",
+                        "  - [sampler.s, integral.u]\n  - [sampler.s, ramp.s]\n")
+    graph = runner.prepare(write_scenario(tmp_path, "direct", text))
+    graph, exp = with_experiment(graph, estimate="none")
+    res = master.simulate(graph, exp)
+    held = np.array([sum(math.sin(i * PERIOD) * PERIOD for i in range(round(t / PERIOD)))
+                     for t in res.time])
+    assert np.max(np.abs(res["integral.x"] - held)) < 1e-12
