@@ -102,8 +102,8 @@ class Graph:
         """The links from a discrete output (a sample: it changes at its own instants) into
         an FMU with a continuous output: the masters that hold samples hold them at their
         value at the step's start (masters.Master.holds_samples). A reader whose outputs are
-        all discrete samples at the same instants as its sources and reads their newest (the
-        Odometry its Encoders')."""
+        all discrete is not held: it samples at its sources' instants and reads their newest
+        values (the Odometry its Encoders')."""
         return tuple(l for l in self.links
                      if _variability(self.instance(l.source.ref.instance), l.source) ==
                      "discrete" and _continuous_output(self.instance(l.target.ref.instance)))
