@@ -42,11 +42,11 @@ class Master:
 REGISTRY: dict[str, Master] = {m.name: m for m in (
     Master("quadratic", "quadratic", False, True, 3,
            "Gauss-Seidel order; state-only inputs held at the limited parabola's mean; "
-           "loops predicted, rolled back and corrected", loop_limit=1.0,
-           rolled_back_loop_limit=2.0, holds_samples=True),
+           "loops predicted, rolled back and corrected; samples held from the step's start",
+           loop_limit=1.0, rolled_back_loop_limit=2.0, holds_samples=True),
     Master("trapezoidal", "trapezoidal", False, False, 2,
-           "Gauss-Seidel order; state-only inputs held at the mean of the step's end values",
-           loop_limit=1.0, holds_samples=True),
+           "Gauss-Seidel order; state-only inputs held at the mean of the step's end values; "
+           "samples held from the step's start", loop_limit=1.0, holds_samples=True),
     Master("gauss-seidel", "zoh", False, False, 1,
            "dependency order, zero-order hold of the newest values", loop_limit=2.0),
     Master("jacobi", "zoh", True, False, 1,
