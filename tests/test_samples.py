@@ -151,3 +151,16 @@ def test_a_sample_into_a_state_is_held_not_blended(tmp_path, fmus, master_name):
     held = np.array([sum(math.sin(i * PERIOD) * PERIOD for i in range(round(t / PERIOD)))
                      for t in res.time])
     assert np.max(np.abs(res["integral.x"] - held)) < 1e-12
+
+
+def test_validate_names_the_samples_it_holds(capsys):
+    """`validate` says which links carry a sample held from the step's start and which FMUs
+    are read again after each sample; nothing where no sample is held."""
+    from mecanum_fmu import cli
+    belief = ROOT / "scenarios" / "robot" / "belief_track_circle.yaml"
+    assert cli.main(["validate", str(belief)]) == 0
+    out = capsys.readouterr().out
+    assert ("samples held from the step's start: odom -> follower; read again after each "
+            "sample: follower, c2w, w2c") in out
+    assert cli.main(["validate", str(ROOT / "scenarios" / "circle.yaml")]) == 0
+    assert "samples held" not in capsys.readouterr().out

@@ -11,7 +11,8 @@ from pathlib import Path
 from . import __version__
 from .scenario import plausibility
 from .errors import Interrupted, MecanumError, Problem, ScenarioError, SimulationError
-from .masters import DEFAULT as DEFAULT_MASTER, DEFAULT_ESTIMATE, ESTIMATES, MASTERS
+from .masters import DEFAULT as DEFAULT_MASTER, DEFAULT_ESTIMATE, ESTIMATES, MASTERS, \
+    entry as master_entry
 
 
 def _number(text: str) -> float:
@@ -282,6 +283,12 @@ def cmd_validate(args) -> int:
           f"{len(graph.links)} connections, {exp.master}, "
           f"step {exp.step_size:g} s over [{exp.start_time:g}, {exp.stop_time:g}] s")
     print("step order: " + " -> ".join(i.name for i in graph.instances))
+    if graph.held and master_entry(exp.master).holds_samples:
+        pairs = dict.fromkeys(f"{l.source.ref.instance} -> {l.target.ref.instance}"
+                              for l in graph.held)
+        again = [i.name for i in graph.instances if i.name in graph.settled]
+        print(f"samples held from the step's start: {', '.join(pairs)}; read again after "
+              f"each sample: {', '.join(again) or 'none'} (docs/masters.md, \"Samples\")")
     return 0
 
 
