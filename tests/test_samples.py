@@ -164,3 +164,18 @@ def test_validate_names_the_samples_it_holds(capsys):
             "sample: follower, c2w, w2c") in out
     assert cli.main(["validate", str(ROOT / "scenarios" / "circle.yaml")]) == 0
     assert "samples held" not in capsys.readouterr().out
+
+
+def test_a_sweep_that_asks_a_tolerance_of_a_graph_with_samples_is_refused(tmp_path, capsys):
+    """The sweep's own `experiment:` chooses the adaptive master for every run: refused when
+    the sweep is read (exit 2, naming the sweep file), not run by run."""
+    from mecanum_fmu import cli
+    belief = ROOT / "scenarios" / "robot" / "belief_track_circle.yaml"
+    sweep = write_scenario(tmp_path, "sweep", f"name: belief_tol\nscenario: {belief}\n"
+                           "experiment: {stop_time: 1.0, tolerance: 1.0e-3}\n"
+                           "grid:\n  w2c.dR1: [0.0, 0.0003]\n")
+    assert cli.main(["sweep", str(sweep), "--workers", "1", "--no-plots",
+                     "--out", str(tmp_path / "out")]) == 2
+    assert not (tmp_path / "out" / "runs.csv").exists()
+    assert (f"{sweep}: experiment: the adaptive master cannot step Encoder, Odometry"
+            in capsys.readouterr().err)

@@ -459,7 +459,9 @@ def _step_value(model, own: dict, merged: dict, step_size) -> dict[str, Scalar]:
 def with_scenario(graph: Graph, scenario: Scenario) -> Graph:
     """The graph under the scenario's experiment as changed after compiling (a sweep's
     `experiment:`): each bundled model's step_parameter that the scenario leaves unset
-    follows the new step_size, as compiling would have set it."""
+    follows the new step_size, as compiling would have set it. A master the graph cannot run
+    under (the adaptive one on FMUs that cannot save their state or that sample) is refused
+    as compiling refuses it: ScenarioError."""
     instances = []
     for inst in graph.instances:
         comp = next(c for c in scenario.components if c.name == inst.name)
@@ -469,7 +471,12 @@ def with_scenario(graph: Graph, scenario: Scenario) -> Graph:
                            scenario.experiment.step_size)
         instances.append(dataclasses.replace(inst, start_values={**inst.start_values, **step})
                          if step else inst)
-    return dataclasses.replace(graph, scenario=scenario, instances=tuple(instances))
+    changed = dataclasses.replace(graph, scenario=scenario, instances=tuple(instances))
+    refused = (_adaptive_problems(scenario, list(changed.instances))
+               or adaptive_samples(changed))
+    if refused:
+        raise ScenarioError(refused)
+    return changed
 
 
 def _clip(text: str, limit: int = 80) -> str:

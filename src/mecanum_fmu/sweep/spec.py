@@ -228,7 +228,11 @@ def apply_experiment(sweep: Sweep, graph: Graph) -> Graph:
     if not sweep.experiment:
         return graph
     scenario = override_experiment(graph.scenario, sweep.experiment, str(sweep.path))
-    return with_scenario(graph, scenario)     # MecanumDynamics' h_ref follows the step
+    try:
+        return with_scenario(graph, scenario)     # MecanumDynamics' h_ref follows the step
+    except ScenarioError as err:        # a master the graph cannot run: the sweep's choice
+        raise ScenarioError([Problem(str(sweep.path), "experiment", p.message)
+                             for p in err.problems]) from None
 
 
 def plan_runs(sweep: Sweep, graph: Graph) -> list[Run]:
