@@ -123,14 +123,10 @@ def _plan_held(r: RunningInstance, held: list, buffers: Buffers) -> None:
         mine = [l for l in held if l.target.type == kind]
         if not mine:
             continue
-        ctype, dtype = _C_TYPES[kind]
         src = np.array([buffers.slot(l.source) for l in mine], dtype=np.intp)
         slots = buffers.held_slots.get(kind, np.zeros(0, dtype=np.intp))
         buffers.held_slots[kind] = np.union1d(slots, src).astype(np.intp)
-        staging = np.zeros(len(mine), dtype=dtype)
-        r.writes.append((_take(buffers.held(kind), src, staging), r.c_set[kind],
-                         _vr_array([l.target.vr for l in mine]), len(mine),
-                         _pointer(staging, 0, ctype)))
+        r.writes.append(_staged(buffers.held(kind), src, r.c_set[kind], mine, kind))
 
 
 def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: dict,
@@ -150,7 +146,7 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
         if not mine:
             continue
         value_kind = "Real" if kind == "Blend" else kind
-        ctype, dtype = _C_TYPES[value_kind]
+        ctype = _C_TYPES[value_kind][0]
         buf = buffers.inp(value_kind)
         src = np.array([buffers.slot(l.source) for l in mine], dtype=np.intp)
         vrs, c_set = _vr_array([l.target.vr for l in mine]), r.c_set[value_kind]
@@ -163,9 +159,7 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
         elif list(src) == list(range(src[0], src[0] + len(src))):
             r.writes.append((None, c_set, vrs, len(mine), _pointer(buf, int(src[0]), ctype)))
         else:
-            staging = np.zeros(len(mine), dtype=dtype)
-            r.writes.append((_take(buf, src, staging), c_set, vrs, len(mine),
-                             _pointer(staging, 0, ctype)))
+            r.writes.append(_staged(buf, src, c_set, mine, value_kind))
 
 
 def _plan_resets(r: RunningInstance, links: list, buffers: Buffers) -> None:
@@ -173,12 +167,17 @@ def _plan_resets(r: RunningInstance, links: list, buffers: Buffers) -> None:
     it, before the outputs are read: the outputs that depend on them see u_k+1."""
     if not links:
         return
-    ctype, dtype = _C_TYPES["Real"]
     src = np.array([buffers.slot(l.source) for l in links], dtype=np.intp)
+    r.resets.append(_staged(buffers.inp("Real"), src, r.c_set["Real"], links, "Real"))
+
+
+def _staged(buffer: np.ndarray, src: np.ndarray, c_set, links: list, kind: str) -> tuple:
+    """A batched set of the `links`' targets from a staging array that one np.take fills
+    from buffer[src] before the set: (fill, c_set, vrs, n, pointer)."""
+    ctype, dtype = _C_TYPES[kind]
     staging = np.zeros(len(links), dtype=dtype)
-    r.resets.append((_take(buffers.inp("Real"), src, staging), r.c_set["Real"],
-                     _vr_array([l.target.vr for l in links]), len(links),
-                     _pointer(staging, 0, ctype)))
+    return (_take(buffer, src, staging), c_set, _vr_array([l.target.vr for l in links]),
+            len(links), _pointer(staging, 0, ctype))
 
 
 def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[[], None]:
