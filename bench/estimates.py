@@ -244,8 +244,9 @@ def drive_scenarios(sampled: bool = False) -> list[str]:
             graph = prepare(path)
         except MecanumError:
             continue                 # a sweep file, not a scenario
-        if sampled and graph.sampled or not sampled and not graph.sampled and any(
-                i.model_name in DYNAMIC for i in graph.instances):
+        if bool(graph.sampled) != sampled:
+            continue
+        if sampled or any(i.model_name in DYNAMIC for i in graph.instances):
             found.append(str(path.relative_to(ROOT / "scenarios")))
     return found
 

@@ -107,8 +107,9 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
                                          repr(r.name) for r in running if not r.can_roll_back)
                                      + f" cannot do; choose a fixed-step master (e.g. "
                                      f"{DEFAULT})")])
-    if adaptive_samples(recorder.graph, how.name):
-        raise ScenarioError(adaptive_samples(recorder.graph, how.name))
+    refused = adaptive_samples(recorder.graph, how.name)
+    if refused:
+        raise ScenarioError(refused)
     counts = {"steps_taken": 0, "steps_rejected": 0, "passes": 0}
     exp = recorder.experiment
     tol = (exp.tolerance or DEFAULT_TOLERANCE,

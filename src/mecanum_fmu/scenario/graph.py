@@ -186,15 +186,9 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
                           _table(c, start_values[c.name], check.models[c.name][1].modelName))
                  for c in scenario.components]
     order, link_order = _dependency_order(instances, links, scenario.label)
-    refused = _adaptive_problems(scenario, order)
-    if refused:
-        raise ScenarioError(refused)
     models = _error_models(order)
-    graph = Graph(scenario, tuple(order), tuple(link_order), tuple(recorded), (), models,
-                  _responses(order), _watched(order, models, recorded, links))
-    refused = adaptive_samples(graph)
-    if refused:
-        raise ScenarioError(refused)
+    graph = _runnable(Graph(scenario, tuple(order), tuple(link_order), tuple(recorded), (),
+                            models, _responses(order), _watched(order, models, recorded, links)))
     return dataclasses.replace(graph, warnings=tuple(
         check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
         + _rollback_warning(scenario, order, links) + plausibility.warnings(scenario, order)))
@@ -233,6 +227,17 @@ def _adaptive_problems(scenario: Scenario, order: list[Instance]) -> list[Proble
                     + ", ".join(repr(n) for n in unable) + " cannot do (canGetAndSetFMUstate "
                     f"is false); choose a fixed-step master (e.g. {DEFAULT}) and drop the "
                     "tolerance")]
+
+
+def _runnable(graph: Graph) -> Graph:
+    """The graph, or ScenarioError where its master cannot run it (the adaptive master on
+    FMUs that cannot save their state, or that sample): compiling and a changed experiment
+    (with_scenario) refuse alike."""
+    refused = _adaptive_problems(graph.scenario, list(graph.instances)) or \
+        adaptive_samples(graph)
+    if refused:
+        raise ScenarioError(refused)
+    return graph
 
 
 def adaptive_samples(graph: Graph, master_name: str | None = None) -> list[Problem]:
@@ -471,12 +476,7 @@ def with_scenario(graph: Graph, scenario: Scenario) -> Graph:
                            scenario.experiment.step_size)
         instances.append(dataclasses.replace(inst, start_values={**inst.start_values, **step})
                          if step else inst)
-    changed = dataclasses.replace(graph, scenario=scenario, instances=tuple(instances))
-    refused = (_adaptive_problems(scenario, list(changed.instances))
-               or adaptive_samples(changed))
-    if refused:
-        raise ScenarioError(refused)
-    return changed
+    return _runnable(dataclasses.replace(graph, scenario=scenario, instances=tuple(instances)))
 
 
 def _clip(text: str, limit: int = 80) -> str:
