@@ -43,6 +43,9 @@ SKIPS = [
     (r"run scenarios/robot/(circle|track_circle)\.yaml", "10,000 steps of eight FMUs and "
      "the estimate's two more runs: minutes on a loaded machine (tests/test_robot.py runs "
      "both scenarios)"),
+    (r"run scenarios/robot/belief_drive_track_(circle|gyro)\.yaml", "10,000 steps of "
+     "fourteen FMUs: 15 s each on a quiet machine (tests/test_robot_belief.py runs both; its "
+     "`run` of the first one, to 2 s, writes the report and every figure)"),
     (r"--animate\b", "draws a GIF frame by frame: minutes on a loaded machine "
                      "(tests/test_plots.py covers the animation)"),
     (r"\bdocs/make_gallery\.py\b", "redraws docs/img/ (the gallery and its animation): minutes"),
@@ -163,7 +166,7 @@ COMMANDS = [command for doc in DOCS for command in extract(doc)]
 
 # (pattern, seconds on a quiet machine): the long commands that run here, started first
 # (@pytest.mark.heavy, tests/conftest.py) so that none is left alone at the end of the suite
-HEAVY = [(r"run scenarios/robot/belief_drive_", 15), (r"run scenarios/chassis/\*", 7)]
+HEAVY = [(r"run scenarios/chassis/\*", 7)]
 
 
 def marks(command: DocCommand) -> list:
