@@ -11,7 +11,7 @@ import pytest
 
 from helpers import ROOT, run_main, test_fmus, with_experiment, write_scenario
 from mecanum_fmu import master, runner
-from mecanum_fmu.errors import SimulationError
+from mecanum_fmu.errors import ScenarioError, SimulationError
 from mecanum_fmu.results import BELOW_ROUND_OFF
 
 SOURCES = ROOT / "tests" / "fmu_sources" / "with_state"
@@ -117,6 +117,22 @@ def test_an_fmu_that_cannot_save_its_state_is_named(tmp_path, fmus, capsys, tmp_
     code, out, err = run_main(capsys, "run", str(path), "--tolerance", "1e-4", "--no-plots",
                               "--out", str(tmp_path / "out"))
     assert code == 2 and "'pt' cannot do" in err and "Traceback" not in err, (code, err)
+
+
+def test_an_experiment_changed_to_the_adaptive_master_after_loading_is_refused_alike(
+        tmp_path, fmus, tmp_path_factory):
+    """master.simulate checks the experiment it is given: the loaded FMU that cannot save
+    its state is named as at compile time, before anything steps."""
+    plain = test_fmus(tmp_path_factory)["mtest_passthrough"]
+    path = write_scenario(tmp_path, "changed", _scenario(tmp_path, fmus).read_text()
+                          .replace("outputs:", "  - [lag.x, pt.u_in]\noutputs:")
+                          .replace("components:\n", f"components:\n  pt: {{fmu: {plain}}}\n"))
+    graph, exp = with_experiment(runner.prepare(path), master="adaptive", tolerance=1e-4)
+    with pytest.raises(ScenarioError) as raised:
+        master.simulate(graph, exp)
+    text = str(raised.value)
+    assert "the adaptive master rejects and retakes steps" in text and "'pt' cannot do" in text
+    assert "'lag'" not in text and "drop the tolerance" in text, text
 
 
 def test_a_tolerance_too_small_to_progress_stops_naming_the_step_and_keeps_its_rows(tmp_path,

@@ -14,9 +14,9 @@ from typing import Callable
 import numpy as np
 
 from ..scenario.arguments import check_simulate
-from ..errors import Interrupted, Problem, ScenarioError, SimulationError
-from ..scenario.graph import Graph, adaptive_samples
-from ..masters import (DEFAULT, DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, Master,
+from ..errors import Interrupted, ScenarioError, SimulationError
+from ..scenario.graph import Graph, adaptive_samples, rollback_problems
+from ..masters import (DEFAULT_RELATIVE_TOLERANCE, DEFAULT_TOLERANCE, Master,
                        entry as master_entry)
 from ..process import ctrl_c_latched
 from ..results import Results
@@ -95,19 +95,15 @@ def simulate(graph: Graph, experiment: Experiment,
 def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ctrl_c,
              progress, holds: Holds) -> tuple[Callable[[], None], dict]:
     """The stepping loop of this master, and the adaptive master's step counts."""
-    rollback = all(r.can_roll_back for r in running)
     if not how.adaptive:
         freeze = recorder.buffers.freeze if recorder.buffers.frozen else None
         return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
                                  _rolls_back_loops(how, running, holds))), {}
-    if not rollback:
-        raise ScenarioError([Problem(recorder.graph.scenario.label, "experiment.master",
-                                     f"the {how.name} master rejects and retakes steps with "
-                                     "fmi2Get/SetFMUstate, which " + ", ".join(
-                                         repr(r.name) for r in running if not r.can_roll_back)
-                                     + f" cannot do; choose a fixed-step master (e.g. "
-                                     f"{DEFAULT})")])
-    refused = adaptive_samples(recorder.graph, how.name)
+    graph = recorder.graph
+    refused = rollback_problems(graph.scenario.label, how.name,
+                                [r.name for r in running if not r.can_roll_back],
+                                "no fmi2Get/SetFMUstate or canGetAndSetFMUstate false") or \
+        adaptive_samples(graph, how.name)
     if refused:
         raise ScenarioError(refused)
     counts = {"steps_taken": 0, "steps_rejected": 0, "passes": 0}

@@ -218,15 +218,22 @@ def _table(comp, values: dict[str, Scalar], model_name: str) -> Table | None:
 def _adaptive_problems(scenario: Scenario, order: list[Instance]) -> list[Problem]:
     """The adaptive master rejects and retakes steps with fmi2Get/SetFMUstate: an FMU that
     cannot save its state is named (master/adaptive.py)."""
-    how = master_entry(scenario.experiment.master)
-    unable = [inst.name for inst in order if not inst.can_get_set_state]
+    return rollback_problems(scenario.label, scenario.experiment.master,
+                             [inst.name for inst in order if not inst.can_get_set_state])
+
+
+def rollback_problems(label: str, master_name: str, unable: list[str],
+                      why: str = "canGetAndSetFMUstate is false") -> list[Problem]:
+    """The refusal of a master that rejects and retakes steps (the adaptive one) on the FMUs
+    in `unable`, which cannot save their state (`why`): at compile time here, from the
+    model descriptions, and by master.simulate, from the loaded FMUs' functions."""
+    how = master_entry(master_name)
     if not how.adaptive or not unable:
         return []
-    return [Problem(scenario.label, "experiment.master", f"the {how.name} master rejects and "
-                    "retakes steps with fmi2Get/SetFMUstate, which "
-                    + ", ".join(repr(n) for n in unable) + " cannot do (canGetAndSetFMUstate "
-                    f"is false); choose a fixed-step master (e.g. {DEFAULT}) and drop the "
-                    "tolerance")]
+    return [Problem(label, "experiment.master", f"the {how.name} master rejects and retakes "
+                    "steps with fmi2Get/SetFMUstate, which " + ", ".join(map(repr, unable))
+                    + f" cannot do ({why}); choose a fixed-step master (e.g. {DEFAULT}) and "
+                    "drop the tolerance")]
 
 
 def _runnable(graph: Graph) -> Graph:
