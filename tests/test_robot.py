@@ -140,17 +140,24 @@ def test_motion_modes_keep_their_wheel_signs_under_dynamics(fmu_dir, mode):
     assert signs == wheel_sign_list(mode.vx, mode.vy, mode.w)
 
 
+# What the drive train's 10 s runs here ask (how far the end is from a point 4 to 6 mm away)
+# the trapezoidal master answers as the scenarios' quadratic one does, to 2e-8 m at their
+# step of 1e-3 s (robot/circle with mu = 5: 5.710676e-3 against 5.710658e-3 m; track_circle
+# 4.297842e-3 against 4.297837e-3 m), in 0.4x the time: one pass a step, no prediction
+ONE_PASS = "trapezoidal"
+
+
 def circle_error(fmu_dir, **parameters) -> float:
     """The end's distance from the kinematic end point (the run alone: its estimate's pair,
     a tenth of its time, is not read here)."""
     graph = prepare(ROBOT / "circle.yaml", fmu_dir=fmu_dir, parameters=parameters,
-                    estimate="none")
+                    estimate="none", master_name=ONE_PASS)
     results = master.simulate(graph, graph.scenario.experiment, keep_rows=2)
     return math.hypot(results.final("pose.x") - KINEMATIC_END[0],
                       results.final("pose.y") - KINEMATIC_END[1])
 
 
-@pytest.mark.heavy(32)
+@pytest.mark.heavy(12)
 def test_seed_circle_with_large_mu_ends_within_1_cm_and_nearer_with_higher_gains(fmu_dir):
     default = circle_error(fmu_dir, **{"body.mu": 5.0})
     stiffer = circle_error(fmu_dir, **{"body.mu": 5.0, "kp": 2 * KP, "ki": 4 * KI})
@@ -166,9 +173,10 @@ def test_robot_scenarios_pass_strict_validation(name):
     assert ": ok - 8 components" in proc.stdout
 
 
-@pytest.mark.heavy(8)
+@pytest.mark.heavy(4)
 def test_follower_with_motors_and_floor_reaches_the_reference(fmu_dir):
-    graph = prepare(ROBOT / "track_circle.yaml", fmu_dir=fmu_dir, estimate="none")
+    graph = prepare(ROBOT / "track_circle.yaml", fmu_dir=fmu_dir, estimate="none",
+                    master_name=ONE_PASS)
     results = master.simulate(graph, graph.scenario.experiment, keep_rows=2)
     # the follower's reference at t = 10 is the seed's kinematic end point
     assert math.hypot(results.final("pose.x") - KINEMATIC_END[0],
