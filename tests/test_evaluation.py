@@ -153,6 +153,21 @@ def test_several_chassis_with_a_failing_truth_keep_their_tables(fmu_dir, tmp_pat
     assert poses["car_pose"]["match"] is True
 
 
+def test_a_twist_singular_between_the_rows_stops_the_truth_with_one_message(fmu_dir, tmp_path):
+    """w = 1/(t - t_s) with t_s between two rows: the FMUs see finite values, the truth's solver
+    cannot pass t_s. Exit 1, the results kept, one line that says where, no warning of the
+    solver's own (scipy's ODEintWarning), no traceback."""
+    scenario = tmp_path / "singular.yaml"
+    scenario.write_text(CIRCLE.read_text().replace('w_expr: "0"', 'w_expr: "1/(t - 5.00001)"'))
+    out = tmp_path / "out"
+    proc = run_child("run", scenario, "--out", out, "--no-plots", "--fmu-dir", fmu_dir)
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr and "Warning" not in proc.stderr, proc.stderr
+    assert "the ODE solver stopped 5.00001 s after the start" in proc.stderr, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is True and "singular" in summary["ground_truth_error"]
+
+
 def test_a_sweep_with_a_failing_truth_writes_its_runs(fmu_dir, tmp_path, capsys):
     scenario = tmp_path / "between.yaml"
     scenario.write_text(CIRCLE.read_text().replace('vx_expr: "sin(t)"', f'vx_expr: "{BETWEEN}"'))

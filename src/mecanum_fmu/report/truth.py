@@ -65,8 +65,20 @@ def solve_smooth(rhs, start, taus: np.ndarray, rtol: float, atol: float,
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")        # its failure is the error below
         y, info = odeint(rhs, start, np.concatenate(([0.0], taus[~at_start])), tfirst=True,
-                         rtol=rtol, atol=atol, hmax=max_step, mxstep=10**7, full_output=True)
+                         rtol=rtol, atol=atol, hmax=max_step, mxstep=MAX_SOLVER_STEPS,
+                         full_output=True)
     if info["message"] != "Integration successful.":
-        raise ArithmeticError(f"the ODE solver stopped: {info['message']}")
+        raise ArithmeticError(_stopped(info))
     out[~at_start] = y[1:]
     return out
+
+
+MAX_SOLVER_STEPS = 100_000      # between two of the run's rows: 2,000 at max_step span the run
+
+
+def _stopped(info: dict) -> str:
+    """Why LSODA stopped, in our words, with where (from the start of the run)."""
+    reached = float(np.max(info["tcur"], initial=0.0))
+    why = (f"{MAX_SOLVER_STEPS:,} steps between two rows (is the twist singular there?)"
+           if info["message"].startswith("Excess work") else info["message"])
+    return f"the ODE solver stopped {reached:.6g} s after the start: {why}"
