@@ -2,6 +2,7 @@
 ODE solve every kind of truth shares (docs/spec.md, Pose integration)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,21 +39,25 @@ def integrate(rhs, start, taus: np.ndarray, breaks: np.ndarray, rtol: float,
               atol: float) -> np.ndarray:
     """The pose at taus (3 x n, taus >= 0 from the start). A table is solved piece by piece
     between its rows (profiles.integrate_piecewise); anything else in one go, where max_step
-    keeps the solver from stepping over a short feature of an expression."""
+    keeps the solver from stepping over a short feature of an expression: it reads the twist
+    at least every span / 2000 and at least once between two of the run's rows."""
     if len(breaks):
         return integrate_piecewise(rhs, start, taus, breaks, rtol, atol)
     span = float(taus[-1]) if len(taus) > 1 else 1.0
-    return solve_smooth(rhs, start, taus, rtol, atol, max(span / 2000, 1e-6)).T
+    rows = float(np.min(np.diff(taus), initial=span))
+    return solve_smooth(rhs, start, taus, rtol, atol, max(min(span / 2000, rows), 1e-6)).T
 
 
 def solve_smooth(rhs, start, taus: np.ndarray, rtol: float, atol: float,
                  max_step: float) -> np.ndarray:
     """The state at taus (n x 3) of y' = rhs(tau, y) from y(0) = start: LSODA (scipy's
-    odeint: Adams up to order 12 on a smooth span), whose steps run in compiled code, at
-    about a thirtieth of DOP853's time through solve_ivp at the same max_step, and within
-    5e-12 of the pose that DOP853 gives at rtol 1e-13 on every bundled scenario. A table's
-    pieces stay with DOP853 (integrate_piecewise): LSODA starts each at first order, and
-    over a 20 Hz table it ended 1e-8 off. Raises ArithmeticError where the solver stops (an
+    odeint: Adams up to order 12 on a smooth span), which reads rhs about once a step where
+    DOP853 reads it 12 times: at the same max_step a thirtieth of solve_ivp's time, within
+    5e-12 of the pose that DOP853 gives at rtol 1e-13 on every bundled scenario; a feature of
+    the twist narrower than max_step may fall between two readings (it could between
+    DOP853's stages too, 12 times narrower). A table's pieces stay with DOP853
+    (integrate_piecewise): LSODA starts each at first order, and over a 20 Hz table it ended
+    1e-8 off. Raises ArithmeticError where the solver stops or a rate is not finite (an
     exception of rhs goes through)."""
     import warnings
     from scipy.integrate import odeint     # startup: loading and validating need no scipy
@@ -64,13 +69,25 @@ def solve_smooth(rhs, start, taus: np.ndarray, rtol: float, atol: float,
         return out
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")        # its failure is the error below
-        y, info = odeint(rhs, start, np.concatenate(([0.0], taus[~at_start])), tfirst=True,
-                         rtol=rtol, atol=atol, hmax=max_step, mxstep=MAX_SOLVER_STEPS,
-                         full_output=True)
+        y, info = odeint(_finite(rhs), start, np.concatenate(([0.0], taus[~at_start])),
+                         tfirst=True, rtol=rtol, atol=atol, hmax=max_step,
+                         mxstep=MAX_SOLVER_STEPS, full_output=True)
     if info["message"] != "Integration successful.":
         raise ArithmeticError(_stopped(info))
     out[~at_start] = y[1:]
     return out
+
+
+def _finite(rhs):
+    """rhs, raising where a rate is not finite: LSODA carries a NaN rate into the state and
+    still says "Integration successful" (the end pose's check would only say that it is not
+    finite, not where)."""
+    def checked(tau, y):
+        rates = rhs(tau, y)
+        if not all(map(math.isfinite, rates)):
+            raise ArithmeticError(f"the twist is not finite {tau:.6g} s after the start")
+        return rates
+    return checked
 
 
 MAX_SOLVER_STEPS = 100_000      # between two of the run's rows: 2,000 at max_step span the run
