@@ -168,6 +168,21 @@ def test_a_twist_singular_between_the_rows_stops_the_truth_with_one_message(fmu_
     assert summary["complete"] is True and "singular" in summary["ground_truth_error"]
 
 
+def test_a_rate_that_is_not_finite_stops_the_solver_where_it_is_read():
+    """An expression refuses a result that is not finite itself (ExpressionError); any other
+    rate (another FMU's truth) is checked by the solver: LSODA alone would carry the NaN on
+    and call the integration successful."""
+    from mecanum_fmu.report.truth import solve_smooth
+
+    def rates(tau, state):          # NaN on 4.995 < t < 5.015: read at least once (5 ms)
+        return (1.0, 0.0, float("nan") if abs(tau - 5.005) < 0.01 else 0.0)
+    with pytest.raises(ArithmeticError, match=r"not finite (4\.99[5-9]|5\.0[01])\d* s after"):
+        solve_smooth(rates, (0.0, 0.0, 0.0), np.linspace(0.0, 10.0, 201), 1e-10, 1e-12, 0.005)
+    path = solve_smooth(lambda tau, state: (1.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                        np.array([0.0, 2.5, 10.0]), 1e-10, 1e-12, 0.005)
+    assert path[:, 0] == pytest.approx([0.0, 2.5, 10.0], abs=1e-12)     # x = t
+
+
 def test_a_sweep_with_a_failing_truth_writes_its_runs(fmu_dir, tmp_path, capsys):
     scenario = tmp_path / "between.yaml"
     scenario.write_text(CIRCLE.read_text().replace('vx_expr: "sin(t)"', f'vx_expr: "{BETWEEN}"'))
