@@ -220,9 +220,9 @@ def test_progress_only_on_a_terminal_and_never_with_quiet(tmp_path):
     the first report is due): on a terminal it shows; on a pipe, or with --quiet, it does not.
     The terminal run is the control: the other two ran as long."""
     # the progress comes from the run's own stepping loop: the estimate after it (its coarser
-    # runs report none) is turned off, which halves each child's time; 25,000 steps are about
-    # 2.9 s of stepping alone on a slow day here and 1.7 s on a quick one, side by side more
-    size = ["--master", "gauss-seidel", "--step-size", "1e-3", "--stop-time", "25",
+    # runs report none) is turned off, which halves each child's time; 45,000 steps are about
+    # 5 s of stepping alone on a slow day here: a machine 3x as quick still shows the report
+    size = ["--master", "gauss-seidel", "--step-size", "1e-3", "--stop-time", "45",
             "--estimate", "none"]
     started = []
     try:
