@@ -215,14 +215,30 @@ def test_parallel_runs_write_the_same_bytes_as_a_sequential_one(tmp_path):
 
 # --- 5. the progress line ---------------------------------------------------------------------
 
+PROGRESS_LOOP = 3.0    # [s] of stepping wanted in each run: the first report is due at 1 s
+
+
+def _stop_time_for(seconds: float, tmp_path: Path) -> float:
+    """The seed circle's stop time (gauss-seidel, 1 ms steps) for `seconds` in the stepping
+    loop on this machine now, from a 5 s run's own "stepping loop" line: 45,000 steps were
+    5 s on a loaded day and 1.3 s on an idle core of the same machine, so no fixed length
+    suits every machine."""
+    done = run_cli(CIRCLE, "--out", tmp_path / "calibration", "--no-plots", "--master",
+                   "gauss-seidel", "--step-size", "1e-3", "--stop-time", "5",
+                   "--estimate", "none")
+    assert done.returncode == 0, done.stderr[-2000:]
+    loop = float(re.search(r"stepping loop ([\d.]+) s", done.stdout).group(1))
+    return round(5.0 * seconds / max(loop, 1e-3), 1)
+
+
 def test_progress_only_on_a_terminal_and_never_with_quiet(tmp_path):
-    """Three runs of the same length side by side (well over 1 s in the stepping loop, when
-    the first report is due): on a terminal it shows; on a pipe, or with --quiet, it does not.
-    The terminal run is the control: the other two ran as long."""
+    """Three runs of the same length side by side (PROGRESS_LOOP in the stepping loop, when
+    the first report is due at 1 s): on a terminal it shows; on a pipe, or with --quiet, it
+    does not. The terminal run is the control: the other two ran as long."""
     # the progress comes from the run's own stepping loop: the estimate after it (its coarser
-    # runs report none) is turned off, which halves each child's time; 45,000 steps are about
-    # 5 s of stepping alone on a slow day here: a machine 3x as quick still shows the report
-    size = ["--master", "gauss-seidel", "--step-size", "1e-3", "--stop-time", "45",
+    # runs report none) is turned off, which halves each child's time
+    stop = _stop_time_for(PROGRESS_LOOP, tmp_path)
+    size = ["--master", "gauss-seidel", "--step-size", "1e-3", "--stop-time", str(stop),
             "--estimate", "none"]
     started = []
     try:
