@@ -40,11 +40,12 @@ def integrate(rhs, start, taus: np.ndarray, breaks: np.ndarray, rtol: float,
     """The pose at taus (3 x n, taus >= 0 from the start). A table is solved piece by piece
     between its rows (profiles.integrate_piecewise); anything else in one go, where max_step
     keeps the solver from stepping over a short feature of an expression: it reads the twist
-    at least every span / 2000 and at least once between two of the run's rows."""
+    at least every span / 2000 and at least once per row interval of the run (the median: a
+    short last step does not set it)."""
     if len(breaks):
         return integrate_piecewise(rhs, start, taus, breaks, rtol, atol)
     span = float(taus[-1]) if len(taus) > 1 else 1.0
-    rows = float(np.min(np.diff(taus), initial=span))
+    rows = float(np.median(np.diff(taus))) if len(taus) > 1 else span
     return solve_smooth(rhs, start, taus, rtol, atol, max(min(span / 2000, rows), 1e-6)).T
 
 
