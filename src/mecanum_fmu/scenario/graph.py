@@ -56,7 +56,11 @@ class Instance:
         """The start value this instance runs with: the scenario's, else the model's."""
         if name in self.start_values:
             return self.start_values[name]
-        return start_value(next(v for v in self.model.modelVariables if v.name == name))
+        return start_value(self.variable(name))
+
+    def variable(self, name: str) -> ScalarVariable:
+        """The model's variable of that name (StopIteration where it has none)."""
+        return next(v for v in self.model.modelVariables if v.name == name)
 
     @property
     def can_get_set_state(self) -> bool:
@@ -104,9 +108,10 @@ class Graph:
         value at the step's start (masters.Master.holds_samples). A reader whose outputs are
         all discrete is not held: it samples at its sources' instants and reads their newest
         values (the Odometry its Encoders')."""
-        return tuple(l for l in self.links
-                     if _variability(self.instance(l.source.ref.instance), l.source) ==
-                     "discrete" and _continuous_output(self.instance(l.target.ref.instance)))
+        def variability(port: Port) -> str:
+            return self.instance(port.ref.instance).variable(port.ref.variable).variability
+        return tuple(l for l in self.links if variability(l.source) == "discrete"
+                     and _continuous_output(self.instance(l.target.ref.instance)))
 
     @cached_property
     def settled(self) -> frozenset[str]:
@@ -140,10 +145,6 @@ class Graph:
 
 # FMI 3.0 types the master's kinds hold exactly (Float64 is FMI 2.0's Real, Int32 its Integer)
 _FMI3_KINDS = {"Float64": "Real", "Int32": "Integer"}
-
-
-def _variability(inst: Instance, port: Port) -> str:
-    return next(v.variability for v in inst.model.modelVariables if v.name == port.ref.variable)
 
 
 def _continuous_output(inst: Instance) -> bool:
