@@ -331,6 +331,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{'scenario':<32} {'master':<12} {'h':>6} {'output':<11} {'':<3} {'true':>10} "
           f"{'estimate':>16} {'est/true':>10} {'calls':>5} {'wall':>5}")
     total, misses, withheld, costs = 0, 0, 0, []
+    walls_by: dict[tuple[str, str], list[float]] = {}   # (method, master): wall costs
     by_method = {"the pair": [0, 0, 0, 0], "Richardson": [0, 0, 0, 0]}   # runs, values, ...
     names = [s for s in scenarios(args.loops) if args.only in s]
     for scenario in names:
@@ -342,7 +343,9 @@ def main(argv: list[str] | None = None) -> None:
                 total, misses, withheld = (total + len(lines), misses + missed[0],
                                            withheld + missed[1])
                 costs.append(cost)
-                counts = by_method["the pair" if cost[0] == 0 else "Richardson"]
+                method = "the pair" if cost[0] == 0 else "Richardson"
+                walls_by.setdefault((method, name), []).append(cost[1])
+                counts = by_method[method]
                 for i, n in enumerate((1, len(lines), *missed)):
                     counts[i] += n
     cost_table(names, args.estimate)
@@ -354,6 +357,18 @@ def main(argv: list[str] | None = None) -> None:
     print(f"estimate's doStep calls / the run's: max {steps.max():.2f}, median "
           f"{np.median(steps):.2f}; its stepping time / the run's: max {np.nanmax(walls):.2f}, "
           f"median {np.nanmedian(walls):.2f} over {len(walls)} runs (wall: noisy, see above)")
+    print_costs_by(walls_by)
+
+
+def print_costs_by(walls_by: dict) -> None:
+    """The estimate's stepping time against the run's per method and master (one
+    measurement a run: the `wall` column), and the runs over 0.2x: where the issue's
+    budget is not met, and by which estimate."""
+    print("its stepping time / the run's, per method and master (max, median, runs over 0.2x):")
+    for (method, name), walls in sorted(walls_by.items()):
+        w = np.array(walls, dtype=float)
+        print(f"  {method:<10} {name:<12} max {np.nanmax(w):.2f}  median "
+              f"{np.nanmedian(w):.2f}  {int(np.sum(w > 0.2))} of {len(w)} over 0.2x")
 
 
 if __name__ == "__main__":
