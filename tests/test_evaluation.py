@@ -168,6 +168,24 @@ def test_a_twist_singular_between_the_rows_stops_the_truth_with_one_message(fmu_
     assert summary["complete"] is True and "singular" in summary["ground_truth_error"]
 
 
+def test_where_the_solver_stopped_is_read_from_the_entries_it_wrote_only():
+    """odeint leaves its info's entries past the output time it failed on unwritten
+    (np.empty): whatever bits they hold (6e257 once, in a whole suite), the message says the
+    t reached on the first time not reached; a value there that lies outside that row's
+    interval (not written either) gives the row's start."""
+    from mecanum_fmu.report.truth import _stopped
+    times = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    excess = "Excess work done on this call (perhaps wrong Dfun type)."
+    for garbage in (6.12032e257, -1e300, 0.0, np.nan, 2.5):
+        tcur = np.array([1.0000001, 2.0, 2.4, garbage])
+        message = _stopped({"tcur": tcur, "message": excess}, times)
+        assert message.startswith("the ODE solver stopped 2.4 s after the start: "), message
+        assert "100,000 steps between two rows" in message
+    tcur = np.array([1.0, -1e300, 6.12032e257, 6.12032e257])
+    assert _stopped({"tcur": tcur, "message": excess}, times).startswith(
+        "the ODE solver stopped 1 s after the start")
+
+
 def test_a_rate_that_is_not_finite_stops_the_solver_where_it_is_read():
     """An expression refuses a result that is not finite itself (ExpressionError); any other
     rate (another FMU's truth) is checked by the solver: LSODA alone would carry the NaN on

@@ -70,11 +70,11 @@ def solve_smooth(rhs, start, taus: np.ndarray, rtol: float, atol: float,
         return out
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")        # its failure is the error below
-        y, info = odeint(_finite(rhs), start, np.concatenate(([0.0], taus[~at_start])),
-                         tfirst=True, rtol=rtol, atol=atol, hmax=max_step,
-                         mxstep=MAX_SOLVER_STEPS, full_output=True)
+        times = np.concatenate(([0.0], taus[~at_start]))
+        y, info = odeint(_finite(rhs), start, times, tfirst=True, rtol=rtol, atol=atol,
+                         hmax=max_step, mxstep=MAX_SOLVER_STEPS, full_output=True)
     if info["message"] != "Integration successful.":
-        raise ArithmeticError(_stopped(info))
+        raise ArithmeticError(_stopped(info, times))
     out[~at_start] = y[1:]
     return out
 
@@ -94,9 +94,15 @@ def _finite(rhs):
 MAX_SOLVER_STEPS = 100_000      # between two of the run's rows: 2,000 at max_step span the run
 
 
-def _stopped(info: dict) -> str:
-    """Why LSODA stopped, in our words, with where (from the start of the run)."""
-    reached = float(np.max(info["tcur"], initial=0.0))
+def _stopped(info: dict, times: np.ndarray) -> str:
+    """Why LSODA stopped, in our words, with where (from the start of the run): the t it
+    reached on the first output time it did not reach. odeint leaves info's entries past
+    that one unwritten (np.empty: any bits, 6e257 once), so none of them is read."""
+    tcur = info["tcur"]
+    short = np.flatnonzero(~(tcur >= times[1:]))    # a completed entry reached its time
+    reached = float(tcur[short[0]]) if len(short) else float(times[-1])
+    if len(short) and not times[short[0]] <= reached <= times[short[0] + 1]:
+        reached = float(times[short[0]])            # not written either: its row's start
     why = (f"{MAX_SOLVER_STEPS:,} steps between two rows (is the twist singular there?)"
            if info["message"].startswith("Excess work") else info["message"])
     return f"the ODE solver stopped {reached:.6g} s after the start: {why}"
