@@ -1,7 +1,10 @@
 """The error estimate and the tolerance on third-party FMUs (nothing the masters know of):
 a source u = cos t into a first-order lag x' = -k x + u, built here with pythonfmu, against
 the lag's closed form; the lag declares (in its model description, as a C exporter would)
-that x does not depend on the current u, so the masters may hold u (docs/masters.md)."""
+that x does not depend on the current u, so the masters may hold u (docs/masters.md). The
+fixed-step masters' estimate is the pair with the lag's response measured by probes
+(master/probe.py); two integrators in a row (x'' = u), whose response is not of first order,
+hand over to Richardson."""
 import math
 import re
 import zipfile
@@ -27,6 +30,7 @@ def fmus(tmp_path_factory):
     for script in sorted(SOURCES.glob("xtest_*.py")):
         built[script.stem] = FmuBuilder.build_FMU(script, dest=dest, canGetAndSetFMUstate=True)
     _declare_no_dependencies(built["xtest_lag"])
+    _declare_no_dependencies(built["xtest_double"])
     return built
 
 
@@ -56,6 +60,20 @@ outputs:
 """)
 
 
+def _double(folder, fmus, master_name="quadratic"):
+    return write_scenario(folder, "double", f"""\
+name: double
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  double: {{fmu: {fmus["xtest_double"]}}}
+connections:
+  - [wave.u, double.u]
+outputs:
+  - double.x
+""")
+
+
 def _truth(t: np.ndarray) -> np.ndarray:
     """x' = -k x + cos t, x(0) = 0."""
     return (K * np.cos(t) + np.sin(t) - K * np.exp(-K * t)) / (K * K + 1)
@@ -66,20 +84,59 @@ def _within_3x(estimate: dict, error: np.ndarray) -> None:
         assert value / 3 <= estimate[which] <= 3 * value, (which, estimate, value)
 
 
-@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel"])
-@pytest.mark.parametrize("divide", [1, 2])
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("divide", [1, 2, 8])
 def test_the_estimate_of_a_fixed_master_is_within_3x_of_the_closed_form(tmp_path, fmus,
                                                                         master_name, divide):
     graph = runner.prepare(_scenario(tmp_path, fmus, master_name))
     graph, exp = with_experiment(graph, step_size=0.1 / divide)
-    results = master.simulate(graph, exp)
+    results = master.simulate(graph, exp, with_estimate=True)
     summary = master.estimate_error(graph, results)
     error = np.abs(results["lag.x"] - _truth(results.time))
     assert error.max() > 1e-9          # a coupling error there is to estimate
     _within_3x(summary["error_estimate"]["lag.x"], error)
-    # the lag has a state and no error model, and its input moves: Richardson, which says so
+    # the lag has a state and no error model: the pair, with its response measured
+    method = summary["error_estimate_method"]
+    assert method.startswith("the embedded pair") and "its response measured" in method
+    assert "coarse" not in results.extra           # no coarser run was stepped
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
+def test_richardson_by_name_still_estimates_a_third_party_fmu(tmp_path, fmus, master_name):
+    graph = runner.prepare(_scenario(tmp_path, fmus, master_name), estimate="richardson")
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    error = np.abs(results["lag.x"] - _truth(results.time))
+    _within_3x(summary["error_estimate"]["lag.x"], error)
     assert summary["error_estimate_method"].startswith("Richardson")
-    assert "lag has a state and no error model" in summary["error_estimate_method"]
+
+
+def test_the_probes_leave_the_run_as_it_was(tmp_path, fmus):
+    # the probes step the lag from a saved state and set it back: the run's values are the
+    # same to the bit as a run with no estimate at all
+    graph = runner.prepare(_scenario(tmp_path, fmus, "quadratic"))
+    probed = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    assert "its response measured" in master.estimate_error(graph, probed)[
+        "error_estimate_method"]
+    graph, exp = with_experiment(graph, estimate="none")
+    plain = master.simulate(graph, exp)
+    assert np.array_equal(probed["lag.x"], plain["lag.x"])
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
+def test_a_response_of_second_order_hands_over_to_richardson_and_says_why(tmp_path, fmus,
+                                                                          master_name):
+    # x'' = u: its response to a held unit grows h^2/2, 3h^2/2, 5h^2/2, 7h^2/2 (no single
+    # decay ratio); the pair would carry a wrong pole, so Richardson estimates
+    graph = runner.prepare(_double(tmp_path, fmus, master_name))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    t = results.time
+    error = np.abs(results["double.x"] - (1.0 - np.cos(t)))     # x'' = cos t from rest
+    assert error.max() > 1e-9
+    _within_3x(summary["error_estimate"]["double.x"], error)
+    method = summary["error_estimate_method"]
+    assert method.startswith("Richardson") and "is not of first order" in method, method
 
 
 @pytest.mark.parametrize("tolerance", [1e-4, 1e-6])

@@ -28,6 +28,7 @@ from .estimate import coarse_plan, error_estimate, pair_tap
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
+from .probe import prober
 from .recorder import Recorder, step_count
 from .stepping import NonFinite, StepFailure, check_finite, initialise, step_all
 
@@ -79,6 +80,9 @@ def simulate(graph: Graph, experiment: Experiment,
         results = recorder.results(True)
         if with_estimate:
             found = pair.finish() if isinstance(pair, PairRows) else pair
+            if recorder.probe is not None:      # its probes ran inside the stepping loop
+                found["seconds"] += recorder.probe.seconds
+                found["probe_seconds"] = recorder.probe.seconds
             results.extra["pair"] = {"graph": graph, "found": found}
             if start is not None and not (isinstance(found, dict) and found["failed"] is None):
                 results.extra["coarse"] = coarse_runs(
@@ -133,6 +137,8 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
     pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back)
     if isinstance(pair, PairRows):
         recorder.tap = pair
+        recorder.probe = prober(pair.plan.groups, pair.plan.slots, running, buffers.real,
+                                recorder.n_steps)
     needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
     return pair, _start(graph, exp, running, buffers, stack) if needs_t0 else None
 

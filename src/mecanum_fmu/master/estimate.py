@@ -182,7 +182,8 @@ def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict)
                 else "", other="the other " if through else "",
                 lag=" (under Jacobi, a step late per FMU with direct feedthrough)"
                 if pair["lagged"] else ""),
-            "error_estimate_cost": round(pair["seconds"] / max(results.wall_time, 1e-12), 3)}
+            "error_estimate_cost": round(pair["seconds"] / max(
+                results.wall_time - pair.get("probe_seconds", 0.0), 1e-12), 3)}
 
 
 def _none(reason: str) -> dict:

@@ -51,6 +51,7 @@ from ..masters import entry as master_entry
 from ..scenario.graph import Graph
 from .pair_parts import Group, Loop, Network, Node, PairPlan, Through
 from .plan import has_state, state_only_inputs
+from .probe import PROBED, ProbedModel, probed_model
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
           "through its nearest values in the same smooth piece (no extra doStep), carried "
@@ -180,6 +181,10 @@ def _network(graph: Graph, groups: list[Group], col, real_slots: dict, into: dic
     response carries it on; any other reader is checked (Network.checked)."""
     if not any(hasattr(g.model, "linearised") for g in groups):
         return None
+    probed = [g.name for g in groups if isinstance(g.model, ProbedModel)]
+    if probed:
+        return (f"{probed[0]}'s response is measured (it has a state and no error model), "
+                "and the pair does not join a measured response to a linearised model's")
     ports = {str(p.ref): p for p in real_slots}
     nodes, made, offset, integrals = {}, {}, 0, []   # made: the values it makes -> column
     for i, g in enumerate(groups):
@@ -235,6 +240,8 @@ def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, i
     if len(origins) != 1:
         return None
     origin = origins.pop()
+    if isinstance(groups[origin].model, ProbedModel):     # no linear form: checked (fed)
+        return None
     carried = {name: c for name, _, _, c, _ in fed}
     starts = [(c, index) for _, _, index, c, _ in fed]
     ports = {str(p.ref): p for p in real_slots}
@@ -342,8 +349,12 @@ def _group(how, inst, links: list, loop: set, col, model) -> Group | str:
     state_only = state_only_inputs(inst)
     roles = np.array([_role(how.hold != "zoh" and n in state_only, id(l) in loop)
                       for n, l in zip(names, links)])
-    return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0,
-                 model.batch(names, inst) if model is not None else None, inst.model_name)
+    if model is not None:
+        return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0,
+                     model.batch(names, inst), inst.model_name)
+    probed = probed_model(inst, names) if not loop else None
+    return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0, probed,
+                 inst.model_name + (PROBED if probed is not None else ""))
 
 
 def _role(blended: bool, ahead: bool) -> str:

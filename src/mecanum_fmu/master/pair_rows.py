@@ -19,6 +19,7 @@ from .breakpoints import pieces
 from .pair_parts import Group, PairPlan
 from .pair_loop import LoopCarry
 from .pair_network import NetworkCarry
+from .probe import ProbedModel
 from .stencils import FOUR, means, values, weight_table
 
 # a carried error over this share of the value an output divides by: its linearisation fails
@@ -107,7 +108,7 @@ class PairRows:
         keeps its t0 for Richardson's coarser runs."""
         return bool(self.plan.fed or (self.plan.loop and self.plan.loop.checked) or (
             self.plan.network and self.plan.network.checked)) or any(
-            g.model is None for g in self.plan.groups)
+            g.model is None or isinstance(g.model, ProbedModel) for g in self.plan.groups)
 
     @property
     def held_move(self) -> bool:
@@ -154,7 +155,8 @@ class PairRows:
                 "unresolved": self._ill(),
                 "unresolved_end": dict.fromkeys(self.net.cancelled(self.end), CANCELLED)
                 if self.net is not None else {},
-                "seconds": self.seconds, "failed": self.failed or self._moved(),
+                "seconds": self.seconds,
+                "failed": self.failed or self._moved() or self._probe_failed(),
                 "lagged": bool(self.lag),
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
                            if g.model is not None],
@@ -205,6 +207,15 @@ class PairRows:
             if g.model is None and (moved > floor).any():
                 return (f"{g.name} has a state and no error model, and its held inputs move "
                         "within the steps")
+        return None
+
+    def _probe_failed(self) -> str | None:
+        """Why the pair does not hold: a measured response (probe.py) that could not be
+        measured."""
+        for g in self.plan.groups:
+            if isinstance(g.model, ProbedModel) and (g.model.failed or not g.model.found):
+                return g.model.failed or (f"{g.name} has a state and no error model, and the "
+                                          "run is too short to probe its response")
         return None
 
     def _fed_error(self) -> str | None:

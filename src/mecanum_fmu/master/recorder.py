@@ -70,6 +70,9 @@ class Recorder:
         # fed every chunk of whole buffer rows (and the index of its first row) as it is
         # flushed: the embedded pair's error estimate (pair_rows.py)
         self.tap: Callable[[np.ndarray, int], None] | None = None
+        # called before the steps in its `at` (their index, t, h): the pair's measured
+        # responses (probe.Prober)
+        self.probe = None
         self.wall = 0.0
 
     @property

@@ -94,11 +94,15 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
     # 0 * finite is 0, and a sum of zeros cannot overflow).
     real_dot, zeros = recorder.buffers.real.dot, np.zeros_like(recorder.buffers.real)
     next_report = _time.perf_counter() + 1.0
+    probe = recorder.probe
+    probe_at = probe.at if probe is not None else ()
     for k in range(n_steps):
         if ctrl_c[0]:
             raise KeyboardInterrupt
         t = start + k * h
         h_k = h if k < n_steps - 1 else stop - t
+        if k in probe_at:
+            probe(k, t, h)
         if freeze is not None:
             freeze()
         if held:

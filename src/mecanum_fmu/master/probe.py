@@ -1,0 +1,263 @@
+"""The embedded pair's error model of an FMU with a state and no model of its own: its response
+to a held input's error, measured on the FMU itself (docs/masters.md, "The measured response").
+
+Before the master steps the FMU at a probed step k, its state is saved, and it is stepped
+PROBE_STEPS times from there with the inputs of now (u_k: the sources' values at t_k), then,
+per held input j, the same with u_j moved by a small eps over the first step only; its state
+is set back. Per covered output o (one that no held input reaches directly) and input j, the
+differences over eps are the response to a unit held over one step, at the end of that step
+and of the next three: g0, g1, g2, g3. The model is one pole and a direct part, which fits g0,
+g1 and g2 exactly: g_n = g1 r^(n-1) for n >= 1, r = g2 / g1 (a first-order FMU, x' = a x + b u,
+has g1 = r g0, r = e^(a h)). g3 checks it: a response of higher order (two integrators in a
+row) does not decay geometrically, and the pair hands over to Richardson rather than carry a
+wrong pole over the run. Per step the pair's errors are carried as
+    d_k = error_k - m change_k,    y_k = s_k + g0 d_k,    s_k+1 = r s_k + g1 d_k,
+summed over the inputs: error, the held value against the true mean; change, the true input's
+change over the step, whose weight within the step a mean does not see (m: moment(), about
+-a h / 12, exact for the first-order part).
+
+A probe costs (1 + m) PROBE_STEPS doStep calls of that FMU and 1 + m state sets. The first is
+made at the first step; the next PROBE_EVERY steps later, and each time a probe finds what the
+one before it found (within AGREE), the gap doubles: a linear FMU is probed about log2(n / 32)
+times, a nonlinear one as often as its response changes.
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+import time as _time
+
+import numpy as np
+from scipy.signal import lfilter
+
+from .stepping import StepFailure
+
+PROBE_EVERY = 32
+PROBE_STEPS = 4
+RELATIVE_EPS = 1e-6
+AGREE = 0.05            # relative: two probes that agree this well double the gap
+FIT = 0.02              # relative: g3 against the model's g1 r^2
+PROBED = ", its response measured by probes"
+
+
+def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
+    """The ProbedModel of an FMU with a state and no error model, held inputs `inputs`: it
+    covers the Real outputs that no held input reaches directly (declared dependencies); None
+    where it cannot be probed (not FMI 2, or it cannot save its state)."""
+    md = inst.model
+    if md.fmiVersion != "2.0" or not inst.can_get_set_state:
+        return None
+    held = set(inputs)
+    outputs = [u.variable.name for u in md.outputs if u.variable.type == "Real"
+               and u.dependencies is not None
+               and not held & {d.name for d in u.dependencies}]
+    return ProbedModel(inst.name, inputs, outputs)
+
+
+class ProbedModel:
+    """The batch error model (the pair's interface: `outputs`, steps(h, held, error,
+    change) -> the signed accumulated error of each output after each step) of one FMU
+    whose response a Target measures while the run steps. Per probe, in `found`: (its step,
+    its step size, g0, g1, r, m), each (outputs x inputs)."""
+
+    def __init__(self, name: str, inputs: list[str], outputs: list[str]):
+        self.name, self.inputs, self.outputs = name, inputs, outputs
+        self.found: list[tuple] = []
+        self.failed: str | None = None
+        self.k = 0                  # the next step steps() works out
+        self.s = np.zeros((len(outputs), len(inputs)))      # run - true, past steps' share
+
+    def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
+              ) -> np.ndarray:
+        n = len(h)
+        out = np.zeros((n, len(self.outputs)))
+        if not self.found or not len(self.outputs):     # finish() says why (no probe)
+            self.k += n
+            return out
+        at = [f[0] for f in self.found]
+        which = np.maximum(np.searchsorted(at, self.k + np.arange(n), side="right") - 1, 0)
+        s = self.s.copy()
+        for part, probe in _segments(which, h):
+            _, size, g0, g1, r, m = self.found[probe]
+            scale = float(h[part.start]) / size
+            decay = np.where(r > 0, np.abs(r) ** scale, r)
+            d = error[part][:, None, :] - m[None] * change[part][:, None, :]   # (steps, o, j)
+            x = (g1 * scale)[None] * d
+            for o, j in np.ndindex(s.shape):
+                after, _ = lfilter([1.0], [1.0, -decay[o, j]], x[:, o, j],
+                                   zi=[decay[o, j] * s[o, j]])
+                out[part, o] += np.concatenate(([s[o, j]], after[:-1])) \
+                    + g0[o, j] * scale * d[:, o, j]
+                s[o, j] = after[-1]
+        self.s, self.k = s, self.k + n
+        return out
+
+
+def _segments(which: np.ndarray, h: np.ndarray) -> list[tuple[slice, int]]:
+    """The runs of steps with one probe and one step length (the last step may be shorter)."""
+    cuts = np.flatnonzero((np.diff(which) != 0) | (np.diff(h) != 0)) + 1
+    bounds = [0, *cuts.tolist(), len(h)]
+    return [(slice(a, b), int(which[a])) for a, b in zip(bounds, bounds[1:])]
+
+
+def moment(r: np.ndarray) -> np.ndarray:
+    """m(z), z = ln r = a h: x' = a x + b u's weight of the input's (s/h - 1/2) over a step,
+    over its weight of the input's mean: int_0^1 e^(z t) (1/2 - t) dt / int_0^1 e^(z t) dt
+    (about -z/12); 0 where r is not positive (no first-order response decays so)."""
+    return np.array([_moment(x) for x in r.flat]).reshape(r.shape)
+
+
+def _moment(r: float) -> float:
+    if r <= 0.0:
+        return 0.0
+    z = math.log(r)
+    if abs(z) < 1e-4:
+        return -z / 12
+    mean = math.expm1(z) / z
+    return (0.5 * mean - math.exp(z) / z + math.expm1(z) / (z * z)) / mean
+
+
+def fitted(g: np.ndarray, floor: np.ndarray) -> tuple | str:
+    """(g0, g1, r, m) from the responses g (PROBE_STEPS, outputs, inputs) and the round-off
+    floor of each (outputs, inputs), or why the model does not fit (g3 off its prediction)."""
+    g = np.where(np.abs(g) <= floor[None], 0.0, g)
+    g0, g1, g2, g3 = g
+    r = np.where(g1 != 0.0, g2 / np.where(g1 != 0.0, g1, 1.0), 0.0)
+    off = np.abs(g3 - g2 * r) > FIT * np.abs(g3) + 2 * floor
+    if off.any():
+        o, j = np.argwhere(off)[0]
+        return (f"(output {o}, input {j}) is not of first order: one step on, the response "
+                f"{g1[o, j]:.3g}, {g2[o, j]:.3g}, {g3[o, j]:.3g} does not decay by one ratio")
+    return g0, g1, r, moment(r)
+
+
+def _agree(a: tuple, b: tuple) -> bool:
+    """Whether two probes found g0, g1 and r within AGREE of each other."""
+    x, y = np.concatenate([v.ravel() for v in a[2:5]]), np.concatenate([v.ravel() for v in b[2:5]])
+    return bool(np.all(np.abs(x - y) <= AGREE * np.abs(y) + 1e-300))
+
+
+class Prober:
+    """Measures the ProbedModels' responses in the run's own instances: step_all calls it
+    before each step in `at`, which it extends as it goes."""
+
+    def __init__(self, targets: list["Target"], real: np.ndarray, n_steps: int):
+        self.targets, self.real = targets, real
+        self.last = n_steps - 1 - PROBE_STEPS        # the last step a probe starts at
+        self.at = {0} if self.last >= 0 else set()
+        self.gap = PROBE_EVERY
+        self.seconds = 0.0      # inside the run's stepping time: the estimate's, not the run's
+
+    def __call__(self, k: int, t: float, h: float) -> None:
+        tick = _time.perf_counter()
+        same = True
+        for target in self.targets:
+            if target.model.failed is None:
+                before = target.model.found[-1] if target.model.found else None
+                target.probe(k, t, h, self.real)
+                now = target.model.found[-1] if target.model.found else None
+                same = same and before is not None and now is not before and _agree(now, before)
+        self.gap = 2 * self.gap if same else PROBE_EVERY
+        if k + self.gap <= self.last:
+            self.at.add(k + self.gap)
+        self.seconds += _time.perf_counter() - tick
+
+
+def prober(groups: list, slots: np.ndarray, running: list, real: np.ndarray, n_steps: int
+           ) -> Prober | None:
+    """The Prober of the pair's groups whose model is a ProbedModel (None: there are none);
+    `slots`: the pair's columns' buffer slots (PairPlan.slots), `real`: the buffers."""
+    by_name = {r.name: r for r in running}
+    targets = []
+    for g in groups:
+        if isinstance(g.model, ProbedModel) and g.model.outputs:
+            vrs = {v.name: v.valueReference for v in by_name[g.name].inst.model.modelVariables}
+            targets.append(Target(by_name[g.name], g.model, [vrs[n] for n in g.model.inputs],
+                                  [vrs[n] for n in g.model.outputs], slots[g.cols]))
+    return Prober(targets, real, n_steps) if targets else None
+
+
+class Target:
+    """One probed FMU: its running instance, its model, and the value references of its held
+    inputs and covered outputs, with the buffer slots of the inputs' sources."""
+
+    def __init__(self, running, model: ProbedModel, in_vrs: list[int], out_vrs: list[int],
+                 slots: np.ndarray):
+        self.r, self.model, self.slots = running, model, slots
+        self.in_vrs = (ctypes.c_uint * len(in_vrs))(*in_vrs)
+        self.out_vrs = (ctypes.c_uint * len(out_vrs))(*out_vrs)
+        self.u = (ctypes.c_double * len(in_vrs))()
+        self.y = (ctypes.c_double * len(out_vrs))()
+
+    def probe(self, k: int, t: float, h: float, real: np.ndarray) -> None:
+        """One probe from the FMU's state now (t_k), the state set back after it. A call that
+        fails, or a response the model does not fit, marks the model failed (the pair hands
+        over to Richardson); a state it cannot set back fails the run (StepFailure)."""
+        r, comp = self.r, self.r.component
+        u = real[self.slots].astype(float)
+        eps = RELATIVE_EPS * np.maximum(1.0, np.abs(u))
+        state = ctypes.c_void_p()
+        if r.c_get_state(comp, ctypes.byref(state)) > 1:
+            self.model.failed = f"{r.name}'s fmi2GetFMUstate failed while probing it"
+            return
+        try:
+            runs = [self._steps(u, t, h)]
+            for j in range(len(u)):
+                self._set_state(state, t)
+                nudged = u.copy()
+                nudged[j] += eps[j]
+                runs.append(self._steps(u, t, h, nudged))
+        except _Refused as why:
+            self.model.failed = f"{r.name}'s {why} while probing its response"
+        finally:
+            try:
+                self._set_state(state, t)
+            finally:
+                r.c_free_state(comp, ctypes.byref(state))
+        if self.model.failed is None:
+            self._fit(k, h, np.array(runs), eps)
+
+    def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray) -> None:
+        """runs: (1 + inputs, PROBE_STEPS, outputs), the first unmoved."""
+        size = np.maximum(np.abs(runs[0]), np.abs(runs[1:]).max(axis=0))   # (steps, outputs)
+        g = np.moveaxis((runs[1:] - runs[0][None]) / eps[:, None, None], 0, 2)
+        floor = 64 * np.finfo(float).eps * size[:, :, None] / eps[None, None, :]
+        fit = fitted(g, floor.max(axis=0))
+        if isinstance(fit, str):
+            self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
+        else:
+            self.model.found.append((k, h, *fit))
+
+    def _set_state(self, state, t: float) -> None:
+        st = self.r.c_set_state(self.r.component, state)
+        if st > 1:
+            raise StepFailure(self.r, "fmi2SetFMUstate", st, t, t)
+
+    def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None
+               ) -> np.ndarray:
+        """The covered outputs after each of PROBE_STEPS steps, inputs `first` (default u)
+        over the first and u over the others."""
+        out = np.empty((PROBE_STEPS, len(self.y)))
+        for i in range(PROBE_STEPS):
+            values = first if i == 0 and first is not None else u
+            if i < 2:
+                self._call("fmi2SetReal", self.r.c_set["Real"], self.in_vrs, len(values),
+                           _fill(self.u, values))
+            self._call("fmi2DoStep", self.r.c_do_step, t + i * h, h, 0)
+            self._call("fmi2GetReal", self.r.c_get["Real"], self.out_vrs, len(self.y), self.y)
+            out[i] = self.y[:]
+        return out
+
+    def _call(self, name: str, function, *args) -> None:
+        st = function(self.r.component, *args)
+        if st > 1:
+            raise _Refused(f"{name} returned {st}")
+
+
+class _Refused(Exception):
+    """An FMI call that returned Error or worse while probing."""
+
+
+def _fill(array, values: np.ndarray):
+    array[:] = values.tolist()
+    return array

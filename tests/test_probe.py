@@ -1,0 +1,108 @@
+"""The measured response of an FMU with a state and no error model (master/probe.py): its
+moment against quadrature, its model against the convolution it stands for, the fit's check,
+and the probes' schedule."""
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from mecanum_fmu.master.probe import (PROBE_EVERY, Prober, ProbedModel, fitted, moment)
+
+
+@pytest.mark.parametrize("r", [0.05, 0.5, 0.9, 0.99999, 1.0, 1.3])
+def test_the_moment_is_the_first_order_weight_by_quadrature(r):
+    z = np.log(r)
+    weight = lambda t: np.exp(z * (1 - t))        # noqa: E731  x' = a x + b u, s = t h
+    ramp = quad(lambda t: weight(t) * (t - 0.5), 0, 1)[0]
+    mean = quad(weight, 0, 1)[0]
+    assert moment(np.array([[r]]))[0, 0] == pytest.approx(ramp / mean, rel=1e-6, abs=1e-12)
+
+
+def test_a_ratio_that_is_not_positive_has_no_moment():
+    assert moment(np.array([[0.0, -0.4]])).tolist() == [[0.0, 0.0]]
+
+
+def _model(found):
+    model = ProbedModel("f", ["a", "b"], ["y"])
+    model.found = found
+    return model
+
+
+def _probe(k, g0, g1, r):
+    g0, g1, r = (np.array(v, dtype=float).reshape(1, 2) for v in (g0, g1, r))
+    return (k, 0.1, g0, g1, r, moment(r))
+
+
+def _convolution(found, h, error, change):
+    """y_k = g0_k d_k + sum_(i<k) g1_i d_i r_(i+1) ... r_(k-1): an error made at step i
+    (d_i, with the probe in effect there) decays by the ratio of the probe in effect at each
+    later step; a sum of products, one term at a time."""
+    n = len(h)
+    at = lambda i: [f for f in found if f[0] <= i][-1]      # noqa: E731
+    y = np.zeros(n)
+    for i in range(n):
+        _, size, g0, g1, r, m = at(i)
+        d = error[i] - m[0] * change[i]
+        y[i] += float(np.sum(g0[0] * d))
+        gain = g1[0] * d
+        for k in range(i + 1, n):
+            y[k] += float(np.sum(gain))
+            gain = gain * at(k)[4][0]
+    return y
+
+
+def test_the_model_is_the_sum_it_stands_for_in_any_batches():
+    rng = np.random.default_rng(7)
+    found = [_probe(0, [0.09, 0.02], [0.08, 0.03], [0.9, 1.0]),
+             _probe(20, [0.1, 0.01], [0.07, 0.01], [0.8, 0.95])]
+    n = 50
+    h = np.full(n, 0.1)
+    error, change = rng.normal(size=(n, 2)), rng.normal(size=(n, 2))
+    want = _convolution(found, h, error, change)
+    whole = _model(found).steps(h, None, error, change)[:, 0]
+    model = _model(found)
+    parts = np.concatenate([model.steps(h[a:b], None, error[a:b], change[a:b])[:, 0]
+                            for a, b in ((0, 7), (7, 33), (33, 50))])
+    assert np.allclose(whole, want, rtol=1e-12, atol=1e-14)
+    assert np.allclose(parts, want, rtol=1e-12, atol=1e-14)
+
+
+def test_a_first_order_response_fits_and_two_integrators_do_not():
+    h, r = 0.1, np.exp(-2.0 * 0.1)
+    g = np.array([(1 - r) / 2 * r ** n for n in range(4)]).reshape(4, 1, 1)   # a lag
+    g0, g1, ratio, m = fitted(g, np.full((1, 1), 1e-15))
+    assert ratio[0, 0] == pytest.approx(r) and g1[0, 0] == pytest.approx(r * g0[0, 0])
+    double = np.array([0.5, 1.5, 2.5, 3.5]).reshape(4, 1, 1) * h * h          # x'' = u
+    assert "is not of first order" in fitted(double, np.full((1, 1), 1e-15))
+
+
+class _Target:
+    """Stands for probe.Target: each probe finds what `finds(k)` says."""
+
+    def __init__(self, finds):
+        self.model, self.finds, self.steps = ProbedModel("f", ["u"], ["y"]), finds, []
+
+    def probe(self, k, t, h, real):
+        self.steps.append(k)
+        self.model.found.append(_one(k, self.finds(k)))
+
+
+def _one(k, gain):
+    a = np.full((1, 1), gain)
+    return (k, 0.1, a, a, np.full((1, 1), 0.9), a)
+
+
+def _schedule(finds, n):
+    target = _Target(finds)
+    prober = Prober([target], np.zeros(1), n)
+    for k in range(n):
+        if k in prober.at:
+            prober(k, 0.1 * k, 0.1)
+    return target.steps
+
+
+def test_probes_that_agree_double_their_gap_and_others_keep_it():
+    # a probe steps 4 times: the last may start at step n - 5
+    assert _schedule(lambda k: 1.0, 1000) == [0, 32, 96, 224, 480, 992]
+    assert _schedule(lambda k: 1.0, 996) == [0, 32, 96, 224, 480]
+    assert _schedule(lambda k: 1.0 + k / 100, 200) == list(range(0, 196, PROBE_EVERY))
+    assert _schedule(lambda k: 1.0, 4) == []
