@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import os
+import re
 import subprocess
 import sys
 import zipfile
@@ -62,6 +63,33 @@ def test_fmus(tmp_path_factory) -> dict[str, Path]:
 
 
 test_fmus.__test__ = False   # not a test, despite the name
+
+
+def state_fmus(dest: Path) -> dict[str, Path]:
+    """script stem -> FMU built into `dest` from tests/fmu_sources/with_state (third-party
+    style FMUs that can save their state: a wave source, a lag, two integrators, a drag),
+    the outputs of those with an input declared free of it (dependencies="", as a C
+    exporter would declare a state): tests/test_estimate_any_fmu.py, bench/third_party.py."""
+    from pythonfmu import FmuBuilder
+    built = {}
+    for script in sorted((FMU_SOURCES / "with_state").glob("xtest_*.py")):
+        built[script.stem] = Path(FmuBuilder.build_FMU(script, dest=dest,
+                                                       canGetAndSetFMUstate=True))
+        if script.stem != "xtest_wave":
+            _declare_no_dependencies(built[script.stem])
+    return built
+
+
+def _declare_no_dependencies(fmu: Path) -> None:
+    with zipfile.ZipFile(fmu) as zf:
+        entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
+    xml = entries["modelDescription.xml"].decode()
+    entries["modelDescription.xml"] = re.sub(r'<Unknown index="(\d+)"/>',
+                                             r'<Unknown index="\1" dependencies=""/>',
+                                             xml).encode()
+    with zipfile.ZipFile(fmu, "w") as zf:
+        for name, data in entries.items():
+            zf.writestr(name, data)
 
 
 def with_experiment(graph, **changes):

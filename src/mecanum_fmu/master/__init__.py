@@ -83,6 +83,7 @@ def simulate(graph: Graph, experiment: Experiment,
             if recorder.probe is not None:      # its probes ran inside the stepping loop
                 found["seconds"] += recorder.probe.seconds
                 found["probe_seconds"] = recorder.probe.seconds
+                found["probe_calls"] = recorder.probe.calls
             results.extra["pair"] = {"graph": graph, "found": found}
             if start is not None and not (isinstance(found, dict) and found["failed"] is None):
                 results.extra["coarse"] = coarse_runs(
