@@ -24,6 +24,7 @@ import other_hosts
 import samples
 import sweep
 import table_lookup
+import third_party
 import turnaround
 from mecanum_fmu.process import exit_now
 
@@ -52,6 +53,8 @@ LONG = (
      lambda: estimates.main(["--adaptive"])),
     ("the closed loops' estimate against a run at 1/32 of the step (bench/estimates.py "
      "--loops)", lambda: estimates.main(["--loops"])),
+    ("the estimate on third-party FMUs with a state: the measured response against the "
+     "truth and Richardson (bench/third_party.py)", third_party.main),
     ("a loop closed through sampled sensors, per master (bench/samples.py)",
      lambda: samples.main([])),
     ("peak memory against run length (bench/memory.py)", memory.main),
