@@ -209,3 +209,34 @@ def test_a_nonlinear_fmu_is_estimated_within_3x_of_a_fine_run(tmp_path, fmus, ma
     error = np.abs(results["it.v"] - reference)
     assert error.max() > 1e-7
     _within_3x(summary["error_estimate"]["it.v"], error)
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
+def test_an_error_is_forwarded_from_one_measured_fmu_into_the_next(tmp_path, fmus,
+                                                                   master_name):
+    # cos t into x1' = -2 x1 + u, x1 into x2' = -x2 + x1: x2's error is its own hold's and
+    # the one x1 carries into it (before, the pair handed such a chain to Richardson); the
+    # truth: the two ODEs by scipy's DOP853 at rtol 1e-12
+    from scipy.integrate import solve_ivp
+    path = write_scenario(tmp_path, "chain", f"""\
+name: chain
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  one: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+  two: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 1.0}}}}
+connections:
+  - [wave.u, one.u]
+  - [one.x, two.u]
+outputs: [one.x, two.x]
+""")
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    assert summary["error_estimate_method"].startswith("the embedded pair")
+    truth = solve_ivp(lambda t, y: [-2 * y[0] + np.cos(t), y[0] - y[1]], (0.0, 6.0), [0.0, 0.0],
+                      t_eval=results.time, rtol=1e-12, atol=1e-14, method="DOP853").y
+    for name, row in zip(("one.x", "two.x"), truth):
+        error = np.abs(results[name] - row)
+        assert error.max() > 1e-9
+        _within_3x(summary["error_estimate"][name], error)

@@ -125,10 +125,12 @@ def _plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
         if isinstance(lags, str):
             return lags
         g.lags, g.lag = lags, int(lags.max(initial=0))
+    forwarded, fed = _forwarded(fed, groups, position) if network is None else ([], fed)
     loop = None if network else _loop(graph, groups, fed, col, real_slots, into, lag)
     plan = _outputs(graph, lag, groups, slots, col, "frozen" if how.freezes_inputs else how.hold)
     if isinstance(plan, PairPlan):
         plan.fed, plan.rolled_back, plan.loop, plan.network = fed, rolled_back, loop, network
+        plan.forwarded = forwarded
         if loop is not None:        # its model's outputs are checked where the loop is
             plan.fed = [f for f in fed if f[1] != loop.origin]
         if network is not None:     # and every model's where the network is; the values
@@ -337,6 +339,24 @@ def _fed(graph: Graph, groups: list[Group], modelled: dict, col) -> list | str:
         entry[3].add(l.target.ref.instance)
     return [(name, i, index, c, sorted(readers))
             for name, (i, index, c, readers) in fed.items()]
+
+
+def _forwarded(fed: list, groups: list[Group], position: dict) -> tuple[list, list]:
+    """(PairPlan.forwarded, the rest of `fed`): the error models' outputs read only by FMUs
+    with an error model later in the step order, their error forwarded into those FMUs' held
+    inputs: (the source's group, its index in the model's outputs, the reader's group, the
+    places of the value among the reader's held inputs)."""
+    by_name = {g.name: j for j, g in enumerate(groups) if g.model is not None}
+    forwarded, rest = [], []
+    for entry in fed:
+        _, i, index, c, readers = entry
+        later = all(r in by_name and position[r] > position[groups[i].name] for r in readers)
+        if not later:
+            rest.append(entry)
+            continue
+        forwarded += [(i, index, by_name[r], np.flatnonzero(groups[by_name[r]].cols == c))
+                      for r in readers]
+    return forwarded, rest
 
 
 def _group(how, inst, links: list, loop: set, col, model) -> Group | str:

@@ -39,6 +39,10 @@ class PairPlan:
     network: "Network | None" = None    # FMUs with a state that feed one another
     # the recorded outputs of the sensors (and of what reads them): name -> why unresolved
     unresolved: dict = field(default_factory=dict)
+    # an error model's output read by FMUs with a model later in the step order (pair.
+    # _forwarded): (its group, its index in the model's outputs, the reader's group, its
+    # places among the reader's held inputs); its error is added to theirs
+    forwarded: list = field(default_factory=list)
 
 
 @dataclass

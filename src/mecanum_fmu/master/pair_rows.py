@@ -97,6 +97,11 @@ class PairRows:
         # the models' outputs other FMUs read: their largest |error|
         self.fed = {name: 0.0 for name, *_ in (*plan.fed, *(loop.checked if loop else ()),
                                                 *(net.checked if net else ()))}
+        # per group whose outputs' error is forwarded (PairPlan.forwarded): its signed
+        # errors of the last batch, and of the row before it
+        self.sent: dict[int, np.ndarray] = {}
+        self.sent_before = {i: np.zeros(len(plan.groups[i].model.outputs))
+                            for i, *_ in plan.forwarded}
         self.ill: dict[str, str] = {}      # the chain's outputs whose linearisation fails
         self.divisors: dict[str, tuple] = {}    # their divisors' smallest and largest |value|
         self.failed: str | None = None
@@ -189,10 +194,12 @@ class PairRows:
         place: a shallow copy keeps them; the window is sliced, never written)."""
         return ([copy.copy(g.model) for g in self.plan.groups], dict(self.worst),
                 dict(self.end), self.k, self.lo, self.window, [m.copy() for m in self.moved],
-                dict(self.fed), copy.copy(self.carry), self.net and self.net.copy())
+                dict(self.fed), copy.copy(self.carry), self.net and self.net.copy(),
+                dict(self.sent_before))
 
     def _restore(self, state: tuple) -> None:
-        models, worst, end, self.k, self.lo, self.window, moved, fed, carry, net = state
+        models, worst, end, self.k, self.lo, self.window, moved, fed, carry, net, sent = state
+        self.sent_before = dict(sent)
         self.carry, self.net = copy.copy(carry), net and net.copy()
         for g, model in zip(self.plan.groups, models):
             g.model = copy.copy(model)
@@ -229,6 +236,22 @@ class PairRows:
                         "carries an error only through FMUs without a state whose response "
                         "it knows")
         return None
+
+    def _forwarded_into(self, j: int, error: np.ndarray) -> np.ndarray:
+        """Group j's held inputs' errors with the errors its sources' models forward into
+        them (PairPlan.forwarded): per step, the source's error at the step's start (Jacobi:
+        the value it holds) or its mean over the step (the other masters'), read off the
+        source's signed errors after each step."""
+        mine = [(i, index, places) for i, index, jj, places in self.plan.forwarded if jj == j]
+        if not mine:
+            return error
+        error = error.copy()
+        for i, index, places in mine:
+            after = self.sent[i][:, index]
+            before = np.concatenate(([self.sent_before[i][index]], after[:-1]))
+            value = before if self.plan.hold == "frozen" else 0.5 * (before + after)
+            error[:, places] += value[:, None]
+        return error
 
     def _check_fed(self, i: int, signed: np.ndarray) -> None:
         """Keep the largest |error| of group i's outputs that other FMUs read."""
@@ -311,6 +334,7 @@ class PairRows:
         holds = {}
         for i, g in enumerate(self.plan.groups):
             held, error, change = self._group(g, ks, self._gathered(i, stencils))
+            error = self._forwarded_into(i, error)
             if g.model is None:
                 np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
                 continue
@@ -324,6 +348,8 @@ class PairRows:
             names, index = self.covers[i]
             self._keep(names, signed[:, index])
             self._check_fed(i, signed)
+            if i in self.sent_before:
+                self.sent[i] = signed
         if self.net is not None:
             self._network(ks, h, holds)
         for d, names, at in self.lags:
@@ -333,6 +359,8 @@ class PairRows:
                 self._keep(names, self.window[[self.n - self.lo]][:, self.cols[d][at]]
                            - stencils[d][2][-1:, at] + self._late_carried(names, ks[-1:] + 1))
         self.failed = self._fed_error()
+        for i, signed in self.sent.items():
+            self.sent_before[i] = signed[-1]
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
