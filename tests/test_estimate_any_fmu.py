@@ -3,8 +3,9 @@ a source u = cos t into a first-order lag x' = -k x + u, built here with pythonf
 the lag's closed form; the lag declares (in its model description, as a C exporter would)
 that x does not depend on the current u, so the masters may hold u (docs/masters.md). The
 fixed-step masters' estimate is the pair with the lag's response measured by probes
-(master/probe.py); two integrators in a row (x'' = u), whose response is not of first order,
-hand over to Richardson."""
+(master/probe.py), forwarded from one lag into the next, and carried around a loop through a
+third-party controller's measured Jacobian; two integrators in a row (x'' = u), whose
+response is not of first order, and a nonlinear controller hand over to Richardson."""
 import math
 import numpy as np
 import pytest
@@ -240,3 +241,48 @@ outputs: [one.x, two.x]
         error = np.abs(results[name] - row)
         assert error.max() > 1e-9
         _within_3x(summary["error_estimate"][name], error)
+
+
+def _loop(folder, fmus, master_name, cube=0.0):
+    """cos t into a controller u = 3 (r - x) + cube (r - x)^3 (no state) closing a loop
+    around the lag x' = -2 x + u."""
+    return write_scenario(folder, "loop", f"""\
+name: loop
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0, cube: {cube}}}}}
+  plant: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections:
+  - [wave.u, ctrl.r]
+  - [plant.x, ctrl.y]
+  - [ctrl.u, plant.u]
+outputs: [plant.x, ctrl.u]
+""")
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
+def test_a_loop_through_a_third_party_controller_is_carried_by_its_measured_jacobian(
+        tmp_path, fmus, master_name):
+    # x' = -2 x + 3 (cos t - x): the plant's error goes through the controller's Jacobian
+    # (measured: -3 in y) back into its input; Richardson, which estimated this loop before,
+    # was "unresolved" under the trapezoidal master (its coarser runs out of the h^p range)
+    from scipy.integrate import solve_ivp
+    graph = runner.prepare(_loop(tmp_path, fmus, master_name))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    method = summary["error_estimate_method"]
+    assert method.startswith("the embedded pair") and "through the Jacobians of ctrl" in method
+    x = solve_ivp(lambda t, y: [-2 * y[0] + 3 * (np.cos(t) - y[0])], (0.0, 6.0), [0.0],
+                  t_eval=results.time, rtol=1e-12, atol=1e-14, method="DOP853").y[0]
+    error = np.abs(results["plant.x"] - x)
+    assert error.max() > 1e-6
+    _within_3x(summary["error_estimate"]["plant.x"], error)
+
+
+def test_a_controller_whose_jacobian_changes_hands_the_loop_to_richardson(tmp_path, fmus):
+    graph = runner.prepare(_loop(tmp_path, fmus, "gauss-seidel", cube=2.0))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    method = master.estimate_error(graph, results)["error_estimate_method"]
+    assert method.startswith("Richardson") and "ctrl's measured Jacobian changed" in method, \
+        method

@@ -79,10 +79,11 @@ class _Target:
     """Stands for probe.Target: each probe finds what `finds(k)` says."""
 
     def __init__(self, finds):
-        self.model, self.finds, self.steps = ProbedModel("f", ["u"], ["y"]), finds, []
+        self.model, self.finds, self.probed = ProbedModel("f", ["u"], ["y"]), finds, []
+        self.steps = 4          # doStep calls per probe and input
 
     def probe(self, k, t, h, real):
-        self.steps.append(k)
+        self.probed.append(k)
         self.model.found.append(_one(k, self.finds(k)))
 
 
@@ -97,7 +98,7 @@ def _schedule(finds, n):
     for k in range(n):
         if k in prober.at:
             prober(k, 0.1 * k, 0.1)
-    return target.steps
+    return target.probed
 
 
 def test_probes_that_agree_double_their_gap_and_others_keep_it():

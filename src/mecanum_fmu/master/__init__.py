@@ -138,8 +138,7 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
     pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back)
     if isinstance(pair, PairRows):
         recorder.tap = pair
-        recorder.probe = prober(pair.plan.groups, pair.plan.slots, running, buffers.real,
-                                recorder.n_steps)
+        recorder.probe = prober(pair.plan, running, buffers.real, recorder.n_steps)
     needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
     return pair, _start(graph, exp, running, buffers, stack) if needs_t0 else None
 

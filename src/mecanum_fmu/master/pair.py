@@ -51,7 +51,7 @@ from ..masters import entry as master_entry
 from ..scenario.graph import Graph
 from .pair_parts import Group, Loop, Network, Node, PairPlan, Through
 from .plan import has_state, state_only_inputs
-from .probe import PROBED, ProbedModel, probed_model
+from .probe import PROBED, ProbedModel, probed_model, probed_response
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
           "through its nearest values in the same smooth piece (no extra doStep), carried "
@@ -107,7 +107,8 @@ def _plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
                 return d
             lag[inst.name] = d + 1 if how.freezes_inputs and links else d
             continue
-        group = _group(how, inst, links, set(map(id, loop)), col, models.get(inst.name))
+        group = _group(how, inst, links, set(map(id, loop)), col, models.get(inst.name),
+                       inst.name in graph.measured)
         if isinstance(group, str):
             return group
         groups.append(group)
@@ -242,8 +243,6 @@ def _loop(graph: Graph, groups: list[Group], fed: list, col, real_slots: dict, i
     if len(origins) != 1:
         return None
     origin = origins.pop()
-    if isinstance(groups[origin].model, ProbedModel):     # no linear form: checked (fed)
-        return None
     carried = {name: c for name, _, _, c, _ in fed}
     starts = [(c, index) for _, _, index, c, _ in fed]
     ports = {str(p.ref): p for p in real_slots}
@@ -277,8 +276,10 @@ def _carried_on(graph: Graph, into: dict, carried: dict, skip: set, stateful: se
         hot = [str(l.source.ref) for l in links if str(l.source.ref) in carried]
         if not hot or inst.name in skip:
             continue
-        through = None if inst.name in stateful or inst.name not in responses else \
-            _through(inst, links, responses[inst.name], col, ports, lag.get(inst.name, 0))
+        factory = responses.get(inst.name, probed_response if inst.name in graph.measured
+                                else None)
+        through = None if inst.name in stateful or factory is None else \
+            _through(inst, links, factory, col, ports, lag.get(inst.name, 0))
         if through is None:
             for name in hot:
                 checked.setdefault(name, set()).add(inst.name)
@@ -359,10 +360,12 @@ def _forwarded(fed: list, groups: list[Group], position: dict) -> tuple[list, li
     return forwarded, rest
 
 
-def _group(how, inst, links: list, loop: set, col, model) -> Group | str:
+def _group(how, inst, links: list, loop: set, col, model, measured: bool) -> Group | str:
     """The held inputs of an FMU with a state, with its error model's batch form (None
-    without a model, or where it does not take these inputs); `loop`: the ids of the links
-    that close a loop into it. Its lag is set once every source's is known (pair_plan)."""
+    where it does not take these inputs); without a model, its response measured where
+    `measured` (the scenario layer knows nothing of it: probe.ProbedModel), else None;
+    `loop`: the ids of the links that close a loop into it. Its lag is set once every
+    source's is known (pair_plan)."""
     if any(l.target.type != "Real" for l in links):
         return f"{inst.name} has a state and an input that is not Real"
     names = [l.target.ref.variable for l in links]
@@ -372,7 +375,7 @@ def _group(how, inst, links: list, loop: set, col, model) -> Group | str:
     if model is not None:
         return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0,
                      model.batch(names, inst), inst.model_name)
-    probed = probed_model(inst, names) if not loop else None
+    probed = probed_model(inst, names) if measured else None
     return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0, probed,
                  inst.model_name + (PROBED if probed is not None else ""))
 

@@ -19,7 +19,7 @@ from .breakpoints import pieces
 from .pair_parts import Group, PairPlan
 from .pair_loop import LoopCarry
 from .pair_network import NetworkCarry
-from .probe import ProbedModel
+from .probe import ProbedModel, ProbedResponse
 from .stencils import FOUR, means, values, weight_table
 
 # a carried error over this share of the value an output divides by: its linearisation fails
@@ -219,10 +219,15 @@ class PairRows:
     def _probe_failed(self) -> str | None:
         """Why the pair does not hold: a measured response (probe.py) that could not be
         measured."""
-        for g in self.plan.groups:
-            if isinstance(g.model, ProbedModel) and (g.model.failed or not g.model.found):
-                return g.model.failed or (f"{g.name} has a state and no error model, and the "
-                                          "run is too short to probe its response")
+        plan = self.plan
+        measured = [g.model for g in plan.groups if isinstance(g.model, ProbedModel)] + [
+            t.response for t in (*(plan.loop.chain if plan.loop else ()), *(
+                t for kind, t in (plan.network.steps if plan.network else ())
+                if kind == "through")) if isinstance(t.response, ProbedResponse)]
+        for m in measured:
+            if m.failed or not m.found:
+                return m.failed or (f"{m.name}'s response is measured, and the run is too "
+                                    "short to probe it")
         return None
 
     def _fed_error(self) -> str | None:

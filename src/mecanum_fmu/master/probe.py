@@ -93,6 +93,52 @@ class ProbedModel:
         return out
 
 
+    def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The steps in the form a loop carries (pair_loop.py; PoseBatch.linear's): E_k+1 =
+        A_k E_k + made_k + B_k (the held inputs' further error), E the outputs' error. Only
+        a response of first order has it (g1 = r g0, one r per output for every input):
+        then A = r, B = g0, made = g0 (error - m change); else the model is marked failed
+        (the pair hands over) and the terms are zeros."""
+        n, o, i = len(h), len(self.outputs), len(self.inputs)
+        a, b, made = np.zeros((n, o, o)), np.zeros((n, o, i)), np.zeros((n, o))
+        if not self.found:
+            self.k += n
+            return a, b, made
+        at = [f[0] for f in self.found]
+        which = np.maximum(np.searchsorted(at, self.k + np.arange(n), side="right") - 1, 0)
+        for part, probe in _segments(which, h):
+            _, size, g0, g1, r, m = self.found[probe]
+            rate = _first_order(g0, g1, r)
+            if rate is None:
+                self.failed = (f"{self.name}'s measured response is not of first order in "
+                               "every input, which the pair needs to carry its error around "
+                               "a loop")
+                break
+            scale = float(h[part.start]) / size
+            a[part] = np.diag(np.where(rate > 0, np.abs(rate) ** scale, rate))
+            b[part] = g0 * scale
+            made[part] = np.einsum("oj,koj->ko", g0 * scale, error[part][:, None, :]
+                                   - m[None] * change[part][:, None, :])
+        self.k += n
+        return a, b, made
+
+
+def _first_order(g0: np.ndarray, g1: np.ndarray, r: np.ndarray) -> np.ndarray | None:
+    """Per output its one decay ratio, where g1 = r g0 for every input (within FIT, or
+    where the input does not reach it), else None."""
+    reached = g0 != 0.0
+    if (np.abs(g1 - r * g0) > FIT * np.abs(g1) + 1e-300)[reached].any():
+        return None
+    rate = np.zeros(len(g0))
+    for o in range(len(g0)):
+        seen = r[o][reached[o]]
+        if len(seen) and np.ptp(seen) > FIT * np.abs(seen).max():
+            return None
+        rate[o] = seen.mean() if len(seen) else 0.0
+    return rate
+
+
 def _segments(which: np.ndarray, h: np.ndarray) -> list[tuple[slice, int]]:
     """The runs of steps with one probe and one step length (the last step may be shorter)."""
     cuts = np.flatnonzero((np.diff(which) != 0) | (np.diff(h) != 0)) + 1
@@ -132,8 +178,9 @@ def fitted(g: np.ndarray, floor: np.ndarray) -> tuple | str:
 
 
 def _agree(a: tuple, b: tuple) -> bool:
-    """Whether two probes found g0, g1 and r within AGREE of each other."""
-    x, y = np.concatenate([v.ravel() for v in a[2:5]]), np.concatenate([v.ravel() for v in b[2:5]])
+    """Whether two probes found the same (g0, g1 and r; a response's Jacobian) within
+    AGREE."""
+    x, y = (np.concatenate([v.ravel() for v in p[2:5]]) for p in (a, b))
     return bool(np.all(np.abs(x - y) <= AGREE * np.abs(y) + 1e-300))
 
 
@@ -156,7 +203,7 @@ class Prober:
             if target.model.failed is None:
                 before = target.model.found[-1] if target.model.found else None
                 target.probe(k, t, h, self.real)
-                self.calls += PROBE_STEPS * (1 + len(target.model.inputs))
+                self.calls += target.steps * (1 + len(target.model.inputs))
                 now = target.model.found[-1] if target.model.found else None
                 same = same and before is not None and now is not before and _agree(now, before)
         self.gap = 2 * self.gap if same else PROBE_EVERY
@@ -165,31 +212,68 @@ class Prober:
         self.seconds += _time.perf_counter() - tick
 
 
-def prober(groups: list, slots: np.ndarray, running: list, real: np.ndarray, n_steps: int
-           ) -> Prober | None:
-    """The Prober of the pair's groups whose model is a ProbedModel (None: there are none);
-    `slots`: the pair's columns' buffer slots (PairPlan.slots), `real`: the buffers."""
+def prober(plan, running: list, real: np.ndarray, n_steps: int) -> Prober | None:
+    """The Prober of the pair's measured models (its groups whose model is a ProbedModel)
+    and measured responses (the Throughs of its loop or network whose response is a
+    ProbedResponse); None where there are none. `real`: the run's buffers (plan.slots: the
+    buffer slot of each of the pair's columns)."""
     by_name = {r.name: r for r in running}
     targets = []
-    for g in groups:
+    for g in plan.groups:
         if isinstance(g.model, ProbedModel) and g.model.outputs:
-            vrs = {v.name: v.valueReference for v in by_name[g.name].inst.model.modelVariables}
-            targets.append(Target(by_name[g.name], g.model, [vrs[n] for n in g.model.inputs],
-                                  [vrs[n] for n in g.model.outputs], slots[g.cols]))
+            targets.append(Target(by_name[g.name], g.model, g.model.inputs, g.model.outputs,
+                                  plan.slots[g.cols]))
+    throughs = [*(plan.loop.chain if plan.loop else ()),
+                *(t for kind, t in (plan.network.steps if plan.network else ())
+                  if kind == "through")]
+    for t in throughs:
+        if isinstance(t.response, ProbedResponse):
+            targets.append(Target(by_name[t.name], t.response, t.response.inputs,
+                                  t.response.outputs, plan.slots[t.ins], steps=1))
     return Prober(targets, real, n_steps) if targets else None
+
+
+def probed_response(inputs: list[str], inst) -> "ProbedResponse | None":
+    """The response (models/responses.Response's interface: outputs, divides, jacobian) of a
+    third-party FMU without a state, measured by probes, its linked inputs `inputs`; None
+    where it cannot be probed (not FMI 2, or it cannot save its state)."""
+    md = inst.model
+    if md.fmiVersion != "2.0" or not inst.can_get_set_state:
+        return None
+    outputs = [u.variable.name for u in md.outputs if u.variable.type == "Real"]
+    return ProbedResponse(inst.name, inputs, outputs)
+
+
+class ProbedResponse:
+    """The Jacobian of an FMU without a state's Real outputs in its linked inputs, as its
+    last probe measured it (a Target of one step: the outputs after one step from a saved
+    state with each input moved, over the move). Per probe, in `found`: (its step, its step
+    size, J (outputs x inputs))."""
+
+    def __init__(self, name: str, inputs: list[str], outputs: list[str]):
+        self.name, self.inputs, self.outputs = name, inputs, outputs
+        self.divides: dict = {}
+        self.found: list[tuple] = []
+        self.failed: str | None = None
+
+    def jacobian(self, ins: np.ndarray, outs: np.ndarray) -> np.ndarray:
+        j = self.found[-1][2] if self.found else np.zeros((len(self.outputs),
+                                                            len(self.inputs)))
+        return np.broadcast_to(j, (len(ins), *j.shape))
 
 
 class Target:
     """One probed FMU: its running instance, its model, and the value references of its held
     inputs and covered outputs, with the buffer slots of the inputs' sources."""
 
-    def __init__(self, running, model: ProbedModel, in_vrs: list[int], out_vrs: list[int],
-                 slots: np.ndarray):
-        self.r, self.model, self.slots = running, model, slots
-        self.in_vrs = (ctypes.c_uint * len(in_vrs))(*in_vrs)
-        self.out_vrs = (ctypes.c_uint * len(out_vrs))(*out_vrs)
-        self.u = (ctypes.c_double * len(in_vrs))()
-        self.y = (ctypes.c_double * len(out_vrs))()
+    def __init__(self, running, model, inputs: list[str], outputs: list[str],
+                 slots: np.ndarray, steps: int = PROBE_STEPS):
+        self.r, self.model, self.slots, self.steps = running, model, slots, steps
+        vrs = {v.name: v.valueReference for v in running.inst.model.modelVariables}
+        self.in_vrs = (ctypes.c_uint * len(inputs))(*(vrs[n] for n in inputs))
+        self.out_vrs = (ctypes.c_uint * len(outputs))(*(vrs[n] for n in outputs))
+        self.u = (ctypes.c_double * len(inputs))()
+        self.y = (ctypes.c_double * len(outputs))()
 
     def probe(self, k: int, t: float, h: float, real: np.ndarray) -> None:
         """One probe from the FMU's state now (t_k), the state set back after it. A call that
@@ -220,10 +304,21 @@ class Target:
             self._fit(k, h, np.array(runs), eps)
 
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray) -> None:
-        """runs: (1 + inputs, PROBE_STEPS, outputs), the first unmoved."""
+        """runs: (1 + inputs, steps, outputs), the first unmoved: a model's fit (fitted),
+        or a response's Jacobian (one step: its outputs' change over each input's move)."""
         size = np.maximum(np.abs(runs[0]), np.abs(runs[1:]).max(axis=0))   # (steps, outputs)
         g = np.moveaxis((runs[1:] - runs[0][None]) / eps[:, None, None], 0, 2)
         floor = 64 * np.finfo(float).eps * size[:, :, None] / eps[None, None, :]
+        if isinstance(self.model, ProbedResponse):
+            found = (k, h, np.where(np.abs(g[0]) <= floor[0], 0.0, g[0]))
+            if self.model.found and not _agree(found, self.model.found[-1]):
+                self.model.failed = (
+                    f"{self.r.name}'s measured Jacobian changed along the run (probed at t = "
+                    f"{self.model.found[-1][0] * h:g} s and {k * h:g} s), and the pair "
+                    "carries an error only through an FMU without a state whose response it "
+                    "knows or that responds linearly")
+            self.model.found.append(found)
+            return
         fit = fitted(g, floor.max(axis=0))
         if isinstance(fit, str):
             self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
@@ -237,10 +332,10 @@ class Target:
 
     def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None
                ) -> np.ndarray:
-        """The covered outputs after each of PROBE_STEPS steps, inputs `first` (default u)
-        over the first and u over the others."""
-        out = np.empty((PROBE_STEPS, len(self.y)))
-        for i in range(PROBE_STEPS):
+        """The covered outputs after each of its steps (PROBE_STEPS; a response's: 1),
+        inputs `first` (default u) over the first and u over the others."""
+        out = np.empty((self.steps, len(self.y)))
+        for i in range(self.steps):
             values = first if i == 0 and first is not None else u
             if i < 2:
                 self._call("fmi2SetReal", self.r.c_set["Real"], self.in_vrs, len(values),

@@ -91,6 +91,9 @@ class Graph:
     # the outputs an error model reads that are neither recorded nor linked: the masters keep
     # them beside the others (the drive train's V and twist under a scenario's `outputs:`)
     watched: tuple[Port, ...] = ()
+    # the FMUs the scenario layer knows nothing of (third-party: no bundled model): the
+    # masters' pair may measure their response by probing them (master/probe.py)
+    measured: tuple[str, ...] = ()
 
     def instance(self, name: str) -> Instance:
         return next(i for i in self.instances if i.name == name)
@@ -189,7 +192,8 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
     order, link_order = _dependency_order(instances, links, scenario.label)
     models = _error_models(order)
     graph = _runnable(Graph(scenario, tuple(order), tuple(link_order), tuple(recorded), (),
-                            models, _responses(order), _watched(order, models, recorded, links)))
+                            models, _responses(order), _watched(order, models, recorded, links),
+                            tuple(i.name for i in order if bundled_model(i.model) is None)))
     return dataclasses.replace(graph, warnings=tuple(
         check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
         + _rollback_warning(scenario, order, links) + plausibility.warnings(scenario, order)))

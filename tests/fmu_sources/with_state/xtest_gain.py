@@ -1,0 +1,30 @@
+"""Test FMU (third-party style), without a state: a proportional controller, u = kp e + cube
+e^3, e = r - y (linear where cube = 0, the default), its output computed from its inputs
+whenever it is read (direct feedthrough)."""
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+
+
+class XtestGain(Fmi2Slave):
+    author = "mecanum_fmu tests"
+    description = "u = kp e + cube e^3, e = r - y"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.kp, self.cube, self.r, self.y = 1.0, 0.0, 0.0, 0.0
+        for name in ("kp", "cube"):
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                        variability=Fmi2Variability.fixed))
+        self.register_variable(Real("r", causality=Fmi2Causality.input,
+                                    variability=Fmi2Variability.continuous))
+        self.register_variable(Real("y", causality=Fmi2Causality.input,
+                                    variability=Fmi2Variability.continuous))
+        self.register_variable(Real("u", causality=Fmi2Causality.output,
+                                    variability=Fmi2Variability.continuous,
+                                    getter=self._u))
+
+    def _u(self):
+        e = self.r - self.y
+        return self.kp * e + self.cube * e ** 3
+
+    def do_step(self, current_time, step_size):
+        return True
