@@ -76,11 +76,13 @@ def state_fmus(dest: Path) -> dict[str, Path]:
         built[script.stem] = Path(FmuBuilder.build_FMU(script, dest=dest,
                                                        canGetAndSetFMUstate=True))
         if script.stem not in ("xtest_wave", "xtest_gain"):
-            _declare_no_dependencies(built[script.stem])
+            declare_no_dependencies(built[script.stem])
     return built
 
 
-def _declare_no_dependencies(fmu: Path) -> None:
+def declare_no_dependencies(fmu: Path) -> None:
+    """Rewrite the FMU's model description: every output declared free of every input
+    (dependencies="", as a C exporter declares a state; pythonfmu writes none)."""
     with zipfile.ZipFile(fmu) as zf:
         entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
     xml = entries["modelDescription.xml"].decode()

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from helpers import run_main, state_fmus, test_fmus, with_experiment, write_scenario
+from helpers import ROOT, run_main, state_fmus, test_fmus, with_experiment, write_scenario
 from mecanum_fmu import master, runner
 from mecanum_fmu.errors import ScenarioError, SimulationError
 from mecanum_fmu.results import BELOW_ROUND_OFF
@@ -286,3 +286,10 @@ def test_a_controller_whose_jacobian_changes_hands_the_loop_to_richardson(tmp_pa
     method = master.estimate_error(graph, results)["error_estimate_method"]
     assert method.startswith("Richardson") and "ctrl's measured Jacobian changed" in method, \
         method
+
+
+def test_only_the_fmus_the_scenario_layer_does_not_know_are_measured(tmp_path, fmus):
+    # the bundled blocks have their error models and responses, or are checked (a bundled
+    # block without a response, FieldToBody, turns its Jacobian with the heading)
+    assert runner.prepare(ROOT / "scenarios" / "circle.yaml").measured == ()
+    assert set(runner.prepare(_scenario(tmp_path, fmus)).measured) == {"wave", "lag"}

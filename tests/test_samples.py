@@ -15,7 +15,7 @@ import pytest
 from mecanum_fmu import master, runner
 
 from helpers import ROOT, cli_args, with_experiment, write_scenario
-from test_estimate_any_fmu import _declare_no_dependencies
+from helpers import declare_no_dependencies
 
 SOURCES = ROOT / "tests" / "fmu_sources" / "sampled"
 PERIOD, STOP = 0.1, 2.0
@@ -28,7 +28,7 @@ def fmus(tmp_path_factory):
     dest = tmp_path_factory.mktemp("sampled_fmus")
     built = {script.stem: FmuBuilder.build_FMU(script, dest=dest, canGetAndSetFMUstate=True)
              for script in sorted(SOURCES.glob("stest_*.py"))}
-    _declare_no_dependencies(built["stest_integral"])
+    declare_no_dependencies(built["stest_integral"])
     return built
 
 
