@@ -7,6 +7,7 @@ fixed-step masters' estimate is the pair with the lag's response measured by pro
 third-party controller's measured Jacobian; two integrators in a row (x'' = u), whose
 response is not of first order, and a nonlinear controller hand over to Richardson."""
 import math
+import re
 import numpy as np
 import pytest
 
@@ -101,6 +102,9 @@ def test_the_probes_leave_the_run_as_it_was(tmp_path, fmus):
     graph, exp = with_experiment(graph, estimate="none")
     plain = master.simulate(graph, exp)
     assert np.array_equal(probed["lag.x"], plain["lag.x"])
+    # 60 steps: probes at step 0 and 32 (the next, 96, is past the last a probe may start
+    # at, 55), each 4 steps unmoved and 4 with the one input moved
+    assert probed.extra["pair"]["found"]["probe_calls"] == 2 * 4 * 2
 
 
 @pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
@@ -272,7 +276,10 @@ def test_a_loop_through_a_third_party_controller_is_carried_by_its_measured_jaco
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
     summary = master.estimate_error(graph, results)
     method = summary["error_estimate_method"]
-    assert method.startswith("the embedded pair") and "through the Jacobians of ctrl" in method
+    assert method.startswith("the embedded pair") and "Jacobians of ctrl (measured)" in method
+    # the words say what it stepped: the probes' doStep calls, counted
+    calls = int(re.search(r"no extra doStep but the probes' (\d+)\)", method).group(1))
+    assert calls == results.extra["pair"]["found"]["probe_calls"] > 0
     x = solve_ivp(lambda t, y: [-2 * y[0] + 3 * (np.cos(t) - y[0])], (0.0, 6.0), [0.0],
                   t_eval=results.time, rtol=1e-12, atol=1e-14, method="DOP853").y[0]
     error = np.abs(results["plant.x"] - x)

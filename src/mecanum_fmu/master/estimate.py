@@ -1,9 +1,10 @@
 """The coupling error of a run: which estimate it gets, and summary.json's words for it.
 
 A fixed-step master's run gets the embedded pair (pair.py, pair_rows.py: from the run's own
-rows, no extra doStep), or Richardson's coarser runs (richardson.py) where the pair does not
-apply (the method says why) or by name; the adaptive master's run its own (adaptive.py,
-trajectory.py); `estimate: none` none. docs/masters.md, "The error estimate on every run".
+rows, no extra doStep but the probes of the FMUs it measures, probe.py), or Richardson's
+coarser runs (richardson.py) where the pair does not apply (the method says why) or by name;
+the adaptive master's run its own (adaptive.py, trajectory.py); `estimate: none` none.
+docs/masters.md, "The error estimate on every run".
 """
 from __future__ import annotations
 
@@ -178,6 +179,8 @@ def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict)
     through = pair.get("through", [])
     return {"error_estimate": estimate,
             "error_estimate_method": PAIR_METHOD.format(
+                steps=f"no extra doStep but the probes' {pair['probe_calls']}"
+                if pair.get("probe_calls") else "no extra doStep",
                 models=models, loop=LOOP_METHOD.format(through=", ".join(through)) if through
                 else "", other="the other " if through else "",
                 lag=" (under Jacobi, a step late per FMU with direct feedthrough)"

@@ -54,7 +54,7 @@ from .plan import has_state, state_only_inputs
 from .probe import PROBED, ProbedModel, probed_model, probed_response
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
-          "through its nearest values in the same smooth piece (no extra doStep), carried "
+          "through its nearest values in the same smooth piece ({steps}), carried "
           "into the outputs by their FMUs' error models ({models}){loop}; outputs of {other}"
           "FMUs without a state read their inputs exactly{lag}")
 SAMPLED = ("unresolved ({models} sample at their own period, and this output is theirs or "

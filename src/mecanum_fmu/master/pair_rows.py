@@ -170,10 +170,10 @@ class PairRows:
     def _through(self) -> list[str]:
         """The FMUs without a state the error is carried through (a loop's chain, a network's
         FMUs between its models), for the method's words."""
-        if self.plan.loop:
-            return [t.name for t in self.plan.loop.chain]
-        steps = self.plan.network.steps if self.plan.network else ()
-        return [item.name for kind, item in steps if kind == "through"]
+        steps = [("through", t) for t in self.plan.loop.chain] if self.plan.loop else \
+            self.plan.network.steps if self.plan.network else ()
+        return [item.name + (" (measured)" if isinstance(item.response, ProbedResponse) else "")
+                for kind, item in steps if kind == "through"]
 
     def _ill(self) -> dict[str, str]:
         """The chain's outputs whose estimate is unresolved: their divisor's error is not
