@@ -90,8 +90,17 @@ class ProbedModel:
                     + g0[o, j] * scale * d[:, o, j]
                 s[o, j] = after[-1]
         self.s, self.k = s, self.k + n
+        self._forget()
         return out
 
+    def _forget(self) -> None:
+        """Drop the probes no later step uses (all but the last at or before step k): memory
+        flat on a long run. The list is replaced, not cut in place (a copy of the model, the
+        Jacobi tail's, keeps its own)."""
+        at = [f[0] for f in self.found]
+        first = max(int(np.searchsorted(at, self.k, side="right")) - 1, 0)
+        if first:
+            self.found = self.found[first:]
 
     def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -121,6 +130,7 @@ class ProbedModel:
             made[part] = np.einsum("oj,koj->ko", g0 * scale, error[part][:, None, :]
                                    - m[None] * change[part][:, None, :])
         self.k += n
+        self._forget()
         return a, b, made
 
 
@@ -207,6 +217,7 @@ class Prober:
                 now = target.model.found[-1] if target.model.found else None
                 same = same and before is not None and now is not before and _agree(now, before)
         self.gap = 2 * self.gap if same else PROBE_EVERY
+        self.at.discard(k)
         if k + self.gap <= self.last:
             self.at.add(k + self.gap)
         self.seconds += _time.perf_counter() - tick
@@ -317,7 +328,7 @@ class Target:
                     f"{self.model.found[-1][0] * h:g} s and {k * h:g} s), and the pair "
                     "carries an error only through an FMU without a state whose response it "
                     "knows or that responds linearly")
-            self.model.found.append(found)
+            self.model.found = [found]        # only the last is used
             return
         fit = fitted(g, floor.max(axis=0))
         if isinstance(fit, str):
