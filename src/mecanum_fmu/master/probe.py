@@ -38,6 +38,7 @@ RELATIVE_EPS = 1e-6
 AGREE = 0.05            # relative: two probes that agree this well double the gap
 FIT = 0.1               # relative: g3 against the model's g2 r (x'' = u is 16% off)
 PROBED = ", its response measured by probes"
+_EPS = float(np.finfo(float).eps)
 
 
 def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
@@ -176,9 +177,10 @@ def _moment(r: float) -> float:
 def fitted(g: np.ndarray, floor: np.ndarray) -> tuple | str:
     """(g0, g1, r, m) from the responses g (PROBE_STEPS, outputs, inputs) and the round-off
     floor of each (outputs, inputs), or why the model does not fit (g3 off its prediction)."""
-    g = np.where(np.abs(g) <= floor[None], 0.0, g)
+    g = g * (np.abs(g) > floor)
     g0, g1, g2, g3 = g
-    r = np.where(g1 != 0.0, g2 / np.where(g1 != 0.0, g1, 1.0), 0.0)
+    seen = g1 != 0.0
+    r = g2 / (g1 + ~seen) * seen
     off = np.abs(g3 - g2 * r) > FIT * np.abs(g3) + 2 * floor
     if off.any():
         o, j = np.argwhere(off)[0]
@@ -191,7 +193,7 @@ def _agree(a: tuple, b: tuple) -> bool:
     """Whether two probes found the same (g0, g1 and r; a response's Jacobian) within
     AGREE."""
     x, y = (np.concatenate([v.ravel() for v in p[2:5]]) for p in (a, b))
-    return bool(np.all(np.abs(x - y) <= AGREE * np.abs(y) + 1e-300))
+    return bool((np.abs(x - y) <= AGREE * np.abs(y) + 1e-300).all())
 
 
 class Prober:
@@ -317,9 +319,9 @@ class Target:
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray) -> None:
         """runs: (1 + inputs, steps, outputs), the first unmoved: a model's fit (fitted),
         or a response's Jacobian (one step: its outputs' change over each input's move)."""
-        size = np.maximum(np.abs(runs[0]), np.abs(runs[1:]).max(axis=0))   # (steps, outputs)
-        g = np.moveaxis((runs[1:] - runs[0][None]) / eps[:, None, None], 0, 2)
-        floor = 64 * np.finfo(float).eps * size[:, :, None] / eps[None, None, :]
+        size = np.abs(runs).max(axis=0)                                     # (steps, outputs)
+        g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)   # (steps, o, j)
+        floor = (64 * _EPS) * size[:, :, None] / eps
         if isinstance(self.model, ProbedResponse):
             found = (k, h, np.where(np.abs(g[0]) <= floor[0], 0.0, g[0]))
             if self.model.found and not _agree(found, self.model.found[-1]):
