@@ -80,15 +80,26 @@ def state_fmus(dest: Path) -> dict[str, Path]:
     return built
 
 
+def state_fmu3(dest: Path) -> Path:
+    """The FMI 3.0 lag (tests/fmu_sources/fmi3_state/x3test_lag.py, pythonfmu3) built into
+    `dest`, able to save its state, its output declared free of its input."""
+    from pythonfmu3 import FmuBuilder
+    fmu = Path(FmuBuilder.build_FMU(FMU_SOURCES / "fmi3_state" / "x3test_lag.py", dest=dest,
+                                    canGetAndSetFMUState=True))
+    declare_no_dependencies(fmu)
+    return fmu
+
+
 def declare_no_dependencies(fmu: Path) -> None:
     """Rewrite the FMU's model description: every output declared free of every input
     (dependencies="", as a C exporter declares a state; pythonfmu writes none)."""
     with zipfile.ZipFile(fmu) as zf:
         entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
     xml = entries["modelDescription.xml"].decode()
-    entries["modelDescription.xml"] = re.sub(r'<Unknown index="(\d+)"/>',
-                                             r'<Unknown index="\1" dependencies=""/>',
-                                             xml).encode()
+    xml = re.sub(r'<Unknown index="(\d+)"/>', r'<Unknown index="\1" dependencies=""/>', xml)
+    xml = re.sub(r'<Output valueReference="(\d+)"/>',               # FMI 3.0
+                 r'<Output valueReference="\1" dependencies=""/>', xml)
+    entries["modelDescription.xml"] = xml.encode()
     with zipfile.ZipFile(fmu, "w") as zf:
         for name, data in entries.items():
             zf.writestr(name, data)

@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pytest
 
-from helpers import ROOT, run_main, state_fmus, test_fmus, with_experiment, write_scenario
+from helpers import ROOT, run_main, state_fmu3, state_fmus, test_fmus, with_experiment, write_scenario
 from mecanum_fmu import master, runner
 from mecanum_fmu.errors import ScenarioError, SimulationError
 from mecanum_fmu.results import BELOW_ROUND_OFF
@@ -300,3 +300,20 @@ def test_only_the_fmus_the_scenario_layer_does_not_know_are_measured(tmp_path, f
     # block without a response, FieldToBody, turns its Jacobian with the heading)
     assert runner.prepare(ROOT / "scenarios" / "circle.yaml").measured == ()
     assert set(runner.prepare(_scenario(tmp_path, fmus)).measured) == {"wave", "lag"}
+
+
+@pytest.fixture(scope="module")
+def lag3(tmp_path_factory):
+    return state_fmu3(tmp_path_factory.mktemp("state_fmu3"))
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel", "jacobi"])
+def test_an_fmi3_fmu_with_a_state_is_measured_alike(tmp_path, fmus, lag3, master_name):
+    # the same lag as an FMI 3.0 FMU (pythonfmu3), fed by the FMI 2.0 wave: its probes go
+    # through fmi3GetFMUState, fmi3SetFloat64, fmi3DoStep
+    graph = runner.prepare(_scenario(tmp_path, fmus, master_name, lag=lag3))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    assert "lag: X3testLag, its response measured" in summary["error_estimate_method"]
+    error = np.abs(results["lag.x"] - _truth(results.time))
+    _within_3x(summary["error_estimate"]["lag.x"], error)

@@ -39,6 +39,7 @@ AGREE = 0.05            # relative: two probes that agree this well double the g
 FIT = 0.1               # relative: g3 against the model's g2 r (x'' = u is 16% off)
 PROBED = ", its response measured by probes"
 _EPS = float(np.finfo(float).eps)
+_REAL = ("Real", "Float64")     # FMI 2, FMI 3
 
 
 def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
@@ -46,10 +47,10 @@ def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
     covers the Real outputs that no held input reaches directly (declared dependencies); None
     where it cannot be probed (not FMI 2, or it cannot save its state)."""
     md = inst.model
-    if md.fmiVersion != "2.0" or not inst.can_get_set_state:
+    if md.fmiVersion not in ("2.0", "3.0") or not inst.can_get_set_state:
         return None
     held = set(inputs)
-    outputs = [u.variable.name for u in md.outputs if u.variable.type == "Real"
+    outputs = [u.variable.name for u in md.outputs if u.variable.type in _REAL
                and u.dependencies is not None
                and not held & {d.name for d in u.dependencies}]
     return ProbedModel(inst.name, inputs, outputs)
@@ -251,9 +252,9 @@ def probed_response(inputs: list[str], inst) -> "ProbedResponse | None":
     third-party FMU without a state, measured by probes, its linked inputs `inputs`; None
     where it cannot be probed (not FMI 2, or it cannot save its state)."""
     md = inst.model
-    if md.fmiVersion != "2.0" or not inst.can_get_set_state:
+    if md.fmiVersion not in ("2.0", "3.0") or not inst.can_get_set_state:
         return None
-    outputs = [u.variable.name for u in md.outputs if u.variable.type == "Real"]
+    outputs = [u.variable.name for u in md.outputs if u.variable.type in _REAL]
     return ProbedResponse(inst.name, inputs, outputs)
 
 
