@@ -76,7 +76,8 @@ def state_fmus(dest: Path) -> dict[str, Path]:
         built[script.stem] = Path(FmuBuilder.build_FMU(script, dest=dest,
                                                        canGetAndSetFMUstate=True))
         if script.stem not in ("xtest_wave", "xtest_gain"):
-            declare_no_dependencies(built[script.stem])
+            declare_no_dependencies(built[script.stem],
+                                    {"y": ["u"]} if script.stem == "xtest_through" else None)
     return built
 
 
@@ -90,13 +91,19 @@ def state_fmu3(dest: Path) -> Path:
     return fmu
 
 
-def declare_no_dependencies(fmu: Path) -> None:
+def declare_no_dependencies(fmu: Path, direct: dict[str, list[str]] | None = None) -> None:
     """Rewrite the FMU's model description: every output declared free of every input
-    (dependencies="", as a C exporter declares a state; pythonfmu writes none)."""
+    (dependencies="", as a C exporter declares a state; pythonfmu writes none), but those
+    in `direct` (FMI 2.0): output name -> the inputs that reach it directly."""
     with zipfile.ZipFile(fmu) as zf:
         entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
     xml = entries["modelDescription.xml"].decode()
-    xml = re.sub(r'<Unknown index="(\d+)"/>', r'<Unknown index="\1" dependencies=""/>', xml)
+    index = {name: i + 1 for i, name in enumerate(re.findall(r'<ScalarVariable name="([^"]+)"',
+                                                             xml))}
+    name_of = {str(i): name for name, i in index.items()}
+    xml = re.sub(r'<Unknown index="(\d+)"/>', lambda m: '<Unknown index="{}" dependencies="{}"/>'
+                 .format(m.group(1), " ".join(str(index[n]) for n in
+                                              (direct or {}).get(name_of[m.group(1)], []))), xml)
     xml = re.sub(r'<Output valueReference="(\d+)"/>',               # FMI 3.0
                  r'<Output valueReference="\1" dependencies=""/>', xml)
     entries["modelDescription.xml"] = xml.encode()

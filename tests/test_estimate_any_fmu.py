@@ -317,3 +317,27 @@ def test_an_fmi3_fmu_with_a_state_is_measured_alike(tmp_path, fmus, lag3, master
     assert "lag: X3testLag, its response measured" in summary["error_estimate_method"]
     error = np.abs(results["lag.x"] - _truth(results.time))
     _within_3x(summary["error_estimate"]["lag.x"], error)
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel", "jacobi"])
+def test_an_output_the_input_reaches_directly_is_estimated_too(tmp_path, fmus, master_name):
+    # x' = -2 x + cos t with y = x + u: y's state part is x's error, its direct part errs by
+    # the held value against the input's end value (none where the newest value is held;
+    # Jacobi's value of t_k, a step late)
+    graph = runner.prepare(write_scenario(tmp_path, "through", f"""\
+name: through
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  it: {{fmu: {fmus["xtest_through"]}, parameters: {{k: {K}}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x, it.y]
+"""))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    assert "its response measured" in summary["error_estimate_method"]
+    x = _truth(results.time)
+    for name, truth in (("it.x", x), ("it.y", x + np.cos(results.time))):
+        error = np.abs(results[name] - truth)
+        assert error.max() > 1e-6
+        _within_3x(summary["error_estimate"][name], error)

@@ -29,7 +29,7 @@ def _model(found):
 
 def _probe(k, g0, g1, r):
     g0, g1, r = (np.array(v, dtype=float).reshape(1, 2) for v in (g0, g1, r))
-    return (k, 0.1, g0, g1, r, moment(r))
+    return (k, 0.1, g0, g1, r, moment(r), np.zeros((1, 2)))
 
 
 def _convolution(found, h, error, change):
@@ -40,7 +40,7 @@ def _convolution(found, h, error, change):
     at = lambda i: [f for f in found if f[0] <= i][-1]      # noqa: E731
     y = np.zeros(n)
     for i in range(n):
-        _, size, g0, g1, r, m = at(i)
+        _, size, g0, g1, r, m, _ = at(i)
         d = error[i] - m[0] * change[i]
         y[i] += float(np.sum(g0[0] * d))
         gain = g1[0] * d
@@ -69,7 +69,7 @@ def test_the_model_is_the_sum_it_stands_for_in_any_batches():
 def test_a_first_order_response_fits_and_two_integrators_do_not():
     h, r = 0.1, np.exp(-2.0 * 0.1)
     g = np.array([(1 - r) / 2 * r ** n for n in range(4)]).reshape(4, 1, 1)   # a lag
-    g0, g1, ratio, m = fitted(g, np.full((1, 1), 1e-15))
+    g0, g1, ratio, m, _ = fitted(g, np.full((1, 1), 1e-15))
     assert ratio[0, 0] == pytest.approx(r) and g1[0, 0] == pytest.approx(r * g0[0, 0])
     double = np.array([0.5, 1.5, 2.5, 3.5]).reshape(4, 1, 1) * h * h          # x'' = u
     assert "is not of first order" in fitted(double, np.full((1, 1), 1e-15))
@@ -89,7 +89,7 @@ class _Target:
 
 def _one(k, gain):
     a = np.full((1, 1), gain)
-    return (k, 0.1, a, a, np.full((1, 1), 0.9), a)
+    return (k, 0.1, a, a, np.full((1, 1), 0.9), a, np.zeros((1, 1)))
 
 
 def _schedule(finds, n):

@@ -44,26 +44,34 @@ _REAL = ("Real", "Float64")     # FMI 2, FMI 3
 
 def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
     """The ProbedModel of an FMU with a state and no error model, held inputs `inputs`: it
-    covers the Real outputs that no held input reaches directly (declared dependencies); None
-    where it cannot be probed (not FMI 2, or it cannot save its state)."""
+    covers the Real outputs whose dependencies are declared (those a held input reaches
+    directly too: their direct part, ProbedModel); None where it cannot be probed (not FMI
+    2 or 3, or it cannot save its state)."""
     md = inst.model
     if md.fmiVersion not in ("2.0", "3.0") or not inst.can_get_set_state:
         return None
-    held = set(inputs)
-    outputs = [u.variable.name for u in md.outputs if u.variable.type in _REAL
-               and u.dependencies is not None
-               and not held & {d.name for d in u.dependencies}]
-    return ProbedModel(inst.name, inputs, outputs)
+    declared = [u for u in md.outputs if u.variable.type in _REAL
+                and u.dependencies is not None]
+    direct = np.array([[n in {d.name for d in u.dependencies} for n in inputs]
+                       for u in declared], dtype=bool).reshape(len(declared), len(inputs))
+    return ProbedModel(inst.name, inputs, [u.variable.name for u in declared], direct)
 
 
 class ProbedModel:
     """The batch error model (the pair's interface: `outputs`, steps(h, held, error,
     change) -> the signed accumulated error of each output after each step) of one FMU
     whose response a Target measures while the run steps. Per probe, in `found`: (its step,
-    its step size, g0, g1, r, m), each (outputs x inputs)."""
+    its step size, g0, g1, r, m, D), each (outputs x inputs). Where a held input reaches an
+    output directly (`direct`, its declared dependencies), the output's response within the
+    step is its state's, g1 / r, and the rest, D = g0 - g1 / r, its direct part, which errs
+    by the held value against the input's true end value: D (error - change / 2) on that
+    row alone (none where the master holds the newest value; Jacobi's value of t_k)."""
 
-    def __init__(self, name: str, inputs: list[str], outputs: list[str]):
+    def __init__(self, name: str, inputs: list[str], outputs: list[str],
+                 direct: np.ndarray | None = None):
         self.name, self.inputs, self.outputs = name, inputs, outputs
+        self.direct = np.zeros((len(outputs), len(inputs)), dtype=bool) if direct is None \
+            else direct
         self.found: list[tuple] = []
         self.failed: str | None = None
         self.k = 0                  # the next step steps() works out
@@ -80,9 +88,10 @@ class ProbedModel:
         which = np.maximum(np.searchsorted(at, self.k + np.arange(n), side="right") - 1, 0)
         s = self.s.copy()
         for part, probe in _segments(which, h):
-            _, size, g0, g1, r, m = self.found[probe]
+            _, size, g0, g1, r, m, direct = self.found[probe]
             scale = float(h[part.start]) / size
             decay = np.where(r > 0, np.abs(r) ** scale, r)
+            out[part] += (error[part] - 0.5 * change[part]) @ direct.T
             d = error[part][:, None, :] - m[None] * change[part][:, None, :]   # (steps, o, j)
             x = (g1 * scale)[None] * d
             for o, j in np.ndindex(s.shape):
@@ -119,12 +128,12 @@ class ProbedModel:
         at = [f[0] for f in self.found]
         which = np.maximum(np.searchsorted(at, self.k + np.arange(n), side="right") - 1, 0)
         for part, probe in _segments(which, h):
-            _, size, g0, g1, r, m = self.found[probe]
-            rate = _first_order(g0, g1, r)
+            _, size, g0, g1, r, m, direct = self.found[probe]
+            rate = _first_order(g0, g1, r) if not direct.any() else None
             if rate is None:
                 self.failed = (f"{self.name}'s measured response is not of first order in "
-                               "every input, which the pair needs to carry its error around "
-                               "a loop")
+                               "every input, or an input reaches an output directly, and the "
+                               "pair carries an error around a loop only through a state")
                 break
             scale = float(h[part.start]) / size
             a[part] = np.diag(np.where(rate > 0, np.abs(rate) ** scale, rate))
@@ -175,19 +184,28 @@ def _moment(r: float) -> float:
     return (0.5 * mean - math.exp(z) / z + math.expm1(z) / (z * z)) / mean
 
 
-def fitted(g: np.ndarray, floor: np.ndarray) -> tuple | str:
-    """(g0, g1, r, m) from the responses g (PROBE_STEPS, outputs, inputs) and the round-off
-    floor of each (outputs, inputs), or why the model does not fit (g3 off its prediction)."""
+def fitted(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None = None
+           ) -> tuple | str:
+    """(g0, g1, r, m, D) from the responses g (PROBE_STEPS, outputs, inputs) and the
+    round-off floor of each (outputs, inputs), or why the model does not fit (g3 off its
+    prediction); where `direct` (the input reaches the output directly), g0 is the state's
+    part, g1 / r, and D the rest (ProbedModel)."""
     g = g * (np.abs(g) > floor)
     g0, g1, g2, g3 = g
     seen = g1 != 0.0
     r = g2 / (g1 + ~seen) * seen
+    if direct is not None and direct.any():
+        state = np.where(r != 0.0, g1 / np.where(r != 0.0, r, 1.0), 0.0)
+        d_part = np.where(direct, g0 - state, 0.0)
+        g0 = np.where(direct, state, g0)
+    else:
+        d_part = np.zeros_like(g0)
     off = np.abs(g3 - g2 * r) > FIT * np.abs(g3) + 2 * floor
     if off.any():
         o, j = np.argwhere(off)[0]
         return (f"(output {o}, input {j}) is not of first order: one step on, the response "
                 f"{g1[o, j]:.3g}, {g2[o, j]:.3g}, {g3[o, j]:.3g} does not decay by one ratio")
-    return g0, g1, r, moment(r)
+    return g0, g1, r, moment(r), d_part
 
 
 def _agree(a: tuple, b: tuple) -> bool:
@@ -333,7 +351,7 @@ class Target:
                     "knows or that responds linearly")
             self.model.found = [found]        # only the last is used
             return
-        fit = fitted(g, floor.max(axis=0))
+        fit = fitted(g, floor.max(axis=0), self.model.direct)
         if isinstance(fit, str):
             self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
         else:
