@@ -341,3 +341,20 @@ outputs: [it.x, it.y]
         error = np.abs(results[name] - truth)
         assert error.max() > 1e-6
         _within_3x(summary["error_estimate"][name], error)
+
+
+@pytest.mark.parametrize("estimate", ["auto", "richardson"])
+def test_an_fmu_whose_state_save_fails_stops_the_run_with_one_message(tmp_path, fmus, capsys,
+                                                                      estimate):
+    # it declares canGetAndSetFMUstate and returns Fatal: FMI allows nothing more of it (the
+    # run went on, and a second call crashed the process); the rows so far are kept
+    path = _scenario(tmp_path, fmus, "gauss-seidel", lag=fmus["xtest_nostate"])
+    out = tmp_path / "out"
+    code, _, err = run_main(capsys, "run", str(path), "--no-plots", "--out", str(out),
+                            "--estimate", estimate)
+    assert code == 1 and "Traceback" not in err, (code, err)
+    assert "component 'lag'" in err and "fmi2GetFMUstate returned Fatal" in err, err
+    assert "--estimate none" in err and (out / "results.csv").exists()
+    code, _, err = run_main(capsys, "run", str(path), "--no-plots", "--out", str(out),
+                            "--estimate", "none")
+    assert code == 0, err

@@ -70,9 +70,13 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
-        pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack,
-                                       _rolls_back_loops(how, running, holds))
-                       if with_estimate else (None, None))
+        try:
+            pair, start = (_estimate_start(graph, experiment, running, buffers, recorder,
+                                           stack, _rolls_back_loops(how, running, holds))
+                           if with_estimate else (None, None))
+        except StepFailure as err:      # a state save that returned Error or worse
+            raise _failure(err.running, err.function, err.status, experiment.start_time,
+                           recorder) from None
         recorder.record()
         holds.prime()
         stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
@@ -152,7 +156,9 @@ def _start(graph: Graph, exp: Experiment, running: list[RunningInstance], buffer
         return None
     try:
         start = Start(running, buffers, exp.start_time, factors)
-    except StepFailure:         # an FMU that says it can and cannot: the estimate runs afresh
+    except StepFailure as err:  # an FMU that says it can and cannot: the estimate runs
+        if err.status > 2:      # afresh; after Error or worse FMI allows it nothing more
+            raise
         return None
     stack.callback(start.free)
     return start
@@ -216,13 +222,19 @@ def _not_finite(buffers: Buffers, when: float, recorder: Recorder,
         results=recorder.results(False))
 
 
+_STATE_HINT = ("; the FMU declares canGetAndSetFMUstate, and the error estimate (its probes, "
+               "its coarser runs) and the quadratic master's rollback save states: --estimate "
+               "none with the gauss-seidel master saves none")
+
+
 def _failure(r: RunningInstance, function: str, status: int, when: float,
              recorder: Recorder) -> SimulationError:
     r.mark_failed(status)
     said = r.log.last()
     return SimulationError(
         f"{r.function_name(function)} returned {STATUS.get(status, status)}"
-        + (f" (FMU says: {said})" if said else ""),
+        + (f" (FMU says: {said})" if said else "") + (_STATE_HINT if "FMUstate" in function
+                                                      else ""),
         component=r.name, time=when, status=STATUS.get(status, str(status)),
         results=recorder.results(False))
 

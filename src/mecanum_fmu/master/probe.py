@@ -308,15 +308,19 @@ class Target:
         self.y = (ctypes.c_double * len(outputs))()
 
     def probe(self, k: int, t: float, h: float, real: np.ndarray) -> None:
-        """One probe from the FMU's state now (t_k), the state set back after it. A call that
-        fails, or a response the model does not fit, marks the model failed (the pair hands
-        over to Richardson); a state it cannot set back fails the run (StepFailure)."""
+        """One probe from the FMU's state now (t_k), the state set back after it. A call
+        that returns Discard, or a response the model does not fit, marks the model failed
+        (the pair hands over to Richardson); Error or worse, or a state that cannot be set
+        back, fails the run (StepFailure: FMI allows nothing more of such an instance)."""
         r, comp = self.r, self.r.component
         u = real[self.slots].astype(float)
         eps = RELATIVE_EPS * np.maximum(1.0, np.abs(u))
         state = ctypes.c_void_p()
-        if r.c_get_state(comp, ctypes.byref(state)) > 1:
-            self.model.failed = f"{r.name}'s fmi2GetFMUstate failed while probing it"
+        status = r.c_get_state(comp, ctypes.byref(state))
+        if status > 1:
+            if status > 2:
+                raise StepFailure(r, "fmi2GetFMUstate", status, t, t)
+            self.model.failed = f"{r.name}'s fmi2GetFMUstate returned discard while probing it"
             return
         try:
             runs = [self._steps(u, t, h)]
@@ -326,12 +330,11 @@ class Target:
                 nudged[j] += eps[j]
                 runs.append(self._steps(u, t, h, nudged))
         except _Refused as why:
-            self.model.failed = f"{r.name}'s {why} while probing its response"
-        finally:
-            try:
-                self._set_state(state, t)
-            finally:
-                r.c_free_state(comp, ctypes.byref(state))
+            if why.status > 2:
+                raise StepFailure(r, why.function, why.status, t, t + h) from None
+            self.model.failed = f"{r.name}'s {why.function} returned discard while probing it"
+        self._set_state(state, t)
+        r.c_free_state(comp, ctypes.byref(state))
         if self.model.failed is None:
             self._fit(k, h, np.array(runs), eps)
 
@@ -380,11 +383,15 @@ class Target:
     def _call(self, name: str, function, *args) -> None:
         st = function(self.r.component, *args)
         if st > 1:
-            raise _Refused(f"{name} returned {st}")
+            raise _Refused(name, st)
 
 
 class _Refused(Exception):
-    """An FMI call that returned Error or worse while probing."""
+    """An FMI call that returned Discard or worse while probing."""
+
+    def __init__(self, function: str, status: int):
+        super().__init__(function, status)
+        self.function, self.status = function, status
 
 
 def _fill(array, values: np.ndarray):
