@@ -107,3 +107,19 @@ def test_probes_that_agree_double_their_gap_and_others_keep_it():
     assert _schedule(lambda k: 1.0, 996) == [0, 32, 96, 224, 480]
     assert _schedule(lambda k: 1.0 + k / 100, 200) == list(range(0, 196, PROBE_EVERY))
     assert _schedule(lambda k: 1.0, 4) == []
+
+
+def test_a_probe_whose_outputs_are_not_finite_hands_over():
+    # a nudged input that makes the FMU overflow: no model from it, the pair hands over
+    from mecanum_fmu.master.probe import Target
+
+    class Bare(Target):
+        def __init__(self):
+            self.model = ProbedModel("lag", ["u"], ["x"])
+            self.r = type("R", (), {"name": "lag"})()
+
+    target = Bare()
+    runs = np.ones((2, 4, 1))
+    runs[1, 2, 0] = np.inf
+    target._fit(0, 0.1, runs, np.array([1e-6]))
+    assert target.model.found == [] and "not finite" in target.model.failed

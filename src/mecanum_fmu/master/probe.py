@@ -341,6 +341,10 @@ class Target:
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray) -> None:
         """runs: (1 + inputs, steps, outputs), the first unmoved: a model's fit (fitted),
         or a response's Jacobian (one step: its outputs' change over each input's move)."""
+        if not np.isfinite(runs).all():
+            self.model.failed = (f"{self.r.name}'s outputs were not finite numbers in the "
+                                 f"probe at t = {k * h:g} s")
+            return
         size = np.abs(runs).max(axis=0)                                     # (steps, outputs)
         g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)   # (steps, o, j)
         floor = (64 * _EPS) * size[:, :, None] / eps
