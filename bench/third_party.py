@@ -2,10 +2,11 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Four graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Five graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
-x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); a loop, cos t into a
+x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
+second output y = x + u, which the input reaches directly; a loop, cos t into a
 P controller u = 3 (r - x) (no state) around the lag (x' = -2 x + u: the error carried
 through the controller's measured Jacobian). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
@@ -56,6 +57,11 @@ outputs: [it.v]""", None),
   two: {{fmu: {xtest_lag}, parameters: {{k: 1.0}}}}
 connections: [[wave.u, one.u], [one.x, two.u]]
 outputs: [one.x, two.x]""", lambda t, y: [-2 * y[0] + np.cos(t), y[0] - y[1]]),
+    "through": ("""\
+  wave: {{fmu: {xtest_wave}}}
+  it: {{fmu: {xtest_through}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x, it.y]""", lambda t, y: [-2 * y[0] + np.cos(t), 0.0]),
     "loop": ("""\
   wave: {{fmu: {xtest_wave}}}
   ctrl: {{fmu: {xtest_gain}, parameters: {{kp: 3.0}}}}
@@ -87,6 +93,8 @@ def true_errors(name: str, graph, results, outputs: list[str]) -> dict:
         return {o: np.abs(results[o] - reference[o][::REFINE]) for o in outputs}
     truth = solve_ivp(rates, (0.0, 6.0), [0.0] * len(outputs), t_eval=results.time,
                       rtol=1e-12, atol=1e-14, method="DOP853").y
+    if name == "through":           # y = x + u: the lag's x and the input
+        truth = np.array([truth[0], truth[0] + np.cos(results.time)])
     return {o: np.abs(results[o] - row) for o, row in zip(outputs, truth)}
 
 
