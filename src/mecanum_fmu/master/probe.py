@@ -4,9 +4,10 @@ to a held input's error, measured on the FMU itself (docs/masters.md, "The measu
 Before the master steps the FMU at a probed step k, its state is saved, and it is stepped
 PROBE_STEPS times from there with the inputs of now (u_k: the sources' values at t_k), then,
 per held input j, the same with u_j moved by a small eps over the first step only; its state
-is set back. Per covered output o (one that no held input reaches directly) and input j, the
-differences over eps are the response to a unit held over one step, at the end of that step
-and of the next three: g0, g1, g2, g3. The model is one pole and a direct part, which fits g0,
+is set back. Per output o whose dependencies are declared and input j, the differences over
+eps are the response to a unit held over one step, at the end of that step and of the next
+three: g0, g1, g2, g3 (where j reaches o directly, g0's state part is g1 / r and the rest a
+direct part: ProbedModel). The model is one pole and a direct part, which fits g0,
 g1 and g2 exactly: g_n = g1 r^(n-1) for n >= 1, r = g2 / g1 (a first-order FMU, x' = a x + b u,
 has g1 = r g0, r = e^(a h)). g3 checks it: a response of higher order (two integrators in a
 row) does not decay geometrically, and the pair hands over to Richardson rather than carry a
@@ -19,7 +20,8 @@ change over the step, whose weight within the step a mean does not see (m: momen
 A probe costs (1 + m) PROBE_STEPS doStep calls of that FMU and 1 + m state sets. The first is
 made at the first step; the next PROBE_EVERY steps later, and each time a probe finds what the
 one before it found (within AGREE), the gap doubles: a linear FMU is probed about log2(n / 32)
-times, a nonlinear one as often as its response changes.
+times, a nonlinear one as often as its response changes. The Jacobian of an FMU without a
+state that a loop's error goes through (ProbedResponse) is probed alike, one step per input.
 """
 from __future__ import annotations
 
