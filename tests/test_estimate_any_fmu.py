@@ -11,7 +11,8 @@ import re
 import numpy as np
 import pytest
 
-from helpers import ROOT, run_main, state_fmu3, state_fmus, test_fmus, with_experiment, write_scenario
+from helpers import (ROOT, run_main, state_fmu3, state_fmus, test_fmus, with_experiment,
+                     write_scenario)
 from mecanum_fmu import master, runner
 from mecanum_fmu.errors import ScenarioError, SimulationError
 from mecanum_fmu.results import BELOW_ROUND_OFF
