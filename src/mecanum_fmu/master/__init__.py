@@ -70,13 +70,9 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
-        try:
-            pair, start = (_estimate_start(graph, experiment, running, buffers, recorder,
-                                           stack, _rolls_back_loops(how, running, holds))
-                           if with_estimate else (None, None))
-        except StepFailure as err:      # a state save that returned Error or worse
-            raise _failure(err.running, err.function, err.status, experiment.start_time,
-                           recorder) from None
+        pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack,
+                                       _rolls_back_loops(how, running, holds))
+                       if with_estimate else (None, None))
         recorder.record()
         holds.prime()
         stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
@@ -144,7 +140,11 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
         recorder.tap = pair
         recorder.probe = prober(pair.plan, running, buffers.real, recorder.n_steps)
     needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
-    return pair, _start(graph, exp, running, buffers, stack) if needs_t0 else None
+    try:
+        return pair, _start(graph, exp, running, buffers, stack) if needs_t0 else None
+    except StepFailure as err:      # a state save that returned Error or worse
+        raise _failure(err.running, err.function, err.status, exp.start_time,
+                       recorder) from None
 
 
 def _start(graph: Graph, exp: Experiment, running: list[RunningInstance], buffers: Buffers,
