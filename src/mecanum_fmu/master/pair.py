@@ -373,11 +373,11 @@ def _group(how, inst, links: list, loop: set, col, model, measured: bool) -> Gro
     roles = np.array([_role(how.hold != "zoh" and n in state_only, id(l) in loop)
                       for n, l in zip(names, links)])
     if model is not None:
-        return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0,
-                     model.batch(names, inst), inst.model_name)
-    probed = probed_model(inst, names) if measured else None
-    return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0, probed,
-                 inst.model_name + (PROBED if probed is not None else ""))
+        batch, words = model.batch(names, inst), inst.model_name
+    else:
+        batch = probed_model(inst, names) if measured else None
+        words = inst.model_name + (PROBED if batch is not None else "")
+    return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0, batch, words)
 
 
 def _role(blended: bool, ahead: bool) -> str:

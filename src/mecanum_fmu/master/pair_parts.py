@@ -44,6 +44,14 @@ class PairPlan:
     # places among the reader's held inputs); its error is added to theirs
     forwarded: list = field(default_factory=list)
 
+    def throughs(self) -> list["Through"]:
+        """The FMUs without a state an error is carried through: its loop's chain, or its
+        network's FMUs between the models."""
+        if self.loop is not None:
+            return list(self.loop.chain)
+        steps = self.network.steps if self.network is not None else ()
+        return [item for kind, item in steps if kind == "through"]
+
 
 @dataclass
 class Through:

@@ -170,10 +170,8 @@ class PairRows:
     def _through(self) -> list[str]:
         """The FMUs without a state the error is carried through (a loop's chain, a network's
         FMUs between its models), for the method's words."""
-        steps = [("through", t) for t in self.plan.loop.chain] if self.plan.loop else \
-            self.plan.network.steps if self.plan.network else ()
-        return [item.name + (" (measured)" if isinstance(item.response, ProbedResponse) else "")
-                for kind, item in steps if kind == "through"]
+        return [t.name + (" (measured)" if isinstance(t.response, ProbedResponse) else "")
+                for t in self.plan.throughs()]
 
     def _ill(self) -> dict[str, str]:
         """The chain's outputs whose estimate is unresolved: their divisor's error is not
@@ -219,11 +217,8 @@ class PairRows:
     def _probe_failed(self) -> str | None:
         """Why the pair does not hold: a measured response (probe.py) that could not be
         measured."""
-        plan = self.plan
-        measured = [g.model for g in plan.groups if isinstance(g.model, ProbedModel)] + [
-            t.response for t in (*(plan.loop.chain if plan.loop else ()), *(
-                t for kind, t in (plan.network.steps if plan.network else ())
-                if kind == "through")) if isinstance(t.response, ProbedResponse)]
+        measured = [g.model for g in self.plan.groups if isinstance(g.model, ProbedModel)] + [
+            t.response for t in self.plan.throughs() if isinstance(t.response, ProbedResponse)]
         for m in measured:
             if m.failed or not m.found:
                 return m.failed or (f"{m.name}'s response is measured, and the run is too "

@@ -32,7 +32,7 @@ import time as _time
 import numpy as np
 from scipy.signal import lfilter
 
-from .stepping import StepFailure
+from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
 PROBE_STEPS = 4
@@ -44,15 +44,19 @@ _EPS = float(np.finfo(float).eps)
 _REAL = ("Real", "Float64")     # FMI 2, FMI 3
 
 
+def _probeable(inst) -> bool:
+    """Whether the FMU can be probed: FMI 2 or 3, and it says it can save its state."""
+    return inst.model.fmiVersion in ("2.0", "3.0") and inst.can_get_set_state
+
+
 def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
     """The ProbedModel of an FMU with a state and no error model, held inputs `inputs`: it
     covers the Real outputs whose dependencies are declared (those a held input reaches
-    directly too: their direct part, ProbedModel); None where it cannot be probed (not FMI
-    2 or 3, or it cannot save its state)."""
-    md = inst.model
-    if md.fmiVersion not in ("2.0", "3.0") or not inst.can_get_set_state:
+    directly too: their direct part, ProbedModel); None where it cannot be probed
+    (_probeable)."""
+    if not _probeable(inst):
         return None
-    declared = [u for u in md.outputs if u.variable.type in _REAL
+    declared = [u for u in inst.model.outputs if u.variable.type in _REAL
                 and u.dependencies is not None]
     direct = np.array([[n in {d.name for d in u.dependencies} for n in inputs]
                        for u in declared], dtype=bool).reshape(len(declared), len(inputs))
@@ -86,14 +90,12 @@ class ProbedModel:
         if not self.found or not len(self.outputs):     # finish() says why (no probe)
             self.k += n
             return out
-        at = [f[0] for f in self.found]
-        which = np.maximum(np.searchsorted(at, self.k + np.arange(n), side="right") - 1, 0)
         s = self.s.copy()
-        for part, probe in _segments(which, h):
-            _, size, g0, g1, r, m, direct = self.found[probe]
+        for part, probe in self._segments(h):
+            _, size, g0, g1, r, m, d_part = self.found[probe]
             scale = float(h[part.start]) / size
             decay = np.where(r > 0, np.abs(r) ** scale, r)
-            out[part] += (error[part] - 0.5 * change[part]) @ direct.T
+            out[part] += (error[part] - 0.5 * change[part]) @ d_part.T
             d = error[part][:, None, :] - m[None] * change[part][:, None, :]   # (steps, o, j)
             x = (g1 * scale)[None] * d
             for o, j in np.ndindex(s.shape):
@@ -105,6 +107,14 @@ class ProbedModel:
         self.s, self.k = s, self.k + n
         self._forget()
         return out
+
+    def _segments(self, h: np.ndarray) -> list[tuple[slice, int]]:
+        """The steps k .. k + len(h) - 1 in runs with one probe (the last made at or before
+        each) and one step length: (rows, the probe's index in `found`)."""
+        at = [f[0] for f in self.found]
+        which = np.maximum(np.searchsorted(at, self.k + np.arange(len(h)), side="right") - 1,
+                           0)
+        return _segments(which, h)
 
     def _forget(self) -> None:
         """Drop the probes no later step uses (all but the last at or before step k): memory
@@ -127,11 +137,9 @@ class ProbedModel:
         if not self.found:
             self.k += n
             return a, b, made
-        at = [f[0] for f in self.found]
-        which = np.maximum(np.searchsorted(at, self.k + np.arange(n), side="right") - 1, 0)
-        for part, probe in _segments(which, h):
-            _, size, g0, g1, r, m, direct = self.found[probe]
-            rate = _first_order(g0, g1, r) if not direct.any() else None
+        for part, probe in self._segments(h):
+            _, size, g0, g1, r, m, d_part = self.found[probe]
+            rate = _first_order(g0, g1, r) if not d_part.any() else None
             if rate is None:
                 self.failed = (f"{self.name}'s measured response is not of first order in "
                                "every input, or an input reaches an output directly, and the "
@@ -257,10 +265,7 @@ def prober(plan, running: list, real: np.ndarray, n_steps: int) -> Prober | None
         if isinstance(g.model, ProbedModel) and g.model.outputs:
             targets.append(Target(by_name[g.name], g.model, g.model.inputs, g.model.outputs,
                                   plan.slots[g.cols]))
-    throughs = [*(plan.loop.chain if plan.loop else ()),
-                *(t for kind, t in (plan.network.steps if plan.network else ())
-                  if kind == "through")]
-    for t in throughs:
+    for t in plan.throughs():
         if isinstance(t.response, ProbedResponse):
             targets.append(Target(by_name[t.name], t.response, t.response.inputs,
                                   t.response.outputs, plan.slots[t.ins], steps=1))
@@ -270,11 +275,10 @@ def prober(plan, running: list, real: np.ndarray, n_steps: int) -> Prober | None
 def probed_response(inputs: list[str], inst) -> "ProbedResponse | None":
     """The response (models/responses.Response's interface: outputs, divides, jacobian) of a
     third-party FMU without a state, measured by probes, its linked inputs `inputs`; None
-    where it cannot be probed (not FMI 2, or it cannot save its state)."""
-    md = inst.model
-    if md.fmiVersion not in ("2.0", "3.0") or not inst.can_get_set_state:
+    where it cannot be probed (_probeable)."""
+    if not _probeable(inst):
         return None
-    outputs = [u.variable.name for u in md.outputs if u.variable.type in _REAL]
+    outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in _REAL]
     return ProbedResponse(inst.name, inputs, outputs)
 
 
@@ -327,7 +331,7 @@ class Target:
         try:
             runs = [self._steps(u, t, h)]
             for j in range(len(u)):
-                self._set_state(state, t)
+                restore_states([r], t, [state])
                 nudged = u.copy()
                 nudged[j] += eps[j]
                 runs.append(self._steps(u, t, h, nudged))
@@ -335,7 +339,7 @@ class Target:
             if why.status > 2:
                 raise StepFailure(r, why.function, why.status, t, t + h) from None
             self.model.failed = f"{r.name}'s {why.function} returned discard while probing it"
-        self._set_state(state, t)
+        restore_states([r], t, [state])
         r.c_free_state(comp, ctypes.byref(state))
         if self.model.failed is None:
             self._fit(k, h, np.array(runs), eps)
@@ -365,11 +369,6 @@ class Target:
             self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
         else:
             self.model.found.append((k, h, *fit))
-
-    def _set_state(self, state, t: float) -> None:
-        st = self.r.c_set_state(self.r.component, state)
-        if st > 1:
-            raise StepFailure(self.r, "fmi2SetFMUstate", st, t, t)
 
     def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None
                ) -> np.ndarray:
