@@ -63,8 +63,6 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
 FEW_STEPS = "the run has fewer than 4 steps: no coarser runs to compare with"
 LATE_END = ("unresolved (under Jacobi the last steps' true inputs lie past the run's values; "
             "extrapolated by the cubic and by the parabola, they disagree)")
-SHORT_PIECES = ("a table's rows are closer than two steps: the values the run sees do not "
-                "tell its input between them")
 LONE_PIECES = ("a table jumps at every step, and a held input may move between the jumps (a "
                "loop, an FMU with a state): its one value between two jumps does not tell how")
 
@@ -89,10 +87,8 @@ def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int, rolled_back: boo
         return plan
     if n_steps < 4:
         return FEW_STEPS
-    rows = PairRows(plan, exp, n_steps, graph_breaks(graph))
-    if rows.pieces.short:
-        return SHORT_PIECES
-    return LONE_PIECES if rows.held_move and rows.pieces.lone else rows
+    rows = PairRows(plan, exp, n_steps, graph_breaks(graph), graph.known)
+    return LONE_PIECES if rows.held_move and rows.pieces.lone and rows.known is None else rows
 
 
 def error_estimate(graph: Graph, results: Results, simulate) -> dict:

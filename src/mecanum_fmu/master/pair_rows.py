@@ -17,6 +17,7 @@ import numpy as np
 from ..results import cancelled, round_off
 from .breakpoints import pieces
 from .pair_parts import Group, PairPlan
+from .pair_known import KnownInputs
 from .pair_loop import LoopCarry
 from .pair_network import NetworkCarry
 from .probe import ProbedModel, ProbedResponse
@@ -58,10 +59,13 @@ def _columns(plan: PairPlan) -> tuple[dict, list, list]:
 class PairRows:
     """The pair over the rows of one run of n steps (Recorder.tap, then finish())."""
 
-    def __init__(self, plan: PairPlan, exp, n_steps: int, breaks):
+    def __init__(self, plan: PairPlan, exp, n_steps: int, breaks, known=()):
         self.plan, self.n, self.h = plan, n_steps, exp.step_size
         self.last = (exp.stop_time - exp.start_time) / exp.step_size - (n_steps - 1)
         self.pieces = pieces(breaks, exp.start_time, exp.step_size, n_steps)
+        # where the pieces are too short for the run's rows, the tables tell the inputs
+        self.known = KnownInputs(known, exp, n_steps, self.last) if self.pieces.short \
+            else None
         self.across_k = np.array(sorted(self.pieces.across), dtype=np.int64)
         self.across_f = np.array([self.pieces.across[k][0] for k in self.across_k])
         self.across_jump = np.array([self.pieces.across[k][1] for k in self.across_k], dtype=bool)
@@ -71,6 +75,10 @@ class PairRows:
                        default=0)
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
+        # per lag, the columns the groups hold (not only Jacobi's late outputs)
+        self.needed = {d: np.isin(np.arange(len(c)), np.concatenate(
+            [at[d][1] for at in self.at if d in at] or [np.array([], dtype=np.intp)]))
+            for d, c in self.cols.items()}
         loop, net = plan.loop, plan.network
         self.carry = LoopCarry(loop, plan.groups[loop.origin], plan.hold == "frozen") \
             if loop is not None else None
@@ -112,7 +120,7 @@ class PairRows:
         state and no error model, a model's output that another FMU reads): the run then
         keeps its t0 for Richardson's coarser runs."""
         return bool(self.plan.fed or (self.plan.loop and self.plan.loop.checked) or (
-            self.plan.network and self.plan.network.checked)) or any(
+            self.plan.network and self.plan.network.checked) or self.known) or any(
             g.model is None or isinstance(g.model, ProbedModel) for g in self.plan.groups)
 
     @property
@@ -144,6 +152,7 @@ class PairRows:
         parabola = self.end
         if self.lag and not self.failed:    # the steps before the tail once, the tail twice
             self._steps(self.n - 2 - self.reach)
+        if self.lag and not self.failed and not (self.known and self.known.told()):
             before = self._state()
             self._steps(self.n - 1)
             after = self._state()
@@ -358,7 +367,7 @@ class PairRows:
             if k_hi == self.n - 1:      # and the last row, against the last step's end
                 self._keep(names, self.window[[self.n - self.lo]][:, self.cols[d][at]]
                            - stencils[d][2][-1:, at] + self._late_carried(names, ks[-1:] + 1))
-        self.failed = self._fed_error()
+        self.failed = self._fed_error() or (self.known.failed if self.known else None)
         for i, signed in self.sent.items():
             self.sent_before[i] = signed[-1]
         self.k = k_hi + 1
@@ -432,7 +441,18 @@ class PairRows:
     def _stencils(self, ks: np.ndarray, d: int, cols: np.ndarray) -> tuple:
         """Per step: the true value's mean over it, and its values at its start and end,
         from the cubic (or lower) through the nearest nodes of its piece (values late by d
-        rows: node j is row j + d)."""
+        rows: node j is row j + d), or where the pieces are too short, from the tables."""
+        if self.known is None:
+            return self._polynomial(ks, d, cols)
+        fits = self.known.check(self.window, self.lo, d, cols, self.needed[d])
+        out = self.known.stencils(ks, d)
+        if not fits.all():      # (late outputs the tables do not tell: read at the nodes)
+            for o, p in zip(out, self._polynomial(ks, d, cols[~fits])):
+                o[:, ~fits] = p
+        return out
+
+    def _polynomial(self, ks: np.ndarray, d: int, cols: np.ndarray) -> tuple:
+        """_stencils from the cubic (or lower) through the run's rows."""
         pc = self.pieces
         piece = np.searchsorted(pc.starts, ks, side="right") - 1
         a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)

@@ -25,7 +25,7 @@ from ..errors import Problem, ScenarioError
 from ..masters import DEFAULT, entry as master_entry
 from ..values import is_finite
 from .document import Scalar, Scenario, VarRef, did_you_mean, is_number, show
-from .tables import Breaks, Table, source_breaks, table_or_none
+from .tables import Breaks, Known, Table, source_breaks, source_known, table_or_none
 
 VALUE_TYPES = ("Real", "Integer", "Boolean")    # what moves between FMUs and is recorded
 
@@ -103,6 +103,11 @@ class Graph:
         """Where its sources jump or kink (tables.source_breaks), from the start values it
         runs with (a sweep's graph has its own)."""
         return source_breaks(self.instances)
+
+    @cached_property
+    def known(self) -> tuple[Known, ...]:
+        """Its sources' outputs known at every time apart from the run (tables.source_known)."""
+        return source_known(self.instances)
 
     @cached_property
     def held(self) -> tuple[Link, ...]:

@@ -9,6 +9,8 @@ and nothing parses the text again outside the FMU (blocks/profile_table.py, insi
 
 `Breaks` are the times where a graph's sources jump or kink, under each table's interpolation
 and from the numbers the expressions compare t with; the graph carries them too (Graph.breaks).
+`Known` is a twist table as the source's outputs over time (Graph.known): the embedded pair
+reads the input between the run's values there where they do not tell it (master/pair_known.py).
 """
 from __future__ import annotations
 
@@ -115,6 +117,23 @@ def source_breaks(instances) -> Breaks:
             if name.endswith("_expr") and isinstance(value, str):
                 others.append(np.array(compared_times(value), dtype=float))
     return Breaks(*(np.unique(np.concatenate(p)) for p in (kinks, jumps, others)))
+
+
+@dataclass(frozen=True, eq=False)
+class Known:
+    """Source outputs known at every time apart from the run: a twist table's columns, linear
+    between its rows or held (`hold`: each row's value until the next row), its first and
+    last rows' values before and after it (as the FMU and the ground truth read it)."""
+    times: np.ndarray       # [s], increasing
+    values: np.ndarray      # one row per time, one column per output
+    hold: bool
+
+
+def source_known(instances) -> tuple[Known, ...]:
+    """The twist tables of the sources among `instances`, as Known signals."""
+    return tuple(Known(inst.table.times, inst.table.values(TABLE_COLUMNS[1:]),
+                       str(inst.value("interpolation")) == "hold")
+                 for inst in instances if inst.table is not None and inst.table.is_twist)
 
 
 def compared_times(text: str) -> list[float]:
