@@ -29,6 +29,9 @@ CANCELLED = cancelled(", finer than the linearisation resolves")
 # a divisor that comes within this share of its largest |value| of 0: 1 / its square magnifies
 # one row's error (the ICR's max on a path whose w crosses 0 read 7x over)
 NEAR_ZERO = 0.01
+# under Jacobi, a bulk of steps before the tail up to this long is worked out with it, twice
+# (one pass fewer: a pass's fixed NumPy calls cost more than these steps' share)
+BULK = 256
 
 
 
@@ -75,10 +78,7 @@ class PairRows:
                        default=0)
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
-        # per lag, the columns the groups hold (not only Jacobi's late outputs)
-        self.needed = {d: np.isin(np.arange(len(c)), np.concatenate(
-            [at[d][1] for at in self.at if d in at] or [np.array([], dtype=np.intp)]))
-            for d, c in self.cols.items()}
+        self.needed, self.late_names, self.late_cols = self._held_and_late()
         loop, net = plan.loop, plan.network
         self.carry = LoopCarry(loop, plan.groups[loop.origin], plan.hold == "frozen") \
             if loop is not None else None
@@ -97,7 +97,10 @@ class PairRows:
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
         self.size = np.zeros(len(plan.slots))
         self.seconds = 0.0
-        self.highest = 4        # the stencils' most nodes (the cubic's)
+        self.tail = n_steps     # from this step on, the stencils' nodes are 3 (else 4)
+        # the nodes a step ends on a jump at (the master cuts it: it sees the left value)
+        self.cut = np.zeros(n_steps + 2, dtype=bool)
+        self.cut[self.pieces.cut] = True
         # per group, the outputs its model covers and their columns in its signed errors
         self.covers = [([n for n, (j, _) in plan.covered.items() if j == i],
                         [k for n, (j, k) in plan.covered.items() if j == i])
@@ -113,6 +116,15 @@ class PairRows:
         self.ill: dict[str, str] = {}      # the chain's outputs whose linearisation fails
         self.divisors: dict[str, tuple] = {}    # their divisors' smallest and largest |value|
         self.failed: str | None = None
+
+    def _held_and_late(self) -> tuple[dict, list, np.ndarray]:
+        """Per lag, which of its columns the groups hold (not only Jacobi's late outputs);
+        Jacobi's late outputs, every lag's side by side: their names and window columns."""
+        none = np.array([], dtype=np.intp)
+        needed = {d: np.isin(np.arange(len(c)), np.concatenate(
+            [at[d][1] for at in self.at if d in at] or [none])) for d, c in self.cols.items()}
+        return needed, [n for _, names, _ in self.lags for n in names], np.concatenate(
+            [self.cols[d][at] for d, _, at in self.lags] or [none])
 
     @property
     def may_fail(self) -> bool:
@@ -150,18 +162,19 @@ class PairRows:
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
         parabola = self.end
-        if self.lag and not self.failed:    # the steps before the tail once, the tail twice
-            self._steps(self.n - 2 - self.reach)
+        if self.lag and not self.failed and self.n - 1 - self.reach - self.k > BULK:
+            self._steps(self.n - 2 - self.reach)    # a long bulk once, before the tail
         if self.lag and not self.failed and not (self.known and self.known.told()):
+            # what is left twice: the cubic, then the parabola on the tail's steps
             before = self._state()
             self._steps(self.n - 1)
             after = self._state()
             self._restore(before)
-            self.highest = 3
+            self.tail = self.n - 1 - self.reach
             self._steps(self.n - 1)
             parabola = dict(self.end)
             self._restore(after)
-            self.highest = 4
+            self.tail = self.n
         elif not self.failed:
             self._steps(self.n - 1)
         self.seconds += _time.perf_counter() - tick
@@ -326,7 +339,8 @@ class PairRows:
     def _keep(self, names: list[str], errors: np.ndarray) -> None:
         """The signed errors of outputs `names` (a column each) on a batch of rows."""
         if len(errors):
-            worst, end = np.max(np.abs(errors), axis=0).tolist(), np.abs(errors[-1]).tolist()
+            size = np.abs(errors)
+            worst, end = size.max(axis=0).tolist(), size[-1].tolist()
             for name, w, e in zip(names, worst, end):
                 self.worst[name] = max(self.worst[name], w)
                 self.end[name] = e
@@ -339,7 +353,8 @@ class PairRows:
         h = np.full(len(ks), self.h)
         if ks[-1] == self.n - 1:
             h[-1] = self.last * self.h
-        stencils = {d: self._stencils(ks, d, cols) for d, cols in self.cols.items()}
+        stencils = self._polynomials(ks) if self.known is None else \
+            {d: self._stencils(ks, d, cols) for d, cols in self.cols.items()}
         holds = {}
         for i, g in enumerate(self.plan.groups):
             held, error, change = self._group(g, ks, self._gathered(i, stencils))
@@ -361,18 +376,27 @@ class PairRows:
                 self.sent[i] = signed
         if self.net is not None:
             self._network(ks, h, holds)
-        for d, names, at in self.lags:
-            self._keep(names, self.window[ks - self.lo][:, self.cols[d][at]]
-                       - stencils[d][1][:, at] + self._late_carried(names, ks))
-            if k_hi == self.n - 1:      # and the last row, against the last step's end
-                self._keep(names, self.window[[self.n - self.lo]][:, self.cols[d][at]]
-                           - stencils[d][2][-1:, at] + self._late_carried(names, ks[-1:] + 1))
+        if self.lags:
+            self._keep_late(ks, stencils, k_hi == self.n - 1)
         self.failed = self._fed_error() or (self.known.failed if self.known else None)
         for i, signed in self.sent.items():
             self.sent_before[i] = signed[-1]
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
+
+    def _keep_late(self, ks: np.ndarray, stencils: dict, last: bool) -> None:
+        """Jacobi's late outputs' errors on a batch of rows: the row against the true value
+        of its node d rows before (less the error the loop carries into it), and with the
+        `last` batch the last row, against the last step's end."""
+        names, cols = self.late_names, self.late_cols
+        true = np.concatenate([stencils[d][1][:, at] for d, _, at in self.lags], axis=1)
+        errors = self.window[ks - self.lo][:, cols] - true + self._late_carried(names, ks)
+        if last:
+            end = np.concatenate([stencils[d][2][-1:, at] for d, _, at in self.lags], axis=1)
+            errors = np.concatenate((errors, self.window[[self.n - self.lo]][:, cols] - end
+                                     + self._late_carried(names, ks[-1:] + 1)))
+        self._keep(names, errors)
 
     def _gathered(self, i: int, stencils: dict) -> list:
         """Group i's inputs' (mean, start, end) per step from the stencils of their lags."""
@@ -394,7 +418,7 @@ class PairRows:
         now = self._row(g, ks, 0)
         if self.plan.hold == "frozen":      # Jacobi: the values of t_k, late by the lag
             return now, now - mean, end - start
-        seen = np.where(np.isin(ks + 1, self.pieces.cut)[:, None], end, self._row(g, ks, 1))
+        seen = np.where(self.cut[ks + 1][:, None], end, self._row(g, ks, 1))
         trapezoid = 0.5 * (now + seen)
         if self.plan.hold == "quadratic":
             trapezoid = trapezoid - self._parabola(ks, now, seen, self._row(g, ks, -1),
@@ -440,10 +464,9 @@ class PairRows:
 
     def _stencils(self, ks: np.ndarray, d: int, cols: np.ndarray) -> tuple:
         """Per step: the true value's mean over it, and its values at its start and end,
-        from the cubic (or lower) through the nearest nodes of its piece (values late by d
-        rows: node j is row j + d), or where the pieces are too short, from the tables."""
-        if self.known is None:
-            return self._polynomial(ks, d, cols)
+        where the pieces are too short for the rows, from the tables (else _polynomials:
+        from the cubic, or lower, through the nearest nodes of its piece, values late by d
+        rows: node j is row j + d)."""
         fits = self.known.check(self.window, self.lo, d, cols, self.needed[d])
         out = self.known.stencils(ks, d)
         if not fits.all():      # (late outputs the tables do not tell: read at the nodes)
@@ -453,23 +476,42 @@ class PairRows:
 
     def _polynomial(self, ks: np.ndarray, d: int, cols: np.ndarray) -> tuple:
         """_stencils from the cubic (or lower) through the run's rows."""
+        s, m, found = self._uniform(ks, d)
+        out = [found[:, 0, cols], found[:, 1, cols], found[:, 2, cols]]
+        self._odd_steps(ks, d, cols, (s, m), out)
+        return tuple(out)
+
+    def _polynomials(self, ks: np.ndarray) -> dict:
+        """_polynomial of every lag's columns, its uniform stencils in one go."""
+        lags, n = list(self.cols), len(ks)
+        s, m, found = self._uniform(np.tile(ks, len(lags)), np.repeat(lags, n))
+        out = {}
+        for i, d in enumerate(lags):
+            part, cols = slice(i * n, (i + 1) * n), self.cols[d]
+            out[d] = [found[part, 0][:, cols], found[part, 1][:, cols], found[part, 2][:, cols]]
+            self._odd_steps(ks, d, cols, (s[part], m[part]), out[d])
+        return out
+
+    def _uniform(self, ks: np.ndarray, d) -> tuple:
+        """Per step (of lag d: one, or one per step): the first node of its stencil, how
+        many, and the mean, start and end of every column from the uniform weights."""
         pc = self.pieces
         piece = np.searchsorted(pc.starts, ks, side="right") - 1
         a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)
-        m = np.minimum(np.maximum(b - a + 1, 1), self.highest)
+        m = np.minimum(np.maximum(b - a + 1, 1), np.where(ks >= self.tail, 3, 4))
         s = np.minimum(np.maximum(ks - 1, a), b - m + 1)
         offsets = 5 + self.lag
         key = (m - 1) * offsets + np.minimum(ks - s, offsets - 1)
-        rows = np.minimum(np.maximum(s[:, None] + FOUR + d - self.lo, 0), len(self.window) - 1)
-        found = weight_table(offsets)[key] @ self.window[rows][:, :, cols]   # (steps, 3, columns)
-        out = [found[:, 0], found[:, 1], found[:, 2]]
-        self._odd_steps(ks, d, cols, (s, m), out)
-        return tuple(out)
+        rows = np.minimum(np.maximum(s[:, None] + FOUR + np.reshape(d, (-1, 1)) - self.lo, 0),
+                          len(self.window) - 1)
+        return s, m, weight_table(offsets)[key] @ self.window[rows]   # (steps, 3, columns)
 
     def _odd_steps(self, ks, d, cols, stencil, out) -> None:
         """The steps the uniform stencils do not fit: a step with a breakpoint inside (its
         mean split between the pieces on either side), and, where the last step is shorter,
         those whose stencil reaches its end (node n is nearer than a step)."""
+        if not len(self.across_k) and abs(self.last - 1.0) <= 1e-9:
+            return
         s, m = stencil
         first, last = int(ks[0]), int(ks[-1])
         # (a step whose right node is past the run's last true value (Jacobi's last d steps)

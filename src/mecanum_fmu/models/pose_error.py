@@ -152,17 +152,16 @@ class PoseBatch:
     def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
               ) -> np.ndarray:
         iw = self.index[2]
-        run, true = self._displacements(h, held, error, change)
+        run, true = self._displacements(h, held, error, change)    # x + i y
         turned, before = self._turned(h, held[:, iw])
         heading = self.heading + np.cumsum(h * error[:, iw])
         lag = np.concatenate(([self.heading], heading[:-1]))
-        c, s = np.cos(lag), np.sin(lag)
-        bx = run[0] - (c * true[0] + s * true[1])      # R(-heading error) turns the true step
-        by = run[1] - (-s * true[0] + c * true[1])
-        c, s = np.cos(before), np.sin(before)
-        e = self.e + np.cumsum(np.column_stack((c * bx - s * by, s * bx + c * by)), axis=0)
-        self.theta, self.e, self.heading = float(turned[-1]), e[-1].copy(), float(heading[-1])
-        return np.column_stack((e, heading))
+        # R(-heading error) turns the true step; R(the run's heading) turns both into the world
+        e = complex(*self.e) + np.cumsum(np.exp(1j * before) * (run - np.exp(-1j * lag) * true))
+        self.theta, self.e, self.heading = float(turned[-1]), np.array([e[-1].real,
+                                                                        e[-1].imag]), \
+            float(heading[-1])
+        return np.column_stack((e.real, e.imag, heading))
 
     def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -174,6 +173,7 @@ class PoseBatch:
         ivx, ivy, iw = self.index
         w = held[:, iw]
         run, true = self._displacements(h, held, error, change)
+        run, true = (run.real, run.imag), (true.real, true.imag)
         turned, before = self._turned(h, w)
         c, s = np.cos(before), np.sin(before)
         rows = len(h)
@@ -194,26 +194,28 @@ class PoseBatch:
         return turned, np.concatenate(([self.theta], turned[:-1]))
 
     def _displacements(self, h, held, error, change) -> tuple:
-        """Per step, the body-frame displacement of the run (the held twist on SE(2)) and of
-        the truth (the true mean twist, less the frame turning within the step, J (w dv - dw
-        v) h^2 / 12: docs/masters.md)."""
-        ivx, ivy, iw = self.index
-        vx, vy, w = held[:, ivx], held[:, ivy], held[:, iw]
-        ux, uy, uw = vx - error[:, ivx], vy - error[:, ivy], w - error[:, iw]
-        dvx, dvy, dw = change[:, ivx], change[:, ivy], change[:, iw]
-        tx, ty = (uw * dvx - dw * ux) * h * h / 12, (uw * dvy - dw * uy) * h * h / 12
-        true = _displacement(h, ux, uy, uw)
-        return _displacement(h, vx, vy, w), (true[0] - ty, true[1] + tx)
+        """Per step, the body-frame displacement (x + i y) of the run (the held twist on
+        SE(2)) and of the truth (the true mean twist, less the frame turning within the step,
+        J (w dv - dw v) h^2 / 12: docs/masters.md)."""
+        run = held[:, self.index]
+        true = run - error[:, self.index]
+        dvx, dvy, dw = change[:, self.index].T
+        turning = (true[:, 2] * (dvx + 1j * dvy) - dw * (true[:, 0] + 1j * true[:, 1])) \
+            * (h * h / 12)
+        both = np.stack((run, true))
+        moved = _displacement(h, both[..., 0] + 1j * both[..., 1], both[..., 2])
+        return moved[0], moved[1] + 1j * turning
 
 
-def _displacement(h, vx, vy, w) -> tuple[np.ndarray, np.ndarray]:
-    """The body-frame displacement of a twist held over h on SE(2) (blocks/pose.pose_step's,
-    for arrays)."""
+def _displacement(h, v, w) -> np.ndarray:
+    """The body-frame displacement (x + i y) of a twist (v = vx + i vy, w) held over h on
+    SE(2) (blocks/pose.pose_step's, for arrays): h v (e^(i phi) - 1) / (i phi), phi = w h."""
     phi = w * h
     small = np.abs(phi) < 1e-6
     safe = np.where(small, 1.0, phi)
     phi2 = phi * phi
-    a = np.where(small, 1.0 - phi2 / 6.0 + phi2 * phi2 / 120.0, np.sin(safe) / safe)
     half = np.sin(0.5 * safe)
-    b = np.where(small, phi / 2.0 - phi * phi2 / 24.0, 2.0 * half * half / safe)
-    return h * (a * vx - b * vy), h * (b * vx + a * vy)
+    turn = np.where(small, (1.0 - phi2 / 6.0 + phi2 * phi2 / 120.0)
+                    + 1j * (phi / 2.0 - phi * phi2 / 24.0),
+                    (np.sin(safe) + 2j * half * half) / safe)
+    return h * turn * v
