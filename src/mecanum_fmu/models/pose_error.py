@@ -144,7 +144,7 @@ class PoseBatch:
     -> the signed accumulated error of each output after each step, shape (steps, outputs)."""
 
     def __init__(self, index: list[int], inst):
-        self.index, self.name = index, inst.name
+        self.index, self.name = np.array(index), inst.name
         self.outputs = _POSE
         self.theta = float(inst.value("theta0"))      # the run's heading
         self.e, self.heading = np.zeros(2), 0.0         # run - true: position, heading
@@ -197,25 +197,33 @@ class PoseBatch:
         """Per step, the body-frame displacement (x + i y) of the run (the held twist on
         SE(2)) and of the truth (the true mean twist, less the frame turning within the step,
         J (w dv - dw v) h^2 / 12: docs/masters.md)."""
-        run = held[:, self.index]
-        true = run - error[:, self.index]
-        dvx, dvy, dw = change[:, self.index].T
-        turning = (true[:, 2] * (dvx + 1j * dvy) - dw * (true[:, 0] + 1j * true[:, 1])) \
-            * (h * h / 12)
-        both = np.stack((run, true))
-        moved = _displacement(h, both[..., 0] + 1j * both[..., 1], both[..., 2])
+        both = np.empty((2, len(h), 3))                 # the run's twist, the true one
+        both[0] = held[:, self.index]
+        np.subtract(both[0], error[:, self.index], out=both[1])
+        v, w = both[..., 0] + 1j * both[..., 1], both[..., 2]
+        dv = change[:, self.index]
+        turning = (w[1] * (dv[:, 0] + 1j * dv[:, 1]) - dv[:, 2] * v[1]) * (h * h / 12)
+        moved = _displacement(h, v, w)
         return moved[0], moved[1] + 1j * turning
 
 
 def _displacement(h, v, w) -> np.ndarray:
     """The body-frame displacement (x + i y) of a twist (v = vx + i vy, w) held over h on
-    SE(2) (blocks/pose.pose_step's, for arrays): h v (e^(i phi) - 1) / (i phi), phi = w h."""
+    SE(2) (blocks/pose.pose_step's, for arrays): h v (e^(i phi) - 1) / (i phi), phi = w h,
+    by its series where |phi| < 1e-6."""
     phi = w * h
     small = np.abs(phi) < 1e-6
-    safe = np.where(small, 1.0, phi)
-    phi2 = phi * phi
-    half = np.sin(0.5 * safe)
-    turn = np.where(small, (1.0 - phi2 / 6.0 + phi2 * phi2 / 120.0)
-                    + 1j * (phi / 2.0 - phi * phi2 / 24.0),
-                    (np.sin(safe) + 2j * half * half) / safe)
+    turn = _series(phi) if small.all() else _turn(np.where(small, 1.0, phi))
+    if small.any() and not small.all():
+        turn = np.where(small, _series(phi), turn)
     return h * turn * v
+
+
+def _series(phi: np.ndarray) -> np.ndarray:
+    phi2 = phi * phi
+    return (1.0 - phi2 / 6.0 + phi2 * phi2 / 120.0) + 1j * (phi / 2.0 - phi * phi2 / 24.0)
+
+
+def _turn(phi: np.ndarray) -> np.ndarray:
+    half = np.sin(0.5 * phi)
+    return (np.sin(phi) + 2j * half * half) / phi
