@@ -484,7 +484,10 @@ class PairRows:
     def _polynomials(self, ks: np.ndarray) -> dict:
         """_polynomial of every lag's columns, its uniform stencils in one go."""
         lags, n = list(self.cols), len(ks)
-        s, m, found = self._uniform(np.tile(ks, len(lags)), np.repeat(lags, n))
+        if not lags:
+            return {}
+        s, m, found = self._uniform(np.tile(ks, len(lags)),
+                                    np.repeat(np.array(lags, dtype=np.int64), n))
         out = {}
         for i, d in enumerate(lags):
             part, cols = slice(i * n, (i + 1) * n), self.cols[d]
