@@ -78,3 +78,10 @@ def test_a_column_that_is_no_linear_map_fails_only_where_it_is_held():
     again = _inputs(False)
     again.check(window, 0, 0, np.array([0, 1]), np.array([True, True]))
     assert again.failed is not None and "not a fixed linear map" in again.failed
+
+
+def test_too_few_rows_to_tell_the_map_fail_with_their_own_words():
+    known = _inputs(False)
+    window = _window(known, [lambda s: s[:, 0]])[:2]        # 2 rows, 3 unknowns
+    known.check(window, 0, 0, np.array([0]), np.array([True]))
+    assert known.failed is not None and "too few" in known.failed

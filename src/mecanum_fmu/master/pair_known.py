@@ -18,6 +18,9 @@ import numpy as np
 
 # a column's largest misfit, as a share of its largest |value|: the map holds to round-off
 FIT = 1e-9
+UNTOLD = ("a table's rows are closer than two steps, and the run's rows are too few for the "
+          "tables' columns to tell how the held inputs follow them: the values the run sees "
+          "do not tell its input between them")
 NOT_A_MAP = ("a table's rows are closer than two steps, and the held inputs are not a fixed "
              "linear map of the tables (misfit {misfit:.1e} of their size): the values the run "
              "sees do not tell its input between them")
@@ -91,7 +94,7 @@ class KnownInputs:
                             np.zeros(len(cols), dtype=bool))
             x = self._design(self.time(rows - d))
             if len(rows) < x.shape[1] or np.linalg.matrix_rank(x) < x.shape[1]:
-                self.failed = self.failed or NOT_A_MAP.format(misfit=np.inf)
+                self.failed = self.failed or UNTOLD
                 return self.maps[d][1]
             fits = np.ones(len(cols), dtype=bool)
             self.maps[d] = (np.linalg.lstsq(x, window[rows - lo][:, cols], rcond=None)[0],
