@@ -8,7 +8,7 @@ import pytest
 from helpers import ROOT, with_experiment
 from mecanum_fmu import master, runner
 from mecanum_fmu.master import plan, stencils, stepping
-from mecanum_fmu.master.estimate import LATE_END, LONE_PIECES
+from mecanum_fmu.master.estimate import LATE_END, LONE_PIECES, TABLES
 from mecanum_fmu.master.breakpoints import pieces
 from mecanum_fmu.models import pose_error
 from mecanum_fmu.scenario.tables import Breaks
@@ -255,6 +255,7 @@ def test_a_table_stepped_coarser_than_its_rows_is_read_off_the_table(name):
     Its accuracy: tests/test_estimate.py."""
     found, results = _method(SCENARIOS / "profiles" / "joystick.yaml", name, step_size=0.04)
     assert found["error_estimate_method"].startswith("the embedded pair")
+    assert found["error_estimate_method"].endswith(TABLES)
     assert "coarse" not in results.extra
     assert all(isinstance(v["max"], float) for v in found["error_estimate"].values()
                if v["max"] != "below round-off")

@@ -63,6 +63,8 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
 FEW_STEPS = "the run has fewer than 4 steps: no coarser runs to compare with"
 LATE_END = ("unresolved (under Jacobi the last steps' true inputs lie past the run's values; "
             "extrapolated by the cubic and by the parabola, they disagree)")
+TABLES = ("; a table's rows being closer than two steps, each held input's true mean is the "
+          "table's own, through the linear map from the tables to it fitted on the run's rows")
 LONE_PIECES = ("a table jumps at every step, and a held input may move between the jumps (a "
                "loop, an FMU with a state): its one value between two jumps does not tell how")
 
@@ -180,7 +182,7 @@ def _pair_estimate(graph: Graph, results: Results, names: list[str], pair: dict)
                 models=models, loop=LOOP_METHOD.format(through=", ".join(through)) if through
                 else "", other="the other " if through else "",
                 lag=" (under Jacobi, a step late per FMU with direct feedthrough)"
-                if pair["lagged"] else ""),
+                if pair["lagged"] else "") + (TABLES if pair.get("tables") else ""),
             "error_estimate_cost": round(pair["seconds"] / max(
                 results.wall_time - pair.get("probe_seconds", 0.0), 1e-12), 3)}
 

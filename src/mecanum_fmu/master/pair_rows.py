@@ -185,6 +185,7 @@ class PairRows:
                 "seconds": self.seconds,
                 "failed": self.failed or self._moved() or self._probe_failed(),
                 "lagged": bool(self.lag),
+                "tables": self.known is not None,
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
                            if g.model is not None],
                 "through": self._through()}
