@@ -103,7 +103,7 @@ def test_the_probes_leave_the_run_as_it_was(tmp_path, fmus):
     graph, exp = with_experiment(graph, estimate="none")
     plain = master.simulate(graph, exp)
     assert np.array_equal(probed["lag.x"], plain["lag.x"])
-    # 60 steps: probes at step 0 and 32 (the next, 96, is past the last a probe may start
+    # 60 steps: probes at step 0 and 32 (the next, 160, is past the last a probe may start
     # at, 55), each 4 steps unmoved and 4 with the one input moved
     assert probed.extra["pair"]["found"]["probe_calls"] == 2 * 4 * 2
 

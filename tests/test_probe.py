@@ -101,10 +101,11 @@ def _schedule(finds, n):
     return target.probed
 
 
-def test_probes_that_agree_double_their_gap_and_others_keep_it():
-    # a probe steps 4 times: the last may start at step n - 5
-    assert _schedule(lambda k: 1.0, 1000) == [0, 32, 96, 224, 480, 992]
-    assert _schedule(lambda k: 1.0, 996) == [0, 32, 96, 224, 480]
+def test_probes_that_agree_widen_their_gap_fourfold_and_others_keep_it():
+    # a probe steps 4 times: the last may start at step n - 5; the gaps 32, 128, 512, ...
+    assert _schedule(lambda k: 1.0, 1000) == [0, 32, 160, 672]
+    assert _schedule(lambda k: 1.0, 676) == [0, 32, 160]
+    assert _schedule(lambda k: 1.0, 677) == [0, 32, 160, 672]
     assert _schedule(lambda k: 1.0 + k / 100, 200) == list(range(0, 196, PROBE_EVERY))
     assert _schedule(lambda k: 1.0, 4) == []
 

@@ -19,8 +19,8 @@ change over the step, whose weight within the step a mean does not see (m: momen
 
 A probe costs (1 + m) PROBE_STEPS doStep calls of that FMU and 1 + m state sets. The first is
 made at the first step; the next PROBE_EVERY steps later, and each time a probe finds what the
-one before it found (within AGREE), the gap doubles: a linear FMU is probed about log2(n / 32)
-times, a nonlinear one as often as its response changes. The Jacobian of an FMU without a
+one before it found (within AGREE), the gap grows GROWTH-fold: a linear FMU is probed about
+log4(n / 32) + 2 times, a nonlinear one as often as its response changes. The Jacobian of an FMU without a
 state that a loop's error goes through (ProbedResponse) is probed alike, one step per input.
 """
 from __future__ import annotations
@@ -37,7 +37,8 @@ from .stepping import StepFailure, restore_states
 PROBE_EVERY = 32
 PROBE_STEPS = 4
 RELATIVE_EPS = 1e-6
-AGREE = 0.05            # relative: two probes that agree this well double the gap
+AGREE = 0.05            # relative: two probes that agree this well widen the gap
+GROWTH = 4              # by this factor (a linear FMU: log4 of the run's length probes)
 FIT = 0.1               # relative: g3 against the model's g2 r (x'' = u is 16% off)
 PROBED = ", its response measured by probes"
 _EPS = float(np.finfo(float).eps)
@@ -247,7 +248,7 @@ class Prober:
                 self.calls += target.steps * (1 + len(target.model.inputs))
                 now = target.model.found[-1] if target.model.found else None
                 same = same and before is not None and now is not before and _agree(now, before)
-        self.gap = 2 * self.gap if same else PROBE_EVERY
+        self.gap = GROWTH * self.gap if same else PROBE_EVERY
         self.at.discard(k)
         if k + self.gap <= self.last:
             self.at.add(k + self.gap)
