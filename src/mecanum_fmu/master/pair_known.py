@@ -48,15 +48,8 @@ class KnownInputs:
         return self.start + self.h * np.where(nodes >= self.n, self.n - 1 + self.last, nodes)
 
     def signals(self, t: np.ndarray, right: bool) -> np.ndarray:
-        """Every known signal at times t, side by side (a held table's value at a row: the
-        new one from the right, the old one from the left)."""
-        out = []
-        for k in self.known:
-            if k.hold:
-                i = np.searchsorted(k.times, t, side="right" if right else "left") - 1
-                out.append(k.values[np.clip(i, 0, len(k.times) - 1)])
-            else:
-                out.append(np.column_stack([np.interp(t, k.times, c) for c in k.values.T]))
+        """Every known signal at times t, side by side."""
+        out = [_at(k, t, right) for k in self.known]
         return np.concatenate(out, axis=1) if out else np.zeros((len(t), 0))
 
     def means(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
@@ -72,14 +65,18 @@ class KnownInputs:
             if k.hold:
                 out.append(cum[i] + dt * k.values[i])
             else:
-                here = np.column_stack([np.interp(t, k.times, c) for c in k.values.T])
                 last = (i == len(k.times) - 1)[:, None] | (dt < 0)
-                out.append(cum[i] + dt * np.where(last, k.values[i], 0.5 * (k.values[i] + here)))
+                out.append(cum[i] + dt * np.where(last, k.values[i],
+                                                  0.5 * (k.values[i] + _at(k, t, True))))
         return np.concatenate(out, axis=1) if out else np.zeros((len(t), 0))
 
     def _design(self, t: np.ndarray, right: bool = True) -> np.ndarray:
         """The varied signals at t and a column of ones (the map's constant)."""
-        return np.column_stack((self.signals(t, right)[:, self.varied], np.ones(len(t))))
+        return self._affine(self.signals(t, right))
+
+    def _affine(self, signals: np.ndarray) -> np.ndarray:
+        """The varied columns of `signals` (one row per time) and a column of ones."""
+        return np.column_stack((signals[:, self.varied], np.ones(len(signals))))
 
     def check(self, window: np.ndarray, lo: int, d: int, cols: np.ndarray,
               needed: np.ndarray) -> np.ndarray:
@@ -89,20 +86,18 @@ class KnownInputs:
         run's nodes, where the rows tell them)."""
         rows = np.arange(lo, lo + len(window))
         rows = rows[(rows >= d) & (rows - d <= self.n)]
+        x, y = self._design(self.time(rows - d)), window[rows - lo][:, cols]
         if d not in self.maps:
-            self.maps[d] = (np.zeros((int(self.varied.sum()) + 1, len(cols))),
-                            np.zeros(len(cols), dtype=bool))
-            x = self._design(self.time(rows - d))
             if len(rows) < x.shape[1] or np.linalg.matrix_rank(x) < x.shape[1]:
+                self.maps[d] = (np.zeros((x.shape[1], len(cols))),
+                                np.zeros(len(cols), dtype=bool))
                 self.failed = self.failed or UNTOLD
                 return self.maps[d][1]
-            fits = np.ones(len(cols), dtype=bool)
-            self.maps[d] = (np.linalg.lstsq(x, window[rows - lo][:, cols], rcond=None)[0],
-                            fits)
+            self.maps[d] = (np.linalg.lstsq(x, y, rcond=None)[0],
+                            np.ones(len(cols), dtype=bool))
         a, fits = self.maps[d]
         if not fits.any() or not len(rows):
             return fits
-        x, y = self._design(self.time(rows - d)), window[rows - lo][:, cols]
         misfit = np.max(np.abs(x @ a - y), axis=0, initial=0.0)
         size = np.max(np.abs(y), axis=0, initial=0.0)
         fits &= misfit <= FIT * size
@@ -121,8 +116,16 @@ class KnownInputs:
         start and end."""
         t0, t1 = self.time(ks), self.time(ks + 1)
         a = self.maps[d][0]
-        mean = np.column_stack((self.means(t0, t1)[:, self.varied], np.ones(len(ks))))
-        return mean @ a, self._design(t0) @ a, self._design(t1, right=False) @ a
+        return self._affine(self.means(t0, t1)) @ a, self._design(t0) @ a, self._design(t1, right=False) @ a
+
+
+def _at(k, t: np.ndarray, right: bool) -> np.ndarray:
+    """A table's columns at times t (a held table's value at a row: the new one from the
+    right, the old one from the left)."""
+    if k.hold:
+        i = np.searchsorted(k.times, t, side="right" if right else "left") - 1
+        return k.values[np.clip(i, 0, len(k.times) - 1)]
+    return np.column_stack([np.interp(t, k.times, c) for c in k.values.T])
 
 
 def _cumulative(k) -> np.ndarray:

@@ -473,27 +473,22 @@ class PairRows:
         fits = self.known.check(self.window, self.lo, d, cols, self.needed[d])
         out = self.known.stencils(ks, d)
         if not fits.all():      # (late outputs the tables do not tell: read at the nodes)
-            for o, p in zip(out, self._polynomial(ks, d, cols[~fits])):
+            for o, p in zip(out, self._polynomials(ks, {d: cols[~fits]})[d]):
                 o[:, ~fits] = p
         return out
 
-    def _polynomial(self, ks: np.ndarray, d: int, cols: np.ndarray) -> tuple:
-        """_stencils from the cubic (or lower) through the run's rows."""
-        s, m, found = self._uniform(ks, d)
-        out = [found[:, 0, cols], found[:, 1, cols], found[:, 2, cols]]
-        self._odd_steps(ks, d, cols, (s, m), out)
-        return tuple(out)
-
-    def _polynomials(self, ks: np.ndarray) -> dict:
-        """_polynomial of every lag's columns, its uniform stencils in one go."""
-        lags, n = list(self.cols), len(ks)
+    def _polynomials(self, ks: np.ndarray, cols_by_lag: dict | None = None) -> dict:
+        """Per lag, _stencils from the cubic (or lower) through the run's rows, of its columns
+        (`cols_by_lag`, by default self.cols: every lag's), the uniform stencils in one go."""
+        cols_by_lag = self.cols if cols_by_lag is None else cols_by_lag
+        lags, n = list(cols_by_lag), len(ks)
         if not lags:
             return {}
         s, m, found = self._uniform(np.tile(ks, len(lags)),
                                     np.repeat(np.array(lags, dtype=np.int64), n))
         out = {}
         for i, d in enumerate(lags):
-            part, cols = slice(i * n, (i + 1) * n), self.cols[d]
+            part, cols = slice(i * n, (i + 1) * n), cols_by_lag[d]
             out[d] = [found[part, 0][:, cols], found[part, 1][:, cols], found[part, 2][:, cols]]
             self._odd_steps(ks, d, cols, (s[part], m[part]), out[d])
         return out
