@@ -60,7 +60,7 @@ def test_a_linear_map_of_the_signals_is_fitted_and_gives_its_means():
     fits = known.check(window, 0, 2, np.array([0]), np.array([True]))
     assert fits.tolist() == [True] and known.failed is None and known.told()
     ks = np.arange(10)
-    mean, start, end = known.stencils(ks, 2)
+    mean, start, end = known.stencils(known.designs(ks), 2)
     t0, t1 = known.time(ks), known.time(ks + 1)
     want = [quad(lambda t: 2 * _truth(t, 0, False) - _truth(t, 1, False) + 0.5, a, b,
                  points=TIMES)[0] / (b - a) for a, b in zip(t0, t1)]

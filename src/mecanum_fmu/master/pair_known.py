@@ -111,12 +111,23 @@ class KnownInputs:
         the true values past the run's last rows too, where Jacobi's late ones lie."""
         return bool(self.maps) and all(fits.all() for _, fits in self.maps.values())
 
-    def stencils(self, ks: np.ndarray, d: int) -> tuple:
+    def designs(self, ks: np.ndarray) -> tuple:
+        """Per step k of `ks`: the known signals' mean over it, and their values at its start
+        and end, each with the map's constant column (stencils() applies a lag's map). Each
+        node's time is read once."""
+        first = int(ks.min())
+        t = self.time(np.arange(first, int(ks.max()) + 2))
+        i0 = ks - first
+        integrals = self._integrals(t)
+        means = (integrals[i0 + 1] - integrals[i0]) / (t[i0 + 1] - t[i0])[:, None]
+        return (self._affine(means), self._design(t, True)[i0],
+                self._design(t, False)[i0 + 1])
+
+    def stencils(self, designs: tuple, d: int) -> tuple:
         """Per step and column of lag d: the true value's mean over it, and its values at its
-        start and end."""
-        t0, t1 = self.time(ks), self.time(ks + 1)
+        start and end (designs: of the steps)."""
         a = self.maps[d][0]
-        return self._affine(self.means(t0, t1)) @ a, self._design(t0) @ a, self._design(t1, right=False) @ a
+        return tuple(x @ a for x in designs)
 
 
 def _at(k, t: np.ndarray, right: bool) -> np.ndarray:

@@ -98,6 +98,7 @@ class PairRows:
         self.size = np.zeros(len(plan.slots))
         self.seconds = 0.0
         self.tail = n_steps     # from this step on, the stencils' nodes are 3 (else 4)
+        self.branch_end: dict[str, float] = {}      # Jacobi's end with the parabola
         # the nodes a step ends on a jump at (the master cuts it: it sees the left value)
         self.cut = np.zeros(n_steps + 2, dtype=bool)
         self.cut[self.pieces.cut] = True
@@ -162,9 +163,14 @@ class PairRows:
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
         parabola = self.end
-        if self.lag and not self.failed and self.n - 1 - self.reach - self.k > BULK:
+        twice = self.lag and not self.failed and not (self.known and self.known.told())
+        if twice and self._branchable:      # the parabola's end a branch of the same pass
+            self._steps(self.n - 1, branch=min(self.reach + 1, self.n - self.k))
+            parabola = {**self.end, **self.branch_end}
+            twice = False
+        if twice and self.n - 1 - self.reach - self.k > BULK:
             self._steps(self.n - 2 - self.reach)    # a long bulk once, before the tail
-        if self.lag and not self.failed and not (self.known and self.known.told()):
+        if twice:
             # what is left twice: the cubic, then the parabola on the tail's steps
             before = self._state()
             self._steps(self.n - 1)
@@ -348,18 +354,23 @@ class PairRows:
                 self.worst[name] = max(self.worst[name], w)
                 self.end[name] = e
 
-    def _steps(self, k_hi: int) -> None:
-        """Work out steps self.k .. k_hi, then drop the rows no later step reads."""
+    def _steps(self, k_hi: int, branch: int = 0) -> None:
+        """Work out steps self.k .. k_hi, then drop the rows no later step reads. With
+        `branch` (_branchable), the last that many steps are worked out again after them
+        with the parabola, for the end's second value (self.branch_end)."""
         ks = np.arange(self.k, k_hi + 1)
         if not len(ks):
             return
         h = np.full(len(ks), self.h)
         if ks[-1] == self.n - 1:
             h[-1] = self.last * self.h
-        stencils = self._polynomials(ks) if self.known is None else \
-            {d: self._stencils(ks, d, cols) for d, cols in self.cols.items()}
+        stencils = self._polynomials(ks, branch=branch) if self.known is None else \
+            self._tabled(ks, branch)
         holds = {}
         for i, g in enumerate(self.plan.groups):
+            if branch:
+                self._branched_group(i, g, ks, h, stencils, branch)
+                continue
             held, error, change = self._group(g, ks, self._gathered(i, stencils))
             error = self._forwarded_into(i, error)
             if g.model is None:
@@ -372,15 +383,11 @@ class PairRows:
                 signed = self._carried(g, ks, h, (held, error, change))
             else:
                 signed = g.model.steps(h, held, error, change)
-            names, index = self.covers[i]
-            self._keep(names, signed[:, index])
-            self._check_fed(i, signed)
-            if i in self.sent_before:
-                self.sent[i] = signed
+            self._kept(i, signed)
         if self.net is not None:
             self._network(ks, h, holds)
         if self.lags:
-            self._keep_late(ks, stencils, k_hi == self.n - 1)
+            self._keep_late(ks, stencils, k_hi == self.n - 1, branch)
         self.failed = self._fed_error() or (self.known.failed if self.known else None)
         for i, signed in self.sent.items():
             self.sent_before[i] = signed[-1]
@@ -388,17 +395,53 @@ class PairRows:
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
 
-    def _keep_late(self, ks: np.ndarray, stencils: dict, last: bool) -> None:
+    def _kept(self, i: int, signed: np.ndarray) -> None:
+        """Keep group i's signed errors after each step: its covered outputs', those other
+        FMUs read, those it forwards."""
+        names, index = self.covers[i]
+        self._keep(names, signed[:, index])
+        self._check_fed(i, signed)
+        if i in self.sent_before:
+            self.sent[i] = signed
+
+    def _branched_group(self, i: int, g: Group, ks, h, stencils: dict, branch: int) -> None:
+        """Group i's steps with a branch (_steps): the steps kept, the branch's end apart."""
+        rows = np.concatenate((ks, ks[len(ks) - branch:]))
+        held, error, change = self._group(g, rows, self._gathered(i, stencils))
+        if g.model is None:
+            np.maximum(self.moved[i], np.max(np.abs(error[:len(ks)]), axis=0),
+                       out=self.moved[i])
+            return
+        signed = g.model.steps(np.concatenate((h, h[len(h) - branch:])), held, error, change,
+                               branch=branch)
+        self._kept(i, signed[:len(ks)])
+        names, index = self.covers[i]
+        self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))
+
+    @property
+    def _branchable(self) -> bool:
+        """Whether Jacobi's end with the parabola can be a branch of the same pass: every
+        model takes one, and no error is carried between groups (a loop, a network, errors
+        forwarded) nor checked where another FMU reads it."""
+        return not (self.carry or self.net or self.plan.forwarded or self.plan.fed
+                    ) and all(getattr(g.model, "branches", False)
+                                           for g in self.plan.groups if g.model is not None)
+
+    def _keep_late(self, ks: np.ndarray, stencils: dict, last: bool, branch: int = 0) -> None:
         """Jacobi's late outputs' errors on a batch of rows: the row against the true value
         of its node d rows before (less the error the loop carries into it), and with the
-        `last` batch the last row, against the last step's end."""
+        `last` batch the last row, against the last step's end (the branch's: branch_end)."""
         names, cols = self.late_names, self.late_cols
-        true = np.concatenate([stencils[d][1][:, at] for d, _, at in self.lags], axis=1)
+        true = np.concatenate([stencils[d][1][:len(ks), at] for d, _, at in self.lags], axis=1)
         errors = self.window[ks - self.lo][:, cols] - true + self._late_carried(names, ks)
         if last:
-            end = np.concatenate([stencils[d][2][-1:, at] for d, _, at in self.lags], axis=1)
-            errors = np.concatenate((errors, self.window[[self.n - self.lo]][:, cols] - end
-                                     + self._late_carried(names, ks[-1:] + 1)))
+            end = np.concatenate([stencils[d][2][[len(ks) - 1, -1]][:, at] for d, _, at
+                                  in self.lags], axis=1)
+            ends = self.window[[self.n - self.lo]][:, cols] - end \
+                + self._late_carried(names, ks[-1:] + 1)
+            errors = np.concatenate((errors, ends[:1]))
+            if branch:
+                self.branch_end.update(zip(names, np.abs(ends[1]).tolist()))
         self._keep(names, errors)
 
     def _gathered(self, i: int, stencils: dict) -> list:
@@ -465,41 +508,55 @@ class PairRows:
         restarts = np.concatenate(([0], self.pieces.cut))
         return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
 
-    def _stencils(self, ks: np.ndarray, d: int, cols: np.ndarray) -> tuple:
-        """Per step: the true value's mean over it, and its values at its start and end,
-        where the pieces are too short for the rows, from the tables (else _polynomials:
-        from the cubic, or lower, through the nearest nodes of its piece, values late by d
-        rows: node j is row j + d)."""
-        fits = self.known.check(self.window, self.lo, d, cols, self.needed[d])
-        out = self.known.stencils(ks, d)
-        if not fits.all():      # (late outputs the tables do not tell: read at the nodes)
-            for o, p in zip(out, self._polynomials(ks, {d: cols[~fits]})[d]):
-                o[:, ~fits] = p
+    def _tabled(self, ks: np.ndarray, branch: int = 0) -> dict:
+        """Per lag and step: the true value's mean over it, and its values at its start and
+        end, where the pieces are too short for the rows, from the tables (else
+        _polynomials: from the cubic, or lower, through the nearest nodes of its piece,
+        values late by d rows: node j is row j + d); with `branch`, the last that many
+        steps again (_steps)."""
+        fits = {d: self.known.check(self.window, self.lo, d, cols, self.needed[d])
+                for d, cols in self.cols.items()}
+        designs = self.known.designs(np.concatenate((ks, ks[len(ks) - branch:])))
+        out = {d: self.known.stencils(designs, d) for d in self.cols}
+        # late outputs the tables do not tell: read at the nodes
+        untold = {d: cols[~fits[d]] for d, cols in self.cols.items() if not fits[d].all()}
+        for d, found in self._polynomials(ks, untold, branch).items():
+            for o, p in zip(out[d], found):
+                o[:, ~fits[d]] = p
         return out
 
-    def _polynomials(self, ks: np.ndarray, cols_by_lag: dict | None = None) -> dict:
+    def _polynomials(self, ks: np.ndarray, cols_by_lag: dict | None = None, branch: int = 0
+                     ) -> dict:
         """Per lag, _stencils from the cubic (or lower) through the run's rows, of its columns
-        (`cols_by_lag`, by default self.cols: every lag's), the uniform stencils in one go."""
+        (`cols_by_lag`, by default self.cols: every lag's), the uniform stencils in one go;
+        with `branch`, the last that many steps again after them, with the parabola."""
         cols_by_lag = self.cols if cols_by_lag is None else cols_by_lag
-        lags, n = list(cols_by_lag), len(ks)
+        rows = np.concatenate((ks, ks[len(ks) - branch:]))
+        three = rows >= self.tail
+        three[len(ks):] = True
+        lags, n = list(cols_by_lag), len(rows)
         if not lags:
             return {}
-        s, m, found = self._uniform(np.tile(ks, len(lags)),
-                                    np.repeat(np.array(lags, dtype=np.int64), n))
+        s, m, found = self._uniform(np.tile(rows, len(lags)),
+                                    np.repeat(np.array(lags, dtype=np.int64), n),
+                                    np.tile(three, len(lags)))
         out = {}
         for i, d in enumerate(lags):
             part, cols = slice(i * n, (i + 1) * n), cols_by_lag[d]
             out[d] = [found[part, 0][:, cols], found[part, 1][:, cols], found[part, 2][:, cols]]
-            self._odd_steps(ks, d, cols, (s[part], m[part]), out[d])
+            s_d, m_d = s[part], m[part]
+            for at in (slice(0, len(ks)), slice(len(ks), n)) if branch else (slice(None),):
+                self._odd_steps(rows[at], d, cols, (s_d[at], m_d[at]), [o[at] for o in out[d]])
         return out
 
-    def _uniform(self, ks: np.ndarray, d) -> tuple:
+    def _uniform(self, ks: np.ndarray, d, three: np.ndarray) -> tuple:
         """Per step (of lag d: one, or one per step): the first node of its stencil, how
-        many, and the mean, start and end of every column from the uniform weights."""
+        many (at most 3 where `three`, else 4), and the mean, start and end of every column
+        from the uniform weights."""
         pc = self.pieces
         piece = np.searchsorted(pc.starts, ks, side="right") - 1
         a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)
-        m = np.minimum(np.maximum(b - a + 1, 1), np.where(ks >= self.tail, 3, 4))
+        m = np.minimum(np.maximum(b - a + 1, 1), np.where(three, 3, 4))
         s = np.minimum(np.maximum(ks - 1, a), b - m + 1)
         offsets = 5 + self.lag
         key = (m - 1) * offsets + np.minimum(ks - s, offsets - 1)

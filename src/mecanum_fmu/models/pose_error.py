@@ -141,7 +141,12 @@ class PoseBatch:
     which Jacobi's lag makes large), the running totals carried from batch to batch.
 
     The batch interface: `outputs` (the variables it covers), steps(h, held, error, change)
-    -> the signed accumulated error of each output after each step, shape (steps, outputs)."""
+    -> the signed accumulated error of each output after each step, shape (steps, outputs).
+    With `branch` t (`branches`: it takes one), the last t rows are another version of the t
+    rows before them, carried on from the state before those (Jacobi's end with the parabola,
+    master/pair_rows.py, in the same NumPy calls); the running totals are the first's."""
+
+    branches = True
 
     def __init__(self, index: list[int], inst):
         self.index, self.name = np.array(index), inst.name
@@ -149,18 +154,19 @@ class PoseBatch:
         self.theta = float(inst.value("theta0"))      # the run's heading
         self.e, self.heading = np.zeros(2), 0.0         # run - true: position, heading
 
-    def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
-              ) -> np.ndarray:
+    def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
+              branch: int = 0) -> np.ndarray:
         iw = self.index[2]
         run, true = self._displacements(h, held, error, change)    # x + i y
-        turned, before = self._turned(h, held[:, iw])
-        heading = self.heading + np.cumsum(h * error[:, iw])
-        lag = np.concatenate(([self.heading], heading[:-1]))
+        turned, before = self._turned(h, held[:, iw], branch)
+        heading = self.heading + _branched(np.cumsum(h * error[:, iw]), branch)
+        lag = _before(self.heading, heading, branch)
         # R(-heading error) turns the true step; R(the run's heading) turns both into the world
-        e = complex(*self.e) + np.cumsum(np.exp(1j * before) * (run - np.exp(-1j * lag) * true))
-        self.theta, self.e, self.heading = float(turned[-1]), np.array([e[-1].real,
-                                                                        e[-1].imag]), \
-            float(heading[-1])
+        e = complex(*self.e) + _branched(
+            np.cumsum(np.exp(1j * before) * (run - np.exp(-1j * lag) * true)), branch)
+        last = len(h) - 1 - branch
+        self.theta, self.e, self.heading = float(turned[last]), np.array(
+            [e[last].real, e[last].imag]), float(heading[last])
         return np.column_stack((e.real, e.imag, heading))
 
     def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
@@ -188,10 +194,11 @@ class PoseBatch:
         self.theta = float(turned[-1])
         return a, b, made
 
-    def _turned(self, h: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _turned(self, h: np.ndarray, w: np.ndarray, branch: int = 0
+                ) -> tuple[np.ndarray, np.ndarray]:
         """The run's heading after each step and before it, from the heading it has now."""
-        turned = self.theta + np.cumsum(h * w)
-        return turned, np.concatenate(([self.theta], turned[:-1]))
+        turned = self.theta + _branched(np.cumsum(h * w), branch)
+        return turned, _before(self.theta, turned, branch)
 
     def _displacements(self, h, held, error, change) -> tuple:
         """Per step, the body-frame displacement (x + i y) of the run (the held twist on
@@ -205,6 +212,25 @@ class PoseBatch:
         turning = (w[1] * (dv[:, 0] + 1j * dv[:, 1]) - dv[:, 2] * v[1]) * (h * h / 12)
         moved = _displacement(h, v, w)
         return moved[0], moved[1] + 1j * turning
+
+
+def _branched(sums: np.ndarray, t: int) -> np.ndarray:
+    """Running sums of rows whose last t are another version of the t before them: those
+    restarted from the sum before the t they stand for (PoseBatch's `branch`)."""
+    if t:
+        n = len(sums)
+        sums[n - t:] -= sums[n - t - 1] - (sums[n - 2 * t - 1] if n > 2 * t else 0.0)
+    return sums
+
+
+def _before(start, after: np.ndarray, t: int) -> np.ndarray:
+    """Per row, the value before it (`start` before the first), of rows `after` with a
+    branch of t (_branched): its first row follows the row before the t it stands for."""
+    out = np.concatenate(([start], after[:-1]))
+    if t:
+        n = len(after)
+        out[n - t] = after[n - 2 * t - 1] if n > 2 * t else start
+    return out
 
 
 def _displacement(h, v, w) -> np.ndarray:
