@@ -422,9 +422,8 @@ class PairRows:
     def _branchable(self) -> bool:
         """Whether Jacobi's end with the parabola can be a branch of the same pass: every
         model takes one, and no error is carried between groups (a loop, a network, errors
-        forwarded) nor checked where another FMU reads it."""
-        return not (self.carry or self.net or self.plan.forwarded or self.plan.fed
-                    ) and all(getattr(g.model, "branches", False)
+        forwarded)."""
+        return not (self.carry or self.net or self.plan.forwarded) and all(getattr(g.model, "branches", False)
                                            for g in self.plan.groups if g.model is not None)
 
     def _keep_late(self, ks: np.ndarray, stencils: dict, last: bool, branch: int = 0) -> None:

@@ -44,31 +44,16 @@ FOUR = np.arange(4)     # a stencil's nodes
 
 @lru_cache(maxsize=None)
 def weight_table(offsets: int) -> np.ndarray:
-    """step_weights's weights for m = 1 .. 4 nodes and offsets 0 .. offsets - 1, at
-    (m - 1) offsets + o, padded with zeros to four nodes: one gather and one product a
-    batch."""
-    table = np.zeros((4 * offsets, 3, 4))
-    for m in range(1, 5):
-        for o in range(offsets):
-            table[(m - 1) * offsets + o, :, :m] = step_weights(m, o)
-    return table
-
-
-@lru_cache(maxsize=None)
-def step_weights(m: int, o: int) -> np.ndarray:
-    """For the nodes 0 .. m-1 one step apart: the weights of the mean over [o, o + 1] and of
-    the values at o and o + 1, as rows (Horner's rule on the basis: a few microseconds, where
-    polyval's array set-up took a millisecond for the table)."""
-    basis, whole = _basis(tuple(float(i) for i in range(m)))
-
-    def at(x: int) -> list[float]:      # a node's own value exactly: its unit vector
-        return [float(i == x) if x < m else _horner(basis[:, i], float(x)) for i in range(m)]
-    return np.array([[_horner(whole[:, i], o + 1.0) - _horner(whole[:, i], float(o))
-                      for i in range(m)], at(o), at(o + 1)])
-
-
-def _horner(coefficients: np.ndarray, x: float) -> float:
-    value = 0.0
-    for c in coefficients[::-1].tolist():
-        value = value * x + c
-    return value
+    """For the nodes 0 .. m-1 one step apart (m = 1 .. 4) and offsets o = 0 .. offsets - 1:
+    the weights of the mean over [o, o + 1] and of the values at o and o + 1, at
+    (m - 1) offsets + o as rows, padded with zeros to four nodes: one gather and one
+    product a batch. The Lagrange weights at o, o + 1/2 and o + 1 for every m at once (a
+    node's own value its unit vector exactly), the mean by Simpson's rule, exact for a
+    cubic (a few NumPy calls: a Python loop over the rows took most of a millisecond)."""
+    m = np.arange(1, 5)[:, None, None, None]
+    i, j = np.arange(4)[:, None], np.arange(4)
+    x = (np.arange(offsets)[:, None] + np.array([0.0, 0.5, 1.0])).reshape(1, -1, 1, 1)
+    factor = np.where((j != i) & (j < m), (x - j) / np.where(i == j, 1, i - j), 1.0)
+    w = (factor.prod(axis=3) * (i[:, 0] < m[..., 0])).reshape(4, offsets, 3, 4)
+    mean = (w[:, :, 0] + 4 * w[:, :, 1] + w[:, :, 2]) / 6
+    return np.stack((mean, w[:, :, 0], w[:, :, 2]), axis=2).reshape(4 * offsets, 3, 4)
