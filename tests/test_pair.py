@@ -7,7 +7,7 @@ import pytest
 
 from helpers import ROOT, with_experiment
 from mecanum_fmu import master, runner
-from mecanum_fmu.master import plan, stencils, stepping
+from mecanum_fmu.master import pair_rows, plan, stencils, stepping
 from mecanum_fmu.master.estimate import LATE_END, LONE_PIECES, TABLES
 from mecanum_fmu.master.breakpoints import pieces
 from mecanum_fmu.models import pose_error
@@ -249,6 +249,27 @@ def test_an_fmu_with_a_state_held_exactly_keeps_the_pair():
     assert "coarse" not in results.extra
     assert all(v == {"max": "below round-off", "end": "below round-off"}
                for v in found["error_estimate"].values())
+
+
+@pytest.mark.parametrize("name", ["gauss-seidel", "jacobi"])
+def test_inputs_that_never_move_are_exact_without_a_pass_over_the_rows(monkeypatch, name):
+    """The bicycle's commands and twist hold one value over the whole run: every hold is
+    exact, the pair works out no stencil (PairRows._still), and says what a full pass over
+    the rows says (the same words with _still turned off)."""
+    made = []
+    polynomials = pair_rows.PairRows._polynomials
+    monkeypatch.setattr(pair_rows.PairRows, "_polynomials",
+                        lambda self, *a, **k: (made.append(1), polynomials(self, *a, **k))[1])
+    path = SCENARIOS / "chassis" / "bicycle_circle.yaml"
+    still, _ = _method(path, name, step_size=0.2)
+    assert not made
+    monkeypatch.setattr(pair_rows.PairRows, "_still", lambda self: False)
+    full, _ = _method(path, name, step_size=0.2)
+    assert made
+    assert {k: v for k, v in full.items() if k != "error_estimate_cost"} == \
+        {k: v for k, v in still.items() if k != "error_estimate_cost"}
+    assert all(v == {"max": "below round-off", "end": "below round-off"}
+               for v in still["error_estimate"].values())
 
 
 @pytest.mark.parametrize("name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])

@@ -163,7 +163,10 @@ class PairRows:
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
         parabola = self.end
-        twice = self.lag and not self.failed and not (self.known and self.known.told())
+        if self._still():
+            self.k = self.n     # every error is 0: nothing to work out
+        twice = self.lag and not self.failed and not (self.known and self.known.told()) \
+            and self.k < self.n
         if twice and self._branchable:      # the parabola's end a branch of the same pass
             self._steps(self.n - 1, branch=min(self.reach + 1, self.n - self.k))
             parabola = {**self.end, **self.branch_end}
@@ -418,6 +421,14 @@ class PairRows:
         names, index = self.covers[i]
         self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))
 
+    def _still(self) -> bool:
+        """Whether every column the pair reads holds one value over the whole run (none
+        worked out yet, every row in the window) and nothing moves between the nodes (no
+        breakpoint inside a step, no table stepped across): every hold is then exact and
+        every error 0, under any master (the bicycle on constant commands)."""
+        return self.k == 0 and self.lo == 0 and len(self.window) == self.n + 1 and not (
+            len(self.across_k) or self.known) and not (self.window != self.window[0]).any()
+
     @property
     def _branchable(self) -> bool:
         """Whether Jacobi's end with the parabola can be a branch of the same pass: every
@@ -536,9 +547,9 @@ class PairRows:
         lags, n = list(cols_by_lag), len(rows)
         if not lags:
             return {}
-        s, m, found = self._uniform(np.tile(rows, len(lags)),
-                                    np.repeat(np.array(lags, dtype=np.int64), n),
-                                    np.tile(three, len(lags)))
+        s, m, found = self._uniform(rows, lags[0], three) if len(lags) == 1 else \
+            self._uniform(np.tile(rows, len(lags)), np.repeat(np.array(lags, dtype=np.int64), n),
+                          np.tile(three, len(lags)))
         out = {}
         for i, d in enumerate(lags):
             part, cols = slice(i * n, (i + 1) * n), cols_by_lag[d]
@@ -553,8 +564,11 @@ class PairRows:
         many (at most 3 where `three`, else 4), and the mean, start and end of every column
         from the uniform weights."""
         pc = self.pieces
-        piece = np.searchsorted(pc.starts, ks, side="right") - 1
-        a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)
+        if len(pc.starts) == 1:     # one smooth piece
+            a, b = pc.starts[0], np.minimum(pc.ends[0], self.n - d)
+        else:
+            piece = np.searchsorted(pc.starts, ks, side="right") - 1
+            a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)
         m = np.minimum(np.maximum(b - a + 1, 1), np.where(three, 3, 4))
         s = np.minimum(np.maximum(ks - 1, a), b - m + 1)
         offsets = 5 + self.lag
