@@ -84,15 +84,35 @@ class ProbedModel:
         self.k = 0                  # the next step steps() works out
         self.s = np.zeros((len(outputs), len(inputs)))      # run - true, past steps' share
 
-    def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
-              ) -> np.ndarray:
+    branches = True     # steps() takes a branch (PairRows._branchable)
+
+    def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
+              branch: int = 0) -> np.ndarray:
         n = len(h)
-        out = np.zeros((n, len(self.outputs)))
         if not self.found or not len(self.outputs):     # finish() says why (no probe)
-            self.k += n
-            return out
-        s = self.s.copy()
-        for part, probe in self._segments(h):
+            self.k += n - branch
+            return np.zeros((n, len(self.outputs)))
+        if branch:      # the last rows another version of those before them: from before
+            split = n - 2 * branch
+            out, s = self._run(h[:split], error[:split], change[:split], self.s, self.k)
+            these, kept = self._run(h[split:n - branch], error[split:n - branch],
+                                    change[split:n - branch], s, self.k + split)
+            other, _ = self._run(h[n - branch:], error[n - branch:], change[n - branch:], s,
+                                 self.k + split)
+            out, self.s = np.concatenate((out, these, other)), kept
+        else:
+            out, self.s = self._run(h, error, change, self.s, self.k)
+        self.k += n - branch
+        self._forget()
+        return out
+
+    def _run(self, h: np.ndarray, error: np.ndarray, change: np.ndarray, s: np.ndarray,
+             k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Steps k .. k + len(h) - 1 from the past steps' share s: (the signed error of each
+        output after each, the share after the last)."""
+        out = np.zeros((len(h), len(self.outputs)))
+        s = s.copy()
+        for part, probe in self._segments(h, k) if len(h) else ():
             _, size, g0, g1, r, m, d_part = self.found[probe]
             scale = float(h[part.start]) / size
             decay = np.where(r > 0, np.abs(r) ** scale, r)
@@ -105,16 +125,13 @@ class ProbedModel:
                 out[part, o] += np.concatenate(([s[o, j]], after[:-1])) \
                     + g0[o, j] * scale * d[:, o, j]
                 s[o, j] = after[-1]
-        self.s, self.k = s, self.k + n
-        self._forget()
-        return out
+        return out, s
 
-    def _segments(self, h: np.ndarray) -> list[tuple[slice, int]]:
+    def _segments(self, h: np.ndarray, k: int) -> list[tuple[slice, int]]:
         """The steps k .. k + len(h) - 1 in runs with one probe (the last made at or before
         each) and one step length: (rows, the probe's index in `found`)."""
         at = [f[0] for f in self.found]
-        which = np.maximum(np.searchsorted(at, self.k + np.arange(len(h)), side="right") - 1,
-                           0)
+        which = np.maximum(np.searchsorted(at, k + np.arange(len(h)), side="right") - 1, 0)
         return _segments(which, h)
 
     def _forget(self) -> None:
@@ -138,7 +155,7 @@ class ProbedModel:
         if not self.found:
             self.k += n
             return a, b, made
-        for part, probe in self._segments(h):
+        for part, probe in self._segments(h, self.k):
             _, size, g0, g1, r, m, d_part = self.found[probe]
             rate = _first_order(g0, g1, r) if not d_part.any() else None
             if rate is None:
