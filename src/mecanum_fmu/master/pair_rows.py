@@ -164,30 +164,7 @@ class PairRows(Stencils):
         there (the estimate's third value per output; estimate.py words an end the two do not
         agree on within half of it as unresolved)."""
         tick = _time.perf_counter()
-        parabola = self.end
-        if self._still():
-            self.k = self.n     # every error is 0: nothing to work out
-        twice = self.lag and not self.failed and not (self.known and self.known.told()) \
-            and self.k < self.n
-        if twice and self._branchable:      # the parabola's end a branch of the same pass
-            self._steps(self.n - 1, branch=min(self.reach + 1, self.n - self.k))
-            parabola = {**self.end, **self.branch_end}
-            twice = False
-        if twice and self.n - 1 - self.reach - self.k > BULK:
-            self._steps(self.n - 2 - self.reach)    # a long bulk once, before the tail
-        if twice:
-            # what is left twice: the cubic, then the parabola on the tail's steps
-            before = self._state()
-            self._steps(self.n - 1)
-            after = self._state()
-            self._restore(before)
-            self.tail = self.n - 1 - self.reach
-            self._steps(self.n - 1)
-            parabola = dict(self.end)
-            self._restore(after)
-            self.tail = self.n
-        elif not self.failed:
-            self._steps(self.n - 1)
+        parabola = self._rest()
         self.seconds += _time.perf_counter() - tick
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
                 "unresolved": self._ill(),
@@ -200,6 +177,33 @@ class PairRows(Stencils):
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
                            if g.model is not None],
                 "through": self._through()}
+
+    def _rest(self) -> dict:
+        """Work out the steps left; the end's second value per output (Jacobi's with the
+        parabola on the last steps, else the end itself)."""
+        if self._still():
+            self.k = self.n     # every error is 0: nothing to work out
+        if self.failed or self.k >= self.n:
+            return self.end
+        if not self.lag or (self.known and self.known.told()):
+            self._steps(self.n - 1)
+            return self.end
+        if self._branchable:    # the parabola's steps a branch of the same pass
+            self._steps(self.n - 1, branch=min(self.reach + 1, self.n - self.k))
+            return {**self.end, **self.branch_end}
+        if self.n - 1 - self.reach - self.k > BULK:
+            self._steps(self.n - 2 - self.reach)    # a long bulk once, before the tail
+        # what is left twice: the cubic, then the parabola on the tail's steps
+        before = self._state()
+        self._steps(self.n - 1)
+        after = self._state()
+        self._restore(before)
+        self.tail = self.n - 1 - self.reach
+        self._steps(self.n - 1)
+        parabola = dict(self.end)
+        self._restore(after)
+        self.tail = self.n
+        return parabola
 
     def _through(self) -> list[str]:
         """The FMUs without a state the error is carried through (a loop's chain, a network's
@@ -436,8 +440,8 @@ class PairRows(Stencils):
         """Whether Jacobi's end with the parabola can be a branch of the same pass: every
         model takes one, and no error is carried between groups (a loop, a network, errors
         forwarded)."""
-        return not (self.carry or self.net or self.plan.forwarded) and all(getattr(g.model, "branches", False)
-                                           for g in self.plan.groups if g.model is not None)
+        return not (self.carry or self.net or self.plan.forwarded) and all(
+            getattr(g.model, "branches", False) for g in self.plan.groups if g.model is not None)
 
     def _keep_late(self, ks: np.ndarray, stencils: dict, last: bool, branch: int = 0) -> None:
         """Jacobi's late outputs' errors on a batch of rows: the row against the true value

@@ -20,8 +20,9 @@ change over the step, whose weight within the step a mean does not see (m: momen
 A probe costs (1 + m) PROBE_STEPS doStep calls of that FMU and 1 + m state sets. The first is
 made at the first step; the next PROBE_EVERY steps later, and each time a probe finds what the
 one before it found (within AGREE), the gap grows GROWTH-fold: a linear FMU is probed about
-log4(n / 32) + 2 times, a nonlinear one as often as its response changes. The Jacobian of an FMU without a
-state that a loop's error goes through (ProbedResponse) is probed alike, one step per input.
+log4(n / 32) + 2 times, a nonlinear one as often as its response changes. The Jacobian of an
+FMU without a state that a loop's error goes through (ProbedResponse) is probed alike, one
+step per input.
 """
 from __future__ import annotations
 
