@@ -23,7 +23,7 @@ from .pair_known import KnownInputs
 from .pair_loop import LoopCarry
 from .pair_network import NetworkCarry
 from .probe import ProbedModel, ProbedResponse
-from .pair_stencils import Stencils
+from .pair_stencils import Stencils, with_branch
 
 # a carried error over this share of the value an output divides by: its linearisation fails
 ILL = 0.1
@@ -383,7 +383,7 @@ class PairRows(Stencils):
             held, error, change = self._group(g, ks, self._gathered(i, stencils))
             error = self._forwarded_into(i, error)
             if g.model is None:
-                np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
+                self._note_moved(i, error)
                 continue
             if self.net is not None:
                 holds[i] = (held, error, change)
@@ -415,17 +415,20 @@ class PairRows(Stencils):
 
     def _branched_group(self, i: int, g: Group, ks, h, stencils: dict, branch: int) -> None:
         """Group i's steps with a branch (_steps): the steps kept, the branch's end apart."""
-        rows = np.concatenate((ks, ks[len(ks) - branch:]))
-        held, error, change = self._group(g, rows, self._gathered(i, stencils))
+        held, error, change = self._group(g, with_branch(ks, branch),
+                                          self._gathered(i, stencils))
         if g.model is None:
-            np.maximum(self.moved[i], np.max(np.abs(error[:len(ks)]), axis=0),
-                       out=self.moved[i])
+            self._note_moved(i, error[:len(ks)])
             return
-        signed = g.model.steps(np.concatenate((h, h[len(h) - branch:])), held, error, change,
-                               branch=branch)
+        signed = g.model.steps(with_branch(h, branch), held, error, change, branch=branch)
         self._kept(i, signed[:len(ks)])
         names, index = self.covers[i]
         self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))
+
+    def _note_moved(self, i: int, error: np.ndarray) -> None:
+        """Keep how far group i's held inputs (an FMU with a state and no error model) moved
+        from their true means within the steps (_moved)."""
+        np.maximum(self.moved[i], np.max(np.abs(error), axis=0), out=self.moved[i])
 
     def _still(self) -> bool:
         """Whether every column the pair reads holds one value over the whole run (none

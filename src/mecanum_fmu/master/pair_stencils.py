@@ -12,6 +12,12 @@ import numpy as np
 from .stencils import FOUR, means, values, weight_table
 
 
+def with_branch(a: np.ndarray, branch: int) -> np.ndarray:
+    """The per-step values `a` with their last `branch` again after them: the rows of a batch
+    whose last steps are worked out a second time (PairRows._steps' branch)."""
+    return np.concatenate((a, a[len(a) - branch:]))
+
+
 class Stencils:
     """PairRows' stencils (a mixin: they read its window, pieces and breakpoints)."""
 
@@ -23,7 +29,7 @@ class Stencils:
         steps again (_steps)."""
         fits = {d: self.known.check(self.window, self.lo, d, cols, self.needed[d])
                 for d, cols in self.cols.items()}
-        designs = self.known.designs(np.concatenate((ks, ks[len(ks) - branch:])))
+        designs = self.known.designs(with_branch(ks, branch))
         out = {d: self.known.stencils(designs, d) for d in self.cols}
         # late outputs the tables do not tell: read at the nodes
         untold = {d: cols[~fits[d]] for d, cols in self.cols.items() if not fits[d].all()}
@@ -34,11 +40,12 @@ class Stencils:
 
     def _polynomials(self, ks: np.ndarray, cols_by_lag: dict | None = None, branch: int = 0
                      ) -> dict:
-        """Per lag, _stencils from the cubic (or lower) through the run's rows, of its columns
-        (`cols_by_lag`, by default self.cols: every lag's), the uniform stencils in one go;
-        with `branch`, the last that many steps again after them, with the parabola."""
+        """Per lag and step: the true value's mean over it, and its values at its start and
+        end, from the cubic (or lower) through the run's rows, of its columns (`cols_by_lag`,
+        by default self.cols: every lag's), the uniform stencils in one go; with `branch`,
+        the last that many steps again after them, with the parabola."""
         cols_by_lag = self.cols if cols_by_lag is None else cols_by_lag
-        rows = np.concatenate((ks, ks[len(ks) - branch:]))
+        rows = with_branch(ks, branch)
         three = rows >= self.tail
         three[len(ks):] = True
         lags, n = list(cols_by_lag), len(rows)
