@@ -75,6 +75,8 @@ class ProbedModel:
     by the held value against the input's true end value: D (error - change / 2) on that
     row alone (none where the master holds the newest value; Jacobi's value of t_k)."""
 
+    branches = True     # steps() takes a branch (PairRows._branchable)
+
     def __init__(self, name: str, inputs: list[str], outputs: list[str],
                  direct: np.ndarray | None = None):
         self.name, self.inputs, self.outputs = name, inputs, outputs
@@ -85,8 +87,6 @@ class ProbedModel:
         self.k = 0                  # the next step steps() works out
         self.s = np.zeros((len(outputs), len(inputs)))      # run - true, past steps' share
 
-    branches = True     # steps() takes a branch (PairRows._branchable)
-
     def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
               branch: int = 0) -> np.ndarray:
         n = len(h)
@@ -95,11 +95,11 @@ class ProbedModel:
             return np.zeros((n, len(self.outputs)))
         if branch:      # the last rows another version of those before them: from before
             split = n - 2 * branch
-            out, s = self._run(h[:split], error[:split], change[:split], self.s, self.k)
-            these, kept = self._run(h[split:n - branch], error[split:n - branch],
-                                    change[split:n - branch], s, self.k + split)
-            other, _ = self._run(h[n - branch:], error[n - branch:], change[n - branch:], s,
-                                 self.k + split)
+            bulk, these, other = ((h[at], error[at], change[at]) for at in (
+                slice(0, split), slice(split, n - branch), slice(n - branch, n)))
+            out, s = self._run(*bulk, self.s, self.k)
+            these, kept = self._run(*these, s, self.k + split)
+            other, _ = self._run(*other, s, self.k + split)
             out, self.s = np.concatenate((out, these, other)), kept
         else:
             out, self.s = self._run(h, error, change, self.s, self.k)
