@@ -52,12 +52,9 @@ class KnownInputs:
         out = [_at(k, t, right) for k in self.known]
         return np.concatenate(out, axis=1) if out else np.zeros((len(t), 0))
 
-    def means(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
-        """Every known signal's mean over [t0, t1], exact between the tables' rows."""
-        return (self._integrals(t1) - self._integrals(t0)) / (t1 - t0)[:, None]
-
-    def _integrals(self, t: np.ndarray) -> np.ndarray:
-        """Every known signal's integral from its first row to t (negative before it)."""
+    def integrals(self, t: np.ndarray) -> np.ndarray:
+        """Every known signal's integral from its first row to t (negative before it), exact
+        between the tables' rows: a mean over [t0, t1] is the difference over t1 - t0."""
         out = []
         for k, cum in zip(self.known, self.cum):
             i = np.clip(np.searchsorted(k.times, t, side="right") - 1, 0, len(k.times) - 1)
@@ -118,7 +115,7 @@ class KnownInputs:
         first = int(ks.min())
         t = self.time(np.arange(first, int(ks.max()) + 2))
         i0 = ks - first
-        integrals = self._integrals(t)
+        integrals = self.integrals(t)
         means = (integrals[i0 + 1] - integrals[i0]) / (t[i0 + 1] - t[i0])[:, None]
         return (self._affine(means), self._design(t, True)[i0],
                 self._design(t, False)[i0 + 1])
