@@ -288,15 +288,18 @@ def test_a_loop_through_a_third_party_controller_is_carried_by_its_measured_jaco
     _within_3x(summary["error_estimate"]["plant.x"], error)
 
 
+@pytest.mark.parametrize("closed", [False, True], ids=["feedthrough", "loop"])
 def test_under_jacobi_a_measured_fmu_behind_a_feedthrough_is_worked_out_in_one_pass(
-        tmp_path, fmus, monkeypatch):
-    """cos t through the controller (no state; y left at 0: u = 3 cos t) into the lag: under
-    Jacobi the lag's input is a row late, and its end is worked out with the cubic and the
-    parabola; the parabola's steps are a branch of the same pass (PairRows._branchable, the
-    ProbedModel's `branch`): the same estimate as two passes, within 3x of the closed form."""
+        tmp_path, fmus, monkeypatch, closed):
+    """cos t through the controller (no state) into the lag, the loop open (y left at 0: u
+    = 3 cos t) or closed (u = 3 (cos t - x): the error carried around it, pair_loop.py):
+    under Jacobi the lag's input is a row late, and its end is worked out with the cubic and
+    the parabola; the parabola's steps are a branch of the same pass (PairRows._branchable,
+    the ProbedModel's and the LoopCarry's `branch`): the same estimate as two passes, for
+    the controller's late output too, within 3x of the closed form."""
     from scipy.integrate import solve_ivp
     from mecanum_fmu.master import pair_rows
-    path = write_scenario(tmp_path, "chain", f"""\
+    path = _loop(tmp_path, fmus, "jacobi") if closed else write_scenario(tmp_path, "chain", f"""\
 name: chain
 experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: jacobi}}
 components:
@@ -304,7 +307,7 @@ components:
   ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0}}}}
   plant: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
 connections: [[wave.u, ctrl.r], [ctrl.u, plant.u]]
-outputs: [plant.x]
+outputs: [plant.x, ctrl.u]
 """)
     graph = runner.prepare(path)
     passes = []
@@ -313,11 +316,18 @@ outputs: [plant.x]
         passes.append(branch), steps(self, k, branch))[1])
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
     one = master.estimate_error(graph, results)["error_estimate"]
+    # per output (the largest, the end with the cubic, the end with the parabola)
+    ends = results.extra["pair"]["found"]["estimate"]
     assert len(passes) == 1 and passes[0] > 0       # one pass, with its branch
+    assert set(ends) == {"plant.x", "ctrl.u"} and min(ends["ctrl.u"]) > 0
     monkeypatch.setattr(pair_rows.PairRows, "_branchable", property(lambda self: False))
+    passes.clear()
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
-    assert master.estimate_error(graph, results)["error_estimate"] == one
-    x = solve_ivp(lambda t, y: [-2 * y[0] + 3 * np.cos(t)], (0.0, 6.0), [0.0],
+    assert len(passes) == 2                         # the tail twice
+    for name, two in results.extra["pair"]["found"]["estimate"].items():
+        assert two == pytest.approx(ends[name], rel=1e-12, abs=0.0), name
+    kp = 3.0 * closed
+    x = solve_ivp(lambda t, y: [-2 * y[0] + 3 * np.cos(t) - kp * y[0]], (0.0, 6.0), [0.0],
                   t_eval=results.time, rtol=1e-12, atol=1e-14, method="DOP853").y[0]
     _within_3x(one["plant.x"], np.abs(results["plant.x"] - x))
 

@@ -48,6 +48,8 @@ class LoopCarry:
         self.times: dict[int, np.ndarray] = {}  # Jacobi: the time's part, on the same rows
         self.first, self.nodes, self.at_nodes = 0, 0, np.zeros((1, self.n))
         self.table = np.zeros((1, len(self.where)))     # this batch's carried errors (_table)
+        # its branch's (steps): the first node, the carried errors, the errors at the nodes
+        self.branch_nodes, self.branch_table, self.branch_at = 0, self.table, self.at_nodes
 
     def sensitivities(self, rows: np.ndarray) -> tuple[dict, dict]:
         """Per carried column, d value / d (the model's outputs) at each of `rows` (the run's
@@ -78,31 +80,35 @@ class LoopCarry:
                 sens[c] = s_out[:, k]
         return sens, times
 
-    def carried(self, cols: list[int], nodes: np.ndarray) -> np.ndarray:
+    def carried(self, cols: list[int], nodes: np.ndarray, branch: bool = False) -> np.ndarray:
         """The errors that columns `cols` carry at `nodes` (this batch's: the steps' starts
-        through the last one's end), (nodes, cols)."""
-        return self.table[nodes - self.nodes][:, [self.where[c] for c in cols]]
+        through the last one's end; `branch`: its branch's nodes), (nodes, cols)."""
+        table, first = (self.branch_table, self.branch_nodes) if branch else \
+            (self.table, self.nodes)
+        return table[nodes - first][:, [self.where[c] for c in cols]]
 
-    def _table(self, nodes: np.ndarray) -> np.ndarray:
+    def _table(self, nodes: np.ndarray, at_nodes: np.ndarray) -> np.ndarray:
         """Every carried column's error at `nodes`, (nodes, columns in self.where's order): S
-        at the node + the column's depth (at most the last row) times E at the node."""
+        at the node + the column's depth (at most the last row) times E at the node
+        (`at_nodes`, a row per node)."""
         cols = list(self.where)
         stacked = np.stack([self.sens[c] for c in cols], axis=1)      # (rows, cols, n)
         rows = np.minimum(nodes[:, None] + np.array([self.depth[c] for c in cols])
                           - self.first, len(stacked) - 1)
-        found = np.einsum("kmn,kn->km", stacked[rows, np.arange(len(cols))],
-                          self.at_nodes[nodes - self.nodes])
+        found = np.einsum("kmn,kn->km", stacked[rows, np.arange(len(cols))], at_nodes)
         for i, c in enumerate(cols):
             if c in self.times:
                 found[:, i] += self.times[c][rows[:, i]]
         return found
 
     def steps(self, g: Group, h: np.ndarray, hold: tuple, ks: np.ndarray, window,
-              predicted: np.ndarray | None) -> np.ndarray:
+              predicted: np.ndarray | None, branch: int = 0) -> np.ndarray:
         """The signed error of the model's outputs after each step (as its model's steps),
         the loop's share included. `hold`: the pair's (held, error, change) per step; `ks`
         the steps; window(first, last) the run's rows first .. last (clipped to those it
-        has); `predicted`: the predictor's hold where the run rolls back (else None)."""
+        has); `predicted`: the predictor's hold where the run rolls back (else None); with a
+        `branch`, the last that many rows are the steps before them again (Jacobi's end with
+        the parabola, PairRows._steps), carried on from the error before those."""
         held, error, change = hold
         d = g.lag
         self.first = int(ks[0]) - self.reach
@@ -114,7 +120,7 @@ class LoopCarry:
         if self.times:                  # Jacobi: the true input less the time's part too
             tau = np.column_stack([self.times.get(col, np.zeros(len(rows))) for col in g.cols])
             error = error + 0.5 * (tau[ks + d - self.first] + tau[ks + d + 1 - self.first])
-        a, b, made = g.model.linear(h, held, error, change)
+        a, b, made = g.model.linear(h, held, error, change, branch)
         if predicted is not None:       # the predicted end values the corrector held
             delta = np.einsum("kni,ki->kn", b, predicted - held)
             extra = self.end_weight * np.einsum("kin,kn->ki", c1, delta)
@@ -122,12 +128,21 @@ class LoopCarry:
         bc0, bc1 = b @ c0, b @ c1
         p = a + 0.5 * bc0 + 0.5 * bc1 @ (a + bc0)
         q = made + 0.5 * np.einsum("kmn,kn->km", bc1, made)
-        self.nodes = int(ks[0])
-        total = _recurrence(p, q, self.error)
+        self.nodes, kept = int(ks[0]), len(ks) - branch
+        total = _recurrence(p[:kept], q[:kept], self.error)
         self.at_nodes = np.vstack((self.error, total))
+        if branch:
+            self._branch(p[kept:], q[kept:], self.at_nodes[kept - branch], int(ks[kept]))
         self.error = total[-1]
-        self.table = self._table(np.arange(self.nodes, self.nodes + len(total) + 1))
-        return total
+        self.table = self._table(np.arange(self.nodes, self.nodes + kept + 1), self.at_nodes)
+        return np.concatenate((total, self.branch_at[1:])) if branch else total
+
+    def _branch(self, p: np.ndarray, q: np.ndarray, start: np.ndarray, node: int) -> None:
+        """The branch's errors from `start`, the error at its first step's start `node`: at
+        its nodes (branch_at) and carried (branch_table, branch_nodes)."""
+        self.branch_at = np.vstack((start, _recurrence(p, q, start)))
+        self.branch_nodes = node
+        self.branch_table = self._table(np.arange(node, node + len(p) + 1), self.branch_at)
 
 
 def _recurrence(p: np.ndarray, q: np.ndarray, start: np.ndarray) -> np.ndarray:

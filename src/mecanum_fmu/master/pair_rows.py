@@ -299,26 +299,22 @@ class PairRows(Stencils):
             if j == i and len(signed):
                 self.fed[name] = max(self.fed[name], float(np.max(np.abs(signed[:, index]))))
 
-    def _carried(self, g: Group, ks: np.ndarray, h: np.ndarray, hold: tuple) -> np.ndarray:
+    def _carried(self, g: Group, ks: np.ndarray, h: np.ndarray, hold: tuple, branch: int = 0
+                 ) -> np.ndarray:
         """Group g's signed errors with the loop's carried in (pair_loop.py); the chain's
         recorded outputs' (but Jacobi's late ones: _steps) and the checked values' errors
-        kept."""
+        kept; with a `branch` (_steps; h and hold with its rows), its end apart."""
         predicted = self._extrapolated(g, ks, self._row(g, ks, 0), hold[0]) \
             if self.plan.rolled_back else None
-        signed = self.carry.steps(g, h, hold, ks, self._rows, predicted)
+        signed = self.carry.steps(g, h, hold, with_branch(ks, branch), self._rows, predicted,
+                                  branch)
         names, cols = self.chain_recorded
         if names:
             self._keep(names, self.carry.carried(cols, ks + 1))
-        for name, divisor, c, floor in self.plan.loop.divided:
-            error = np.abs(self.carry.carried([c], ks + 1)[:, 0])
-            value = np.abs(self.window[ks + 1 - self.lo, c])
-            near = (value + error >= floor)
-            if name not in self.ill and np.any((error > ILL * value) & near):
-                self.ill[name] = (f"unresolved (it divides by {divisor}, whose error is not "
-                                  f"small against it: over {ILL:g} of it)")
-            low, high = self.divisors.get(name, (np.inf, 0.0))
-            self.divisors[name] = (min(low, float(np.min(value[near], initial=np.inf))),
-                                   max(high, float(np.max(value, initial=0.0))))
+            if branch:
+                ends = self.carry.carried(cols, ks[-1:] + 1, branch=True)
+                self.branch_end.update(zip(names, np.abs(ends[0]).tolist()))
+        self._divisors(ks, branch)
         checked = self.plan.loop.checked
         if checked:
             worst = np.max(np.abs(self.carry.carried([c for _, c, _ in checked], ks + 1)),
@@ -326,6 +322,23 @@ class PairRows(Stencils):
             for (name, _, _), w in zip(checked, worst.tolist()):
                 self.fed[name] = max(self.fed[name], w)
         return signed
+
+    def _divisors(self, ks: np.ndarray, branch: int) -> None:
+        """Check the chain's divisors on the nodes after steps `ks` (and the branch's): an
+        error not small against the divisor marks its output ill; keep their |values|."""
+        nodes = with_branch(ks, branch) + 1
+        for name, divisor, c, floor in self.plan.loop.divided:
+            error = np.abs(np.concatenate((
+                self.carry.carried([c], ks + 1)[:, 0],
+                self.carry.carried([c], ks[len(ks) - branch:] + 1, branch=True)[:, 0])))
+            value = np.abs(self.window[nodes - self.lo, c])
+            near = (value + error >= floor)
+            if name not in self.ill and np.any((error > ILL * value) & near):
+                self.ill[name] = (f"unresolved (it divides by {divisor}, whose error is not "
+                                  f"small against it: over {ILL:g} of it)")
+            low, high = self.divisors.get(name, (np.inf, 0.0))
+            self.divisors[name] = (min(low, float(np.min(value[near], initial=np.inf))),
+                                   max(high, float(np.max(value, initial=0.0))))
 
     def _network(self, ks: np.ndarray, h: np.ndarray, holds: dict) -> None:
         """The network's errors (pair_network.py): its recorded outputs' kept, and the
@@ -336,16 +349,17 @@ class PairRows(Stencils):
         for (name, _, _), j in zip(net.checked, self.net.checked_at):
             self.fed[name] = max(self.fed[name], float(np.max(np.abs(errors[:, j]))))
 
-    def _late_carried(self, names: list[str], nodes: np.ndarray) -> np.ndarray | float:
+    def _late_carried(self, names: list[str], nodes: np.ndarray, branch: bool = False
+                      ) -> np.ndarray | float:
         """The error the loop carries into Jacobi's late outputs `names` at `nodes` (0 for
-        those outside the loop's chain): the true value at node j is the run's d rows later,
-        less the error that row carries."""
+        those outside the loop's chain; `branch`: the branch's nodes): the true value at node
+        j is the run's d rows later, less the error that row carries."""
         chain = [n for n in names if n in self.in_chain]
         if not chain:
             return 0.0
         out = np.zeros((len(nodes), len(names)))
         out[:, [names.index(n) for n in chain]] = self.carry.carried(
-            [self.late[n] for n in chain], nodes)
+            [self.late[n] for n in chain], nodes, branch)
         return out
 
     def _rows(self, first: int, last: int) -> np.ndarray:
@@ -420,7 +434,10 @@ class PairRows(Stencils):
         if g.model is None:
             self._note_moved(i, error[:len(ks)])
             return
-        signed = g.model.steps(with_branch(h, branch), held, error, change, branch=branch)
+        if self.carry is not None and i == self.plan.loop.origin:
+            signed = self._carried(g, ks, with_branch(h, branch), (held, error, change), branch)
+        else:
+            signed = g.model.steps(with_branch(h, branch), held, error, change, branch=branch)
         self._kept(i, signed[:len(ks)])
         names, index = self.covers[i]
         self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))
@@ -441,9 +458,10 @@ class PairRows(Stencils):
     @property
     def _branchable(self) -> bool:
         """Whether Jacobi's end with the parabola can be a branch of the same pass: every
-        model takes one, and no error is carried between groups (a loop, a network, errors
-        forwarded)."""
-        return not (self.carry or self.net or self.plan.forwarded) and all(
+        model takes one, and no error is carried between groups but around a loop (not
+        through a network, nor forwarded; nor a loop's predicted end values)."""
+        return not (self.net or self.plan.forwarded or (self.carry and self.plan.rolled_back)
+                    ) and all(
             getattr(g.model, "branches", False) for g in self.plan.groups if g.model is not None)
 
     def _keep_late(self, ks: np.ndarray, stencils: dict, last: bool, branch: int = 0) -> None:
@@ -456,10 +474,11 @@ class PairRows(Stencils):
         if last:
             end = np.concatenate([stencils[d][2][[len(ks) - 1, -1]][:, at] for d, _, at
                                   in self.lags], axis=1)
-            ends = self.window[[self.n - self.lo]][:, cols] - end \
-                + self._late_carried(names, ks[-1:] + 1)
+            ends = self.window[[self.n - self.lo]][:, cols] - end
+            ends[:1] += self._late_carried(names, ks[-1:] + 1)
             errors = np.concatenate((errors, ends[:1]))
             if branch:
+                ends[1:] += self._late_carried(names, ks[-1:] + 1, branch=True)
                 self.branch_end.update(zip(names, np.abs(ends[1]).tolist()))
         self._keep(names, errors)
 

@@ -74,7 +74,7 @@ class ProbedModel:
     by the held value against the input's true end value: D (error - change / 2) on that
     row alone (none where the master holds the newest value; Jacobi's value of t_k)."""
 
-    branches = True     # steps() takes a branch (PairRows._branchable)
+    branches = True     # steps() and linear() take a branch (PairRows._branchable)
 
     def __init__(self, name: str, inputs: list[str], outputs: list[str],
                  direct: np.ndarray | None = None):
@@ -131,11 +131,14 @@ class ProbedModel:
                 s[o, j] = after[-1]
         return out, s
 
-    def _segments(self, h: np.ndarray, k: int) -> list[tuple[slice, int]]:
-        """The steps k .. k + len(h) - 1 in runs with one probe (the last made at or before
-        each) and one step length: (rows, the probe's index in `found`)."""
+    def _segments(self, h: np.ndarray, k: int, branch: int = 0) -> list[tuple[slice, int]]:
+        """The steps k .. k + len(h) - 1 (with a `branch`, the last that many rows the steps
+        before them again) in runs with one probe (the last made at or before each) and one
+        step length: (rows, the probe's index in `found`)."""
         at = [f[0] for f in self.found]
-        which = np.maximum(np.searchsorted(at, k + np.arange(len(h)), side="right") - 1, 0)
+        ks = k + np.arange(len(h))
+        ks[len(h) - branch:] -= branch
+        which = np.maximum(np.searchsorted(at, ks, side="right") - 1, 0)
         return _segments(which, h)
 
     def _forget(self) -> None:
@@ -147,19 +150,19 @@ class ProbedModel:
         if first:
             self.found = self.found[first:]
 
-    def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
+               branch: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The steps in the form a loop carries (pair_loop.py; PoseBatch.linear's): E_k+1 =
         A_k E_k + made_k + B_k (the held inputs' further error), E the outputs' error. Only
         a response of first order has it (g1 = r g0, one r per output for every input):
         then A = r, B = g0, made = g0 (error - m change); else the model is marked failed
-        (the pair hands over) and the terms are zeros."""
+        (the pair hands over) and the terms are zeros. With a `branch`, as steps()."""
         n, o, i = len(h), len(self.outputs), len(self.inputs)
         a, b, made = np.zeros((n, o, o)), np.zeros((n, o, i)), np.zeros((n, o))
         if not self.found:
-            self.k += n
+            self.k += n - branch
             return a, b, made
-        for part, probe in self._segments(h, self.k):
+        for part, probe in self._segments(h, self.k, branch):
             _, size, g0, g1, r, m, d_part = self.found[probe]
             rate = _first_order(g0, g1, r) if not d_part.any() else None
             if rate is None:
@@ -172,7 +175,7 @@ class ProbedModel:
             b[part] = g0 * scale
             made[part] = np.einsum("oj,koj->ko", g0 * scale, error[part][:, None, :]
                                    - m[None] * change[part][:, None, :])
-        self.k += n
+        self.k += n - branch
         self._forget()
         return a, b, made
 

@@ -169,18 +169,19 @@ class PoseBatch:
             [e[last].real, e[last].imag]), float(heading[last])
         return np.column_stack((e.real, e.imag, heading))
 
-    def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def linear(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
+               branch: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The steps linearised in the error, instead of steps() where a loop feeds the error
         back (master/pair_loop.py): E_k+1 = A_k E_k + made_k + B_k (the held inputs' further
         error), E = (x, y, theta). A: a heading error turns the step's world displacement d
         (adds e_theta J d); made: the error the step makes from an exact start (as steps());
-        B: an error of the twist moved h along the heading at mid-step."""
+        B: an error of the twist moved h along the heading at mid-step. With a `branch`, as
+        steps()."""
         ivx, ivy, iw = self.index
         w = held[:, iw]
         run, true = self._displacements(h, held, error, change)
         run, true = (run.real, run.imag), (true.real, true.imag)
-        turned, before = self._turned(h, w)
+        turned, before = self._turned(h, w, branch)
         c, s = np.cos(before), np.sin(before)
         rows = len(h)
         a = np.broadcast_to(np.eye(3), (rows, 3, 3)).copy()
@@ -191,7 +192,7 @@ class PoseBatch:
         b = np.zeros((rows, 3, held.shape[1]))
         b[:, 0, ivx], b[:, 0, ivy], b[:, 1, ivx], b[:, 1, ivy] = h * c, -h * s, h * s, h * c
         b[:, 2, iw] = h
-        self.theta = float(turned[-1])
+        self.theta = float(turned[rows - 1 - branch])
         return a, b, made
 
     def _turned(self, h: np.ndarray, w: np.ndarray, branch: int = 0
