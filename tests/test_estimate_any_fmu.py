@@ -332,6 +332,41 @@ outputs: [plant.x, ctrl.u]
     _within_3x(one["plant.x"], np.abs(results["plant.x"] - x))
 
 
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal"])
+def test_a_source_that_moves_on_its_own_grid_hands_the_pair_over(tmp_path, fmus,
+                                                                  monkeypatch, master_name):
+    """The wave moves its output on a grid of its own, every 0.2 s (as a fixed-step solver
+    longer than the 0.1 s step would): a staircase, which no breakpoint announces. The
+    pair's cubic through those values misses the lag's error by over 3x (its check turned
+    off); with it, the pair hands over, naming the FMU whose inputs are not smooth, and
+    Richardson's coarser runs see the staircase: within 3x of the error against h/64."""
+    from mecanum_fmu.master import pair_rough
+    path = write_scenario(tmp_path, "stair", f"""\
+name: stair
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{period: 0.2}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]
+""")
+    graph = runner.prepare(path)
+    fine, fexp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
+    reference = master.simulate(fine, fexp)["it.x"][::64]
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    error = np.abs(results["it.x"] - reference)
+    summary = master.estimate_error(graph, results)
+    assert summary["error_estimate_method"].startswith("Richardson")
+    assert "the held inputs of it do not move as smooth curves" in \
+        summary["error_estimate_method"]
+    _within_3x(summary["error_estimate"]["it.x"], error)
+    monkeypatch.setattr(pair_rough, "ROUGH", math.inf)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    assert summary["error_estimate_method"].startswith("the embedded pair")
+    assert summary["error_estimate"]["it.x"]["max"] < error.max() / 3
+
+
 def test_a_controller_whose_jacobian_changes_hands_the_loop_to_richardson(tmp_path, fmus):
     graph = runner.prepare(_loop(tmp_path, fmus, "gauss-seidel", cube=2.0))
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)

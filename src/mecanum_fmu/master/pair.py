@@ -79,7 +79,7 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | s
     graph, unresolved = _without(graph, opaque)
     plan = _plan(graph, real_slots, rolled_back)
     if isinstance(plan, PairPlan):
-        plan.unresolved = unresolved
+        plan.unresolved, plan.unknown = unresolved, bool(graph.measured)
     return plan
 
 

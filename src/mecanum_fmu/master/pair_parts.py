@@ -43,6 +43,10 @@ class PairPlan:
     # _forwarded): (its group, its index in the model's outputs, the reader's group, its
     # places among the reader's held inputs); its error is added to theirs
     forwarded: list = field(default_factory=list)
+    # the graph holds FMUs the scenario layer knows nothing of (Graph.measured): values they
+    # make may move on a grid of their own, which the pair checks (pair_rough.py); the
+    # bundled blocks' are smooth between the breakpoints the graph carries, or sampled
+    unknown: bool = False
 
     def throughs(self) -> list["Through"]:
         """The FMUs without a state an error is carried through: its loop's chain, or its

@@ -22,6 +22,7 @@ from .pair_parts import Group, PairPlan
 from .pair_known import KnownInputs
 from .pair_loop import LoopCarry
 from .pair_network import NetworkCarry
+from .pair_rough import ROUGH, Roughness, whole_windows
 from .probe import ProbedModel, ProbedResponse
 from .pair_stencils import Stencils, with_branch
 
@@ -31,6 +32,9 @@ CANCELLED = cancelled(", finer than the linearisation resolves")
 # a divisor that comes within this share of its largest |value| of 0: 1 / its square magnifies
 # one row's error (the ICR's max on a path whose w crosses 0 read 7x over)
 NEAR_ZERO = 0.01
+NOT_SMOOTH = (f" do not move as smooth curves between the rows (their fourth differences "
+              f"over {ROUGH:g}x their first: a staircase on an FMU's own grid, or faster than "
+              "the step), which the pair's cubic does not follow")
 # under Jacobi, a bulk of steps before the tail up to this long is worked out with it, twice
 # (one pass fewer: a pass's fixed NumPy calls cost more than these steps' share)
 BULK = 256
@@ -80,6 +84,9 @@ class PairRows(Stencils):
                        default=0)
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
+        self.rough = Roughness(self.cols, whole_windows(self.pieces.starts, self.pieces.ends,
+                                                        n_steps), len(plan.slots)) \
+            if plan.unknown else None
         self.needed, self.late_names, self.late_cols = self._held_and_late()
         loop, net = plan.loop, plan.network
         self.carry = LoopCarry(loop, plan.groups[loop.origin], plan.hold == "frozen") \
@@ -152,6 +159,8 @@ class PairRows(Stencils):
         new = rows[:, self.plan.slots]
         self.window = np.concatenate((self.window, new))
         np.maximum(self.size, np.max(np.abs(new), axis=0, initial=0.0), out=self.size)
+        if self.rough is not None:
+            self.rough.tally(self.window, self.lo, first, len(rows))
         if first + len(rows) <= self.n:     # not the last chunk (finish works that out)
             self._steps(min(self.n - 1, self.lo + len(self.window) - 1 - self.reach))
         self.seconds += _time.perf_counter() - tick
@@ -171,7 +180,8 @@ class PairRows(Stencils):
                 "unresolved_end": dict.fromkeys(self.net.cancelled(self.end), CANCELLED)
                 if self.net is not None else {},
                 "seconds": self.seconds,
-                "failed": self.failed or self._moved() or self._probe_failed(),
+                "failed": self.failed or self._moved() or self._probe_failed()
+                or self._not_smooth(),
                 "lagged": bool(self.lag),
                 "tables": self.known is not None,
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
@@ -216,6 +226,9 @@ class PairRows(Stencils):
         small against it on some row, or it comes near 0 (within NEAR_ZERO of its largest
         |value|), where 1 / its square magnifies the error of one row."""
         ill = {**self.plan.unresolved, **self.ill}
+        for name, c, _ in self.plan.lagged:     # Jacobi's late outputs
+            if c in self._rough:
+                ill.setdefault(name, f"unresolved (its values{NOT_SMOOTH})")
         for name in self.net.cancelled(self.worst) if self.net is not None else ():
             ill[name] = CANCELLED
         for name, (low, high) in self.divisors.items():
@@ -253,6 +266,18 @@ class PairRows(Stencils):
                 return (f"{g.name} has a state and no error model, and its held inputs move "
                         "within the steps")
         return None
+
+    @property
+    def _rough(self) -> np.ndarray:
+        """The columns whose values are not smooth curves at this step (pair_rough.py)."""
+        return self.rough.rough(self.size, self.n) if self.rough is not None else \
+            np.zeros(0, dtype=np.intp)
+
+    def _not_smooth(self) -> str | None:
+        """Why the pair does not hold: held inputs that are not smooth curves at this step."""
+        rough = self._rough
+        held = [g.name for g in self.plan.groups if np.isin(g.cols, rough).any()]
+        return f"the held inputs of {', '.join(held)}{NOT_SMOOTH}" if held else None
 
     def _probe_failed(self) -> str | None:
         """Why the pair does not hold: a measured response (probe.py) that could not be

@@ -1,0 +1,61 @@
+"""Whether the held inputs move as smooth curves between the run's rows: the embedded pair's
+stencils take an input's true mean over a step from the cubic through its nearest values in
+the same smooth piece (pair_stencils.py), which holds only where the values are those of a
+smooth curve at this step. An FMU may move its outputs on a grid of its own (a fixed-step
+solver longer than the communication step, a sampled controller: a staircase of values that
+the master's breakpoints do not know), or faster than the step; the cubic then follows
+nothing, and the pair's estimate can miss the error by orders of magnitude (a staircase held
+by the quadratic master: 58x under the error, docs/masters.md).
+
+Per column, over every five rows in one smooth piece (Jacobi's columns a row late per lag),
+the sum of |fourth differences| against the sum of |first differences|: a smooth curve at
+h omega gives about (h omega)^3 (0.001 at 1, 0.9 at 10 steps a radian), a staircase 6 to 9
+whatever its period, a single unknown jump under 1 (the cubic across it says O(h) of the
+jump, as it should). Over ROUGH, with a variation above round-off, the pair hands over.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..results import round_off
+
+ROUGH = 5.0     # sum |4th differences| / sum |1st differences| (cos at 3 steps a radian: 4.9)
+SPAN = 5        # the rows one fourth difference reads
+
+
+def whole_windows(starts: np.ndarray, ends: np.ndarray, n: int) -> np.ndarray:
+    """Per node j = 0 .. n: whether nodes j .. j + 4 lie in one smooth piece (breakpoints.
+    Pieces' starts and ends)."""
+    nodes = np.arange(n + 1)
+    piece = np.searchsorted(starts, nodes, side="right") - 1
+    return nodes + SPAN - 1 <= ends[np.maximum(piece, 0)]
+
+
+class Roughness:
+    """The tally of one run's held columns (PairRows' window columns by lag), chunk by
+    chunk as the rows come in."""
+
+    def __init__(self, cols: dict, whole: np.ndarray, width: int):
+        self.whole = whole
+        self.lag = np.full(width, -1)           # per column its lag (-1: not tallied)
+        for d, these in cols.items():
+            self.lag[these] = d
+        self.sums = np.zeros((2, width))    # per column: sum |4th differences|, |1st|
+
+    def tally(self, window: np.ndarray, lo: int, first: int, count: int) -> None:
+        """Add the fourth differences that end in the chunk of rows first .. first + count
+        - 1 (the window holds rows lo .. , at least four before the chunk)."""
+        r0, r1 = max(first - SPAN + 1, lo), first + count - SPAN
+        if r1 < r0:
+            return
+        rows, m = window[r0 - lo:r1 + SPAN - lo], r1 - r0 + 1
+        node = np.arange(r0, r1 + 1)[:, None] - self.lag      # row r of lag d: node r - d
+        ok = (node >= 0) & (self.lag >= 0) & self.whole[np.maximum(node, 0)]
+        self.sums[0] += (np.abs(np.diff(rows, 4, axis=0)) * ok).sum(axis=0)
+        self.sums[1] += (np.abs(rows[1:m + 1] - rows[:m]) * ok).sum(axis=0)
+
+    def rough(self, size: np.ndarray, n: int) -> np.ndarray:
+        """The columns whose values are not a smooth curve at this step (those whose
+        variation is above round-off, results.round_off: linear in the size, at least 1)."""
+        moved = self.sums[1] > np.maximum(size, 1.0) * round_off([1.0], n)
+        return np.flatnonzero(moved & (self.sums[0] > ROUGH * self.sums[1]))

@@ -1,0 +1,44 @@
+"""pair_rough.py: which held values are not smooth curves at the step, from their fourth
+differences against their first (smooth pieces only), on series whose shape is known."""
+import numpy as np
+
+from mecanum_fmu.master.pair_rough import Roughness, whole_windows
+
+T = np.arange(0.0, 6.0 + 1e-9, 0.1)       # 61 rows, 60 steps of 0.1
+
+
+def _rough(columns: np.ndarray, starts=(0,), ends=(60,), lag: int = 0, chunk: int = 61):
+    """The rough columns of `columns` (rows x columns), fed in chunks as PairRows feeds
+    them (the window keeps every row here)."""
+    n = len(columns) - 1
+    tally = Roughness({lag: list(range(columns.shape[1]))},
+                      whole_windows(np.array(starts), np.array(ends), n), columns.shape[1])
+    for first in range(0, len(columns), chunk):
+        tally.tally(columns[:first + chunk], 0, first, len(columns[first:first + chunk]))
+    return tally.rough(np.abs(columns).max(axis=0), n).tolist()
+
+
+def test_a_staircase_is_rough_and_smooth_curves_are_not():
+    stairs = np.cos(0.2 * np.floor(T / 0.2 + 1e-9))     # moves every second row
+    columns = np.column_stack((np.cos(T), stairs, np.cos(10 * T), np.cos(25 * T)))
+    # cos t and cos 10t (a radian a step) are curves at this step; cos 25t is not
+    assert _rough(columns) == [1, 3]
+    assert _rough(columns, chunk=7) == [1, 3]           # the same, chunk by chunk
+
+
+def test_round_off_and_known_jumps_are_not_rough():
+    flat = 0.3 + 1e-17 * np.cos(40 * T)                 # a constant with round-off in it
+    jump = np.where(T < 3.0 - 1e-9, np.cos(T), np.cos(T) + 1.0)
+    columns = np.column_stack((flat, jump))
+    assert _rough(columns) == []                          # a jump alone is not a staircase
+    # a staircase whose every step is a known breakpoint: its pieces hold one value each
+    stairs = np.floor(T / 0.5 + 1e-9)[:, None]
+    ends = np.arange(4, 60, 5).tolist() + [60]
+    assert _rough(stairs) == [0]
+    assert _rough(stairs, starts=[0] + [e + 1 for e in ends[:-1]], ends=ends) == []
+
+
+def test_a_curve_too_fast_for_the_step_is_rough():
+    # about (h omega)^3 for a curve: a cosine at 3 radians a step is past ROUGH, at 2 not
+    assert _rough(np.cos(30 * T)[:, None]) == [0]
+    assert _rough(np.cos(20 * T)[:, None]) == []
