@@ -84,7 +84,7 @@ class PairRows(Stencils):
                        default=0)
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
-        self.rough = Roughness(self.cols, whole_windows(self.pieces.starts, self.pieces.ends,
+        self.roughness = Roughness(self.cols, whole_windows(self.pieces.starts, self.pieces.ends,
                                                         n_steps), len(plan.slots)) \
             if plan.unknown else None
         self.needed, self.late_names, self.late_cols = self._held_and_late()
@@ -159,8 +159,8 @@ class PairRows(Stencils):
         new = rows[:, self.plan.slots]
         self.window = np.concatenate((self.window, new))
         np.maximum(self.size, np.max(np.abs(new), axis=0, initial=0.0), out=self.size)
-        if self.rough is not None:
-            self.rough.tally(self.window, self.lo, first, len(rows))
+        if self.roughness is not None:
+            self.roughness.tally(self.window, self.lo, first, len(rows))
         if first + len(rows) <= self.n:     # not the last chunk (finish works that out)
             self._steps(min(self.n - 1, self.lo + len(self.window) - 1 - self.reach))
         self.seconds += _time.perf_counter() - tick
@@ -270,7 +270,7 @@ class PairRows(Stencils):
     @property
     def _rough(self) -> np.ndarray:
         """The columns whose values are not smooth curves at this step (pair_rough.py)."""
-        return self.rough.rough(self.size, self.n) if self.rough is not None else \
+        return self.roughness.rough(self.size, self.n) if self.roughness is not None else \
             np.zeros(0, dtype=np.intp)
 
     def _not_smooth(self) -> str | None:
