@@ -367,6 +367,38 @@ outputs: [it.x]
     assert summary["error_estimate"]["it.x"]["max"] < error.max() / 3
 
 
+def test_under_the_adaptive_master_a_staircase_leaves_the_estimate_unresolved(
+        tmp_path, fmus, monkeypatch):
+    """The same staircase (the wave on its own 0.2 s grid) at tolerance 1e-4: the adaptive
+    master's step errors do not see its jumps either. Its estimate (the check turned off)
+    says a tenth of the error against gauss-seidel at h/64, which holds each stair exactly,
+    and that error is over the tolerance; with the check, every output is unresolved and
+    says why."""
+    from mecanum_fmu.master import adaptive
+    path = write_scenario(tmp_path, "stair", f"""\
+name: stair
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: adaptive,
+              tolerance: 1e-4}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{period: 0.2}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]
+""")
+    graph = runner.prepare(path)
+    fine, fexp = with_experiment(graph, master="gauss-seidel", step_size=0.1 / 64,
+                                 tolerance=None, estimate="none")
+    error = np.abs(master.simulate(fine, fexp)["it.x"][::64]
+                   - master.simulate(graph, graph.scenario.experiment)["it.x"])
+    assert error.max() > 1e-4
+    found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
+    words = found["error_estimate"]["it.x"]["max"]
+    assert words.startswith("unresolved (the held inputs of it do not move as smooth curves")
+    monkeypatch.setattr(adaptive, "ADAPTIVE_ROUGH", math.inf)
+    found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
+    assert found["error_estimate"]["it.x"]["max"] < error.max() / 3
+
+
 def test_a_controller_whose_jacobian_changes_hands_the_loop_to_richardson(tmp_path, fmus):
     graph = runner.prepare(_loop(tmp_path, fmus, "gauss-seidel", cube=2.0))
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)

@@ -58,9 +58,8 @@ def simulate(graph: Graph, experiment: Experiment,
     with ExitStack() as stack:
         ctrl_c = stack.enter_context(ctrl_c_latched())
         running = _start_instances(graph, stack)
-        holds = plan_transfers(running, graph, buffers, how.hold,
-                               AdaptiveHolds(how.hold, graph.error_models) if how.adaptive
-                               else None, how.holds_samples)
+        holds = plan_transfers(running, graph, buffers, how.hold, _adaptive_holds(how, graph),
+                               how.holds_samples)
         stack.callback(lambda: [r.terminate() for r in running])
         try:
             initialise(running, graph, experiment.start_time, experiment.stop_time)
@@ -95,6 +94,13 @@ def simulate(graph: Graph, experiment: Experiment,
             results.extra["error_estimate"] = estimate_of(counts["names"], results, counts)
             results.extra["passes"] = counts["passes"]
         return results
+
+
+def _adaptive_holds(how: Master, graph: Graph) -> AdaptiveHolds | None:
+    """The adaptive master's holds, which check the held inputs for smooth curves where the
+    graph holds FMUs the scenario layer knows nothing of (Graph.measured)."""
+    return AdaptiveHolds(how.hold, graph.error_models, bool(graph.measured)) \
+        if how.adaptive else None
 
 
 def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ctrl_c,

@@ -50,6 +50,7 @@ from .dense import DenseRows
 from .recorder import Recorder
 from .trajectory import WholeSteps, slot_positions, values_at
 from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
+from .pair_rough import ADAPTIVE_ROUGH, rough_columns
 from .step_control import Controller, NoProgress, Stops, first_step, smallest_step
 
 _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))   # two-point Gauss, on [0, 1]
@@ -67,10 +68,13 @@ class AdaptiveHolds(Holds):
     its end value after the doStep."""
     through = True
 
-    def __init__(self, hold: str, models: tuple = ()):
+    def __init__(self, hold: str, models: tuple = (), check: bool = False):
         super().__init__(hold)
         self.h = self.g = self.f = 1.0
         self.models = dict(models)
+        # whether the held inputs are checked for smooth curves (pair_rough.py): the graph
+        # holds FMUs the scenario layer knows nothing of (Graph.measured)
+        self.check = check
         self.clients: list = []     # the error models handed a blend
         self.paired: list["_VarBlend"] = []   # the blends no model takes: the embedded pair's
         self.half = None        # the pair's half steps: which half is being taken (0, 1)
@@ -85,11 +89,18 @@ class AdaptiveHolds(Holds):
         breakpoint (a table's corner or jump), where the input is another polynomial."""
         return self.steps if self.since is None else min(self.steps, self.since)
 
+    def not_smooth(self, n: int) -> list[str]:
+        """The FMUs whose held inputs did not move as smooth curves over the run's n accepted
+        steps (_VarBlend.tally)."""
+        return sorted({b.owner for b in self.blends if len(rough_columns(
+            b.sums[:2], b.sums[2], n, ADAPTIVE_ROUGH))})
+
     def at_breakpoint(self, before_jump: bool) -> None:
         self.since, self.jump_next = 0, before_jump
 
     def add(self, buffer, src, roles, targets: list[Port], inst: Instance) -> "_VarBlend":
         blend = _VarBlend(self, buffer, src, roles)
+        blend.owner = inst.name
         self.blends.append(blend)
         self.ahead = self.ahead or any(role not in ("state", "through") for role in roles)
         model = self.models.get(inst.name)
@@ -105,6 +116,9 @@ class AdaptiveHolds(Holds):
             b.third_before[:] = 0.0
 
     def commit(self) -> None:
+        if self.check and self.history >= 4 and not self.jump_next:
+            for b in self.blends:
+                b.tally(self.h, self.f)
         for b in self.blends:
             b.third_before[:] = b.third
         super().commit()
@@ -131,6 +145,18 @@ class _VarBlend:
         # (the limited parabola's or the cubic's) and b s (s - h) (s + g) (the cubic's)
         self.a, self.b = np.zeros(m), np.zeros(m)
         self.shift = None   # added to the values now (the whole-step trajectory's, trajectory.py)
+        self.owner = ""     # the FMU whose inputs these are
+        # per input: sum h^4 |u4| (its fourth derivative), sum |the step's change|, the
+        # largest |u| (tally)
+        self.sums = np.zeros((3, m))
+
+    def tally(self, h: float, f: float) -> None:
+        """Add the accepted step's fourth difference and change (pair_rough.py's rule on
+        unequal steps: h^4 u4 from this step's third difference and the one before)."""
+        now, u = self.rows[0], self.rows[1]
+        self.sums[0] += h ** 4 * np.abs(2 * (self.third - self.third_before) / (h + f))
+        self.sums[1] += np.abs(now - u)
+        np.maximum(self.sums[2], np.abs(now), out=self.sums[2])
 
     def fill(self) -> None:
         hs = self.holds
@@ -350,6 +376,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
             progress((t - start) / (stop - start))
             next_report = _time.perf_counter() + 0.5
     counts["terms"] = loop.terms()
+    counts["not_smooth"] = holds.not_smooth(counts["steps_taken"])
     if loop.whole is not None:
         loop.whole.close(t)
 
@@ -488,6 +515,11 @@ def estimate_of(names: list[str], results, counts: dict) -> dict:
     pair's: what is left of estimates that cancel (the circle's y end: 0.02 to 0.08 of its
     terms, its number 5x to 9x under the true error at TOL 1e-4 and 1e-2)."""
     rows = np.array(counts["estimates"], dtype=float).reshape(len(counts["estimates"]), -1)
+    if counts.get("not_smooth"):
+        why = (f"unresolved (the held inputs of {', '.join(counts['not_smooth'])} do not move "
+               "as smooth curves between the steps: a staircase on an FMU's own grid, whose "
+               "jumps the steps' error estimates do not see; the tolerance is not controlled)")
+        return {name: {"max": why, "end": why} for name in names if name in results.names}
     estimate = {}
     for i, name in enumerate(names):
         if name in results.names:
