@@ -371,7 +371,7 @@ def test_under_the_adaptive_master_a_staircase_leaves_the_estimate_unresolved(
         tmp_path, fmus, monkeypatch):
     """The same staircase (the wave on its own 0.2 s grid) at tolerance 1e-4: the adaptive
     master's step errors do not see its jumps either. Its estimate (the check turned off)
-    says a tenth of the error against gauss-seidel at h/64, which holds each stair exactly,
+    says a hundredth of the error against gauss-seidel at h/64, which holds each stair exactly,
     and that error is over the tolerance; with the check, every output is unresolved and
     says why."""
     from mecanum_fmu.master import adaptive
