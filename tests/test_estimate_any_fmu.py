@@ -332,6 +332,19 @@ outputs: [plant.x, ctrl.u]
     _within_3x(one["plant.x"], np.abs(results["plant.x"] - x))
 
 
+def _stair(folder, fmus, master_keys: str):
+    """The wave on its own 0.2 s grid (a staircase) into the lag, at a 0.1 s step."""
+    return write_scenario(folder, "stair", f"""\
+name: stair
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, {master_keys}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{period: 0.2}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]
+""")
+
+
 @pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal"])
 def test_a_source_that_moves_on_its_own_grid_hands_the_pair_over(tmp_path, fmus,
                                                                   monkeypatch, master_name):
@@ -341,15 +354,7 @@ def test_a_source_that_moves_on_its_own_grid_hands_the_pair_over(tmp_path, fmus,
     off); with it, the pair hands over, naming the FMU whose inputs are not smooth, and
     Richardson's coarser runs see the staircase: within 3x of the error against h/64."""
     from mecanum_fmu.master import pair_rough
-    path = write_scenario(tmp_path, "stair", f"""\
-name: stair
-experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{period: 0.2}}}}
-  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
-connections: [[wave.u, it.u]]
-outputs: [it.x]
-""")
+    path = _stair(tmp_path, fmus, f"master: {master_name}")
     graph = runner.prepare(path)
     fine, fexp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
     reference = master.simulate(fine, fexp)["it.x"][::64]
@@ -375,16 +380,7 @@ def test_under_the_adaptive_master_a_staircase_leaves_the_estimate_unresolved(
     and that error is over the tolerance; with the check, every output is unresolved and
     says why."""
     from mecanum_fmu.master import adaptive
-    path = write_scenario(tmp_path, "stair", f"""\
-name: stair
-experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: adaptive,
-              tolerance: 1e-4}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{period: 0.2}}}}
-  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
-connections: [[wave.u, it.u]]
-outputs: [it.x]
-""")
+    path = _stair(tmp_path, fmus, "master: adaptive, tolerance: 1e-4")
     graph = runner.prepare(path)
     fine, fexp = with_experiment(graph, master="gauss-seidel", step_size=0.1 / 64,
                                  tolerance=None, estimate="none")
