@@ -152,10 +152,10 @@ def _recurrence(p: np.ndarray, q: np.ndarray, start: np.ndarray) -> np.ndarray:
     p, q = p.copy(), q.copy()
     m = 1
     while m < len(p):
-        q[m:] = np.einsum("kij,kj->ki", p[m:], q[:-m]) + q[m:]
-        p[m:] = np.einsum("kij,kjl->kil", p[m:], p[:-m])
+        q[m:] += (p[m:] @ q[:-m, :, None])[..., 0]
+        p[m:] = p[m:] @ p[:-m]
         m *= 2
-    return np.einsum("kij,j->ki", p, start) + q
+    return p @ start + q
 
 
 def _late(values: np.ndarray) -> np.ndarray:

@@ -351,12 +351,16 @@ class PairRows(Stencils):
     def _divisors(self, ks: np.ndarray, branch: int) -> None:
         """Check the chain's divisors on the nodes after steps `ks` (and the branch's): an
         error not small against the divisor marks its output ill; keep their |values|."""
-        nodes = with_branch(ks, branch) + 1
-        for name, divisor, c, floor in self.plan.loop.divided:
-            error = np.abs(np.concatenate((
-                self.carry.carried([c], ks + 1)[:, 0],
-                self.carry.carried([c], ks[len(ks) - branch:] + 1, branch=True)[:, 0])))
-            value = np.abs(self.window[nodes - self.lo, c])
+        divided = self.plan.loop.divided
+        if not divided:
+            return
+        cols = sorted({c for _, _, c, _ in divided})     # the ICR's x and y divide by one w
+        errors = np.abs(np.concatenate((
+            self.carry.carried(cols, ks + 1),
+            self.carry.carried(cols, ks[len(ks) - branch:] + 1, branch=True))))
+        values = np.abs(self.window[with_branch(ks, branch) + 1 - self.lo][:, cols])
+        for name, divisor, c, floor in divided:
+            error, value = errors[:, cols.index(c)], values[:, cols.index(c)]
             near = (value + error >= floor)
             if name not in self.ill and np.any((error > ILL * value) & near):
                 self.ill[name] = (f"unresolved (it divides by {divisor}, whose error is not "
