@@ -9,9 +9,11 @@ FMUs' Dahlquist under the quadratic master: 0.017x to 0.035x of the error, docs/
 
 Per column, over every five rows in one smooth piece (Jacobi's columns a row late per lag),
 the sum of |fourth differences| against the sum of |first differences|: a smooth curve at
-h omega gives about (h omega)^3 (0.001 at 1, 0.9 at 10 steps a radian), a staircase 6 to 9
-whatever its period, a single unknown jump under 1 (the cubic across it says O(h) of the
-jump, as it should). Over ROUGH, with a variation above round-off, the pair hands over.
+h omega gives about (h omega)^3 (0.001 at 10 steps a radian, 0.9 at a radian a step), a
+staircase 6 to 9 whatever its period, a single unknown jump under 1 (the cubic across it
+says O(h) of the jump, as it should). Over ROUGH, with a variation above round-off, the pair hands over. The
+adaptive master applies the same rule on its unequal steps (adaptive._VarBlend.tally,
+ADAPTIVE_ROUGH), and leaves its estimate unresolved.
 """
 from __future__ import annotations
 
@@ -50,7 +52,8 @@ class Roughness:
 
     def __init__(self, cols: dict, whole: np.ndarray, width: int):
         self.whole = whole
-        self.lag = np.full(width, -1)           # per column its lag (-1: not tallied)
+        # per column its lag (-1: not tallied; a column read at two lags: the last)
+        self.lag = np.full(width, -1)
         for d, these in cols.items():
             self.lag[these] = d
         self.sums = np.zeros((2, width))    # per column: sum |4th differences|, |1st|
