@@ -11,9 +11,9 @@ Per column, over every five rows in one smooth piece (Jacobi's columns a row lat
 the sum of |fourth differences| against the sum of |first differences|: a smooth curve at
 h omega gives about (h omega)^3 (0.001 at 10 steps a radian, 0.9 at a radian a step), a
 staircase 6 to 9 whatever its period, a single unknown jump under 1 (the cubic across it
-says O(h) of the jump, as it should). Over ROUGH, with a variation above round-off, the pair hands over. The
-adaptive master applies the same rule on its unequal steps (adaptive._VarBlend.tally,
-ADAPTIVE_ROUGH), and leaves its estimate unresolved.
+says O(h) of the jump, as it should). Over ROUGH, with a variation above round-off, the
+pair hands over. The adaptive master applies the same rule on its unequal steps
+(adaptive._VarBlend.tally, ADAPTIVE_ROUGH), and leaves its estimate unresolved.
 """
 from __future__ import annotations
 
