@@ -226,8 +226,9 @@ class PairRows(Stencils):
         small against it on some row, or it comes near 0 (within NEAR_ZERO of its largest
         |value|), where 1 / its square magnifies the error of one row."""
         ill = {**self.plan.unresolved, **self.ill}
+        rough = self._rough
         for name, c, _ in self.plan.lagged:     # Jacobi's late outputs
-            if c in self._rough:
+            if c in rough:
                 ill.setdefault(name, f"unresolved (its values{NOT_SMOOTH})")
         for name in self.net.cancelled(self.worst) if self.net is not None else ():
             ill[name] = CANCELLED
