@@ -204,6 +204,12 @@ def checkout_files() -> list[str]:
                 part in made or part.endswith(".egg-info") for part in path.relative_to(ROOT).parts)]
 
 
+def bytecode() -> list[str]:
+    """src/'s compiled modules, as `make` leaves them (its `bytecode` step). copy2 keeps each
+    source's time, so the copies stay valid: the commands do not compile the package again."""
+    return [str(p.relative_to(ROOT)) for p in sorted((ROOT / "src").glob("**/__pycache__/*.pyc"))]
+
+
 def command_env(copy: Path, tmp: Path, venv_active: bool = False) -> dict[str, str]:
     """The reader's shell: outside the venv unless the doc says it is active. PYTHONPATH
     points at the copy's src/, as the editable install of a fresh clone would."""
@@ -229,7 +235,7 @@ def fresh_copy(tmp_path_factory, fmu_dir):
     (session scope): the heavy commands run first, apart from the module's other tests, and
     a module-scoped copy was made again (3 s) each time the module's tests resumed."""
     copy = tmp_path_factory.mktemp("fresh_clone")
-    for name in checkout_files():
+    for name in checkout_files() + bytecode():
         (copy / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(ROOT / name, copy / name)
     (copy / ".venv").symlink_to(venv(), target_is_directory=True)
