@@ -19,7 +19,8 @@ thins a long run), its max and its last value.
 How a tiny error is counted (docs/masters.md, "The error estimate"): a true error at or below
 FLOOR (1e-9 in the output's unit: the ground truth is solved to rtol 1e-10) is "none"; an
 estimate of "below round-off", or a number at or below FLOOR, is "none" too. None against none
-is a hit; none against a number is a MISS. An estimate the coarser runs cannot resolve
+is a hit; none against a number counts as the floor against it (num/none 1.19: an estimate of
+1.19e-9 against a true 8.7e-10, a hit; 1e-6 against it, a MISS). An estimate the coarser runs cannot resolve
 ("unresolved", no number) is counted apart: WITHHELD. Wall times are on whatever else the
 machine runs: compare the cost ratios within one run.
 
@@ -130,12 +131,11 @@ def verdict(estimate, true: float) -> tuple[str, str]:
         return "unresolved", "WITHHELD"
     est = None if isinstance(estimate, str) or estimate is None or estimate <= FLOOR \
         else float(estimate)
-    if true <= FLOOR:
-        return ("none/none", "") if est is None else ("num/none", "MISS")
-    if est is None:
-        return ("none/num", "MISS")
-    ratio = est / true
-    return f"{ratio:.3g}", "" if 1 / FACTOR <= ratio <= FACTOR else "MISS"
+    if true <= FLOOR and est is None:
+        return "none/none", ""
+    ratio = (FLOOR if est is None else est) / max(true, FLOOR)     # each at least the floor
+    text = "num/none " if true <= FLOOR else "none/num " if est is None else ""
+    return f"{text}{ratio:.3g}", "" if 1 / FACTOR <= ratio <= FACTOR else "MISS"
 
 
 def calls(graph, exp, steps: int, found: dict) -> float:
