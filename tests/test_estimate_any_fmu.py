@@ -124,6 +124,36 @@ def test_a_response_of_second_order_hands_over_to_richardson_and_says_why(tmp_pa
     assert method.startswith("Richardson") and "is not of first order" in method, method
 
 
+@pytest.mark.parametrize("master_name,resolved", [("quadratic", True), ("gauss-seidel", False)])
+def test_an_output_that_outgrows_its_response_hands_over_to_richardson(tmp_path, fmus,
+                                                                       monkeypatch, master_name,
+                                                                       resolved):
+    # x' = 80 x + cos 2t grows e^8 a step: by the second probe (t = 3.2 s) x is about 1e111,
+    # and a held input's nudge moves it by 1e-105 of itself, below round-off; the ratio r
+    # that carries the earlier errors on (e^8) is then unknown, not 0. The true relative
+    # error stays about 1e-2 (the reference: the same graph at 1/64 of the step)
+    graph = runner.prepare(_fed(tmp_path, fmus, "xtest_lag", "x", master_name,
+                                ", parameters: {k: -80.0}"))
+    fine, exp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
+    reference = master.simulate(fine, exp)["it.x"][::64]
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    error = np.abs(results["it.x"] - reference)
+    assert error.max() > 1e-4 * np.abs(reference).max()
+    if resolved:
+        _within_3x(summary["error_estimate"]["it.x"], error)
+    else:           # first order: the coarser runs' differences do not scale as h^1 here
+        assert summary["error_estimate"]["it.x"]["max"].startswith("unresolved (the coarser")
+    method = summary["error_estimate_method"]
+    assert method.startswith("Richardson") and "fell below the output's round-off" in method
+    # without the check, the second probe's zero response silenced the error
+    from mecanum_fmu.master import probe
+    monkeypatch.setattr(probe, "_lost", lambda before, now: None)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    assert master.estimate_error(graph, results)["error_estimate"]["it.x"]["max"] == \
+        BELOW_ROUND_OFF
+
+
 @pytest.mark.parametrize("tolerance", [1e-4, 1e-6])
 def test_a_tolerance_holds_on_third_party_fmus(tmp_path, fmus, tolerance):
     graph = runner.prepare(_scenario(tmp_path, fmus), tolerance=tolerance)

@@ -243,6 +243,15 @@ def fitted(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None = None
     return g0, g1, r, moment(r), d_part
 
 
+def _lost(before: np.ndarray, now: np.ndarray) -> tuple[int, int] | None:
+    """(output, input) whose g1 an earlier probe measured and this one finds below round-off
+    (fitted zeroes it), else None. Its ratio r is then unknown, not 0: an FMU whose output
+    grows by itself (x' = 80 x + u) carries an earlier error on, while a perturbation of
+    its input vanishes against the output's size."""
+    gone = np.argwhere((before != 0.0) & (now == 0.0))
+    return (int(gone[0][0]), int(gone[0][1])) if len(gone) else None
+
+
 def _agree(a: tuple, b: tuple) -> bool:
     """Whether two probes found the same (g0, g1 and r; a response's Jacobian) within
     AGREE."""
@@ -392,6 +401,12 @@ class Target:
         fit = fitted(g, floor.max(axis=0), self.model.direct)
         if isinstance(fit, str):
             self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
+        elif self.model.found and (lost := _lost(self.model.found[-1][3], fit[1])):
+            self.model.failed = (
+                f"{self.r.name}'s response of output {lost[0]} to input {lost[1]}, measured "
+                f"at t = {self.model.found[-1][0] * h:g} s, fell below the output's round-off "
+                f"by t = {k * h:g} s (an output that grows by itself): the probes no longer "
+                "measure how it carries an error")
         else:
             self.model.found.append((k, h, *fit))
 
