@@ -516,8 +516,9 @@ def estimate_of(names: list[str], results, counts: dict) -> dict:
     terms, its number 5x to 9x under the true error at TOL 1e-4 and 1e-2)."""
     if counts.get("not_smooth"):
         why = (f"unresolved (the held inputs of {', '.join(counts['not_smooth'])} do not move "
-               "as smooth curves between the steps: a staircase on an FMU's own grid, whose "
-               "jumps the steps' error estimates do not see; the tolerance is not controlled)")
+               "as smooth curves between the steps: a staircase on an FMU's own grid, or a "
+               "curve faster than the steps, which the steps' error estimates do not see; the "
+               "tolerance is not controlled)")
         return {name: {"max": why, "end": why} for name in names if name in results.names}
     rows = np.array(counts["estimates"], dtype=float).reshape(len(counts["estimates"]), -1)
     estimate = {}
