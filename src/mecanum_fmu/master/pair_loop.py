@@ -44,40 +44,48 @@ class LoopCarry:
             self.depth.update({c: t.lag for c in t.outs})
         self.reach = max(self.depth.values())   # the deepest: the rows before a step it reads
         self.where = {c: i for i, c in enumerate(self.depth)}    # a column's place in table
-        self.sens: dict[int, np.ndarray] = {}   # this batch's, on rows first .. (sensitivities)
-        self.times: dict[int, np.ndarray] = {}  # Jacobi: the time's part, on the same rows
+        self.depths = np.array(list(self.depth.values()))   # per place, its column's depth
+        # the starts' places and indices in the model's outputs; per FMU of the chain, its
+        # inputs' and outputs' places; the held inputs' places (_places)
+        self.starts = (self._places([c for c, _ in loop.starts]),
+                       np.array([i for _, i in loop.starts], dtype=np.intp))
+        self.chain = [(t, self._places(t.ins), self._places(t.outs)) for t in loop.chain]
+        self.held = self._places(group.cols)
+        # this batch's, on rows first .. (sensitivities): S, and (Jacobi) the time's part
+        self.sens = np.zeros((1, len(self.where) + 1, self.n))
+        self.times: np.ndarray | None = None
         self.first, self.nodes, self.at_nodes = 0, 0, np.zeros((1, self.n))
         self.table = np.zeros((1, len(self.where)))     # this batch's carried errors (_table)
         # its branch's (steps): the first node, the carried errors, the errors at the nodes
         self.branch_nodes, self.branch_table, self.branch_at = 0, self.table, self.at_nodes
 
-    def sensitivities(self, rows: np.ndarray) -> tuple[dict, dict]:
-        """Per carried column, d value / d (the model's outputs) at each of `rows` (the run's
-        rows in order; under Jacobi the first row's inputs stand for the row before it), and
-        (Jacobi) the time's part of it: a late FMU's row r is f(inputs of row r - 1, t_r),
-        its true value at t_r-1 f(the same inputs, t_r-1), less its explicit change over the
-        step, out_r - out_r-1 - J (in_r-1 - in_r-2), carried on through the chain."""
-        sens, times = {}, {}
-        for c, index in self.loop.starts:
-            unit = np.zeros((len(rows), self.n))
-            unit[:, index] = 1.0
-            sens[c] = unit
-        zero, still = np.zeros((len(rows), self.n)), np.zeros(len(rows))
-        for t in self.loop.chain:
+    def _places(self, cols) -> np.ndarray:
+        """The places of columns `cols` among the carried ones (self.where; a column the loop
+        does not carry: the place past them, whose sensitivity is 0)."""
+        return np.array([self.where.get(c, len(self.where)) for c in cols], dtype=np.intp)
+
+    def sensitivities(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Per carried column (self.where's places, then a 0 for the columns it does not
+        carry), d value / d (the model's outputs) at each of `rows` (the run's rows in order;
+        under Jacobi the first row's inputs stand for the row before it), (rows, places, n);
+        and (Jacobi, else None) the time's part of it, (rows, places): a late FMU's row r is
+        f(inputs of row r - 1, t_r), its true value at t_r-1 f(the same inputs, t_r-1), less
+        its explicit change over the step, out_r - out_r-1 - J (in_r-1 - in_r-2), carried on
+        through the chain."""
+        sens = np.zeros((len(rows), len(self.where) + 1, self.n))
+        sens[:, self.starts[0], self.starts[1]] = 1.0
+        times = np.zeros(sens.shape[:2]) if self.frozen else None
+        for t, ins_at, outs_at in self.chain:
             ins, outs = rows[:, t.ins], rows[:, t.outs]
-            s_in = np.stack([sens.get(c, zero) for c in t.ins], axis=1)
             if not self.frozen:
-                s_out = t.response.jacobian(ins, outs) @ s_in
-            else:                       # the inputs of the row before
-                before = _late(ins)
-                jac = t.response.jacobian(before, outs)
-                s_out = jac @ _late(s_in)
-                tau_in = _late(np.column_stack([times.get(c, still) for c in t.ins]))
-                own = outs - _late(outs) - np.einsum("rij,rj->ri", jac, before - _late(before))
-                tau = own + np.einsum("rij,rj->ri", jac, tau_in)
-                times.update({c: tau[:, k] for k, c in enumerate(t.outs)})
-            for k, c in enumerate(t.outs):
-                sens[c] = s_out[:, k]
+                sens[:, outs_at] = t.response.jacobian(ins, outs) @ sens[:, ins_at]
+                continue
+            before = _late(ins)             # the inputs of the row before
+            jac = t.response.jacobian(before, outs)
+            sens[:, outs_at] = jac @ _late(sens[:, ins_at])
+            own = outs - _late(outs) - np.einsum("rij,rj->ri", jac, before - _late(before))
+            tau_in = _late(times.take(ins_at, axis=1))     # in rows' order (einsum's sums)
+            times[:, outs_at] = own + np.einsum("rij,rj->ri", jac, tau_in)
         return sens, times
 
     def carried(self, cols: list[int], nodes: np.ndarray, branch: bool = False) -> np.ndarray:
@@ -85,20 +93,17 @@ class LoopCarry:
         through the last one's end; `branch`: its branch's nodes), (nodes, cols)."""
         table, first = (self.branch_table, self.branch_nodes) if branch else \
             (self.table, self.nodes)
-        return table[nodes - first][:, [self.where[c] for c in cols]]
+        return table[(nodes - first)[:, None], [self.where[c] for c in cols]]
 
     def _table(self, nodes: np.ndarray, at_nodes: np.ndarray) -> np.ndarray:
         """Every carried column's error at `nodes`, (nodes, columns in self.where's order): S
         at the node + the column's depth (at most the last row) times E at the node
         (`at_nodes`, a row per node)."""
-        cols = list(self.where)
-        stacked = np.stack([self.sens[c] for c in cols], axis=1)      # (rows, cols, n)
-        rows = np.minimum(nodes[:, None] + np.array([self.depth[c] for c in cols])
-                          - self.first, len(stacked) - 1)
-        found = np.einsum("kmn,kn->km", stacked[rows, np.arange(len(cols))], at_nodes)
-        for i, c in enumerate(cols):
-            if c in self.times:
-                found[:, i] += self.times[c][rows[:, i]]
+        rows = np.minimum(nodes[:, None] + (self.depths - self.first), len(self.sens) - 1)
+        places = np.arange(len(self.where))
+        found = np.einsum("kmn,kn->km", self.sens[rows, places], at_nodes)
+        if self.times is not None:
+            found += self.times[rows, places]
         return found
 
     def steps(self, g: Group, h: np.ndarray, hold: tuple, ks: np.ndarray, window,
@@ -114,12 +119,10 @@ class LoopCarry:
         self.first = int(ks[0]) - self.reach
         rows = window(self.first, int(ks[-1]) + d + 1)
         self.sens, self.times = self.sensitivities(rows)
-        zero = np.zeros((len(rows), self.n))
-        c = np.stack([self.sens.get(col, zero) for col in g.cols], axis=1)  # (rows, in, n)
-        c0, c1 = c[ks + d - self.first], c[ks + d + 1 - self.first]
-        if self.times:                  # Jacobi: the true input less the time's part too
-            tau = np.column_stack([self.times.get(col, np.zeros(len(rows))) for col in g.cols])
-            error = error + 0.5 * (tau[ks + d - self.first] + tau[ks + d + 1 - self.first])
+        at = (ks + d - self.first)[:, None]
+        c0, c1 = self.sens[at, self.held], self.sens[at + 1, self.held]     # (steps, in, n)
+        if self.times is not None:      # Jacobi: the true input less the time's part too
+            error = error + 0.5 * (self.times[at, self.held] + self.times[at + 1, self.held])
         a, b, made = g.model.linear(h, held, error, change, branch)
         if predicted is not None:       # the predicted end values the corrector held
             delta = np.einsum("kni,ki->kn", b, predicted - held)
