@@ -45,6 +45,7 @@ class LoopCarry:
         self.reach = max(self.depth.values())   # the deepest: the rows before a step it reads
         self.where = {c: i for i, c in enumerate(self.depth)}    # a column's place in table
         self.depths = np.array(list(self.depth.values()))   # per place, its column's depth
+        self.places = np.arange(len(self.where))
         # the starts' places and indices in the model's outputs; per FMU of the chain, its
         # inputs' and outputs' places; the held inputs' places (_places)
         self.starts = (self._places([c for c, _ in loop.starts]),
@@ -100,10 +101,9 @@ class LoopCarry:
         at the node + the column's depth (at most the last row) times E at the node
         (`at_nodes`, a row per node)."""
         rows = np.minimum(nodes[:, None] + (self.depths - self.first), len(self.sens) - 1)
-        places = np.arange(len(self.where))
-        found = np.einsum("kmn,kn->km", self.sens[rows, places], at_nodes)
+        found = np.einsum("kmn,kn->km", self.sens[rows, self.places], at_nodes)
         if self.times is not None:
-            found += self.times[rows, places]
+            found += self.times[rows, self.places]
         return found
 
     def steps(self, g: Group, h: np.ndarray, hold: tuple, ks: np.ndarray, window,
@@ -133,7 +133,7 @@ class LoopCarry:
         q = made + 0.5 * np.einsum("kmn,kn->km", bc1, made)
         self.nodes, kept = int(ks[0]), len(ks) - branch
         total = _recurrence(p[:kept], q[:kept], self.error)
-        self.at_nodes = np.vstack((self.error, total))
+        self.at_nodes = np.concatenate((self.error[None], total))
         if branch:
             self._branch(p[kept:], q[kept:], self.at_nodes[kept - branch], int(ks[kept]))
         self.error = total[-1]
@@ -143,7 +143,7 @@ class LoopCarry:
     def _branch(self, p: np.ndarray, q: np.ndarray, start: np.ndarray, node: int) -> None:
         """The branch's errors from `start`, the error at its first step's start `node`: at
         its nodes (branch_at) and carried (branch_table, branch_nodes)."""
-        self.branch_at = np.vstack((start, _recurrence(p, q, start)))
+        self.branch_at = np.concatenate((start[None], _recurrence(p, q, start)))
         self.branch_nodes = node
         self.branch_table = self._table(np.arange(node, node + len(p) + 1), self.branch_at)
 

@@ -277,7 +277,8 @@ class PairRows(Stencils):
     def _not_smooth(self) -> str | None:
         """Why the pair does not hold: held inputs that are not smooth curves at this step."""
         rough = self._rough
-        held = [g.name for g in self.plan.groups if np.isin(g.cols, rough).any()]
+        held = [g.name for g in self.plan.groups if np.isin(g.cols, rough).any()] \
+            if len(rough) else []
         return f"the held inputs of {', '.join(held)}{NOT_SMOOTH}" if held else None
 
     def _probe_failed(self) -> str | None:
@@ -356,19 +357,28 @@ class PairRows(Stencils):
         if not divided:
             return
         cols = sorted({c for _, _, c, _ in divided})     # the ICR's x and y divide by one w
-        errors = np.abs(np.concatenate((
-            self.carry.carried(cols, ks + 1),
-            self.carry.carried(cols, ks[len(ks) - branch:] + 1, branch=True))))
-        values = np.abs(self.window[with_branch(ks, branch) + 1 - self.lo][:, cols])
-        for name, divisor, c, floor in divided:
+        errors = self.carry.carried(cols, ks + 1)
+        if branch:
+            errors = np.concatenate((errors, self.carry.carried(
+                cols, ks[len(ks) - branch:] + 1, branch=True)))
+        errors = np.abs(errors)
+        values = np.abs(self.window[(with_branch(ks, branch) + 1 - self.lo)[:, None], cols])
+        # per divisor's column and floor: whether its error is not small against it on some
+        # node, its smallest |value| where it divides, its largest
+        found = {}
+        for c, floor in {(c, floor) for _, _, c, floor in divided}:
             error, value = errors[:, cols.index(c)], values[:, cols.index(c)]
             near = (value + error >= floor)
-            if name not in self.ill and np.any((error > ILL * value) & near):
+            found[c, floor] = (bool(((error > ILL * value) & near).any()),
+                               float(value[near].min(initial=np.inf)),
+                               float(value.max(initial=0.0)))
+        for name, divisor, c, floor in divided:
+            ill, low, high = found[c, floor]
+            if ill and name not in self.ill:
                 self.ill[name] = (f"unresolved (it divides by {divisor}, whose error is not "
                                   f"small against it: over {ILL:g} of it)")
-            low, high = self.divisors.get(name, (np.inf, 0.0))
-            self.divisors[name] = (min(low, float(np.min(value[near], initial=np.inf))),
-                                   max(high, float(np.max(value, initial=0.0))))
+            before = self.divisors.get(name, (np.inf, 0.0))
+            self.divisors[name] = (min(before[0], low), max(before[1], high))
 
     def _network(self, ks: np.ndarray, h: np.ndarray, holds: dict) -> None:
         """The network's errors (pair_network.py): its recorded outputs' kept, and the
@@ -395,8 +405,8 @@ class PairRows(Stencils):
     def _rows(self, first: int, last: int) -> np.ndarray:
         """The run's rows first .. last, those before the first or past the last it has
         standing in for them (the first row; the last: node n)."""
-        rows = np.clip(np.arange(first, last + 1), self.lo, self.lo + len(self.window) - 1)
-        return self.window[rows - self.lo]
+        rows = np.arange(first - self.lo, last + 1 - self.lo)
+        return self.window[np.minimum(np.maximum(rows, 0), len(self.window) - 1)]
 
     def _keep(self, names: list[str], errors: np.ndarray) -> None:
         """The signed errors of outputs `names` (a column each) on a batch of rows."""

@@ -17,6 +17,7 @@ import numpy as np
 
 _TWIST = ("vx", "vy", "w")
 _POSE = ("x", "y", "theta")
+_EYE = np.eye(3)[None]      # a linearised step's A but for the heading's column
 
 
 def pose_error(blend, names: list[str], inst) -> "PoseError | None":
@@ -184,14 +185,16 @@ class PoseBatch:
         turned, before = self._turned(h, w, branch)
         c, s = np.cos(before), np.sin(before)
         rows = len(h)
-        a = np.broadcast_to(np.eye(3), (rows, 3, 3)).copy()
+        a = np.repeat(_EYE, rows, axis=0)
         a[:, 0, 2], a[:, 1, 2] = -(s * run[0] + c * run[1]), c * run[0] - s * run[1]
         bx, by = run[0] - true[0], run[1] - true[1]
-        made = np.column_stack((c * bx - s * by, s * bx + c * by, h * error[:, iw]))
-        c, s = np.cos(before + 0.5 * h * w), np.sin(before + 0.5 * h * w)
+        made = np.empty((rows, 3))
+        made[:, 0], made[:, 1], made[:, 2] = c * bx - s * by, s * bx + c * by, h * error[:, iw]
+        mid = before + 0.5 * h * w
+        c, s = h * np.cos(mid), h * np.sin(mid)
         b = np.zeros((rows, 3, held.shape[1]))
-        b[:, 0, ivx], b[:, 0, ivy], b[:, 1, ivx], b[:, 1, ivy] = h * c, -h * s, h * s, h * c
-        b[:, 2, iw] = h
+        b[:, 0, ivx] = b[:, 1, ivy] = c
+        b[:, 1, ivx], b[:, 0, ivy], b[:, 2, iw] = s, -s, h
         self.theta = float(turned[rows - 1 - branch])
         return a, b, made
 
@@ -240,9 +243,12 @@ def _displacement(h, v, w) -> np.ndarray:
     by its series where |phi| < 1e-6."""
     phi = w * h
     small = np.abs(phi) < 1e-6
-    turn = _series(phi) if small.all() else _turn(np.where(small, 1.0, phi))
-    if small.any() and not small.all():
-        turn = np.where(small, _series(phi), turn)
+    if not small.any():
+        turn = _turn(phi)
+    elif small.all():
+        turn = _series(phi)
+    else:
+        turn = np.where(small, _series(phi), _turn(np.where(small, 1.0, phi)))
     return h * turn * v
 
 

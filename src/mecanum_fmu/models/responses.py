@@ -24,6 +24,7 @@ _POSE = ("x", "y", "theta")
 _TWIST = ("vx", "vy", "w")
 _WHEELS = ("w1", "w2", "w3", "w4")
 _GEOMETRY = ("alpha", "L", "W", "R")
+_FLIP = np.array([1.0, -1.0])     # (a, b) -> (a, -b)
 # the |w| below which Wheel2Center reports no ICR (and 0 for its place)
 ICR_TOLERANCE = inspect.signature(instantaneous_center).parameters["tol"].default
 
@@ -83,10 +84,11 @@ def _follower(inst):
     kp, kt = _number(inst, "k_pos"), _number(inst, "k_theta")
 
     def full(ins, outs):
-        c, s = np.cos(ins[:, 2]), np.sin(ins[:, 2])
         j = np.zeros((len(ins), 3, 3))
-        j[:, 0, 0], j[:, 0, 1], j[:, 0, 2] = -kp * c, -kp * s, outs[:, 1]
-        j[:, 1, 0], j[:, 1, 1], j[:, 1, 2] = kp * s, -kp * c, -outs[:, 0]
+        j[:, 0, 0] = j[:, 1, 1] = -kp * np.cos(ins[:, 2])
+        j[:, 1, 0] = kp * np.sin(ins[:, 2])
+        j[:, 0, 1] = -j[:, 1, 0]
+        j[:, :2, 2] = outs[:, 1::-1] * _FLIP       # (vy, -vx)
         j[:, 2, 2] = -kt
         return j
     return full
@@ -108,15 +110,16 @@ def _center2wheel(inst):
     def full(ins, outs):
         if not w_max > 0.0:
             return np.broadcast_to(m, (len(ins), 4, 3))
-        j = np.broadcast_to(m, (len(ins), 4, 3)).copy()
+        j = np.empty((len(ins), 4, 3))
+        j[:] = m
         speeds = ins @ m.T
-        i = np.argmax(np.abs(speeds), axis=1)
-        peak = np.abs(speeds[np.arange(len(ins)), i])
-        over = peak > w_max
+        size = np.abs(speeds)
+        over = size.max(axis=1) > w_max       # the peak |w_i| past w_max
         if over.any():
-            s, p, sign = speeds[over], peak[over], np.sign(speeds[over, i[over]])
-            scale = np.eye(4) - np.einsum("ra,rb->rab", s * (sign / p)[:, None],
-                                          np.eye(4)[i[over]])
+            s = speeds[over]
+            i = np.argmax(size[over], axis=1)
+            p, sign = size[over, i], np.sign(s[np.arange(len(s)), i])
+            scale = np.eye(4) - np.einsum("ra,rb->rab", s * (sign / p)[:, None], np.eye(4)[i])
             j[over] = (w_max / p)[:, None, None] * scale @ m
         return j
     return full
@@ -129,16 +132,16 @@ def _wheel2center(inst):
     deviations = tuple(_number(inst, f"dR{i}") for i in range(1, 5))
     n = _matrix(lambda *a: wheel_to_center(*a[:4], *a[4:8], a[8]), 4, *geometry, deviations)
 
+    icr = np.array([-n[1], n[0]])     # d (icr_x, icr_y) / dw_i w, but for w's change
+
     def full(ins, outs):
-        rows = len(ins)
-        j = np.empty((rows, 5, 4))
+        j = np.empty((len(ins), 5, 4))
         j[:, :3] = n
-        vx, vy, w = outs[:, 0], outs[:, 1], outs[:, 2]
+        w = outs[:, 2]
         # d (icr_x, icr_y) = (-dvy / w + vy dw / w^2, dvx / w - vx dw / w^2), 0 where no ICR
-        inverse = np.where(np.abs(w) >= ICR_TOLERANCE, 1.0 / np.where(w == 0.0, 1.0, w), 0.0)
-        r = inverse[:, None]
-        j[:, 3] = r * (-n[1] + (vy * inverse)[:, None] * n[2])
-        j[:, 4] = r * (n[0] - (vx * inverse)[:, None] * n[2])
+        inverse = np.divide(1.0, w, out=np.zeros_like(w), where=np.abs(w) >= ICR_TOLERANCE)
+        lever = outs[:, 1::-1] * inverse[:, None] * _FLIP     # (vy / w, -vx / w)
+        j[:, 3:] = inverse[:, None, None] * (icr + lever[:, :, None] * n[2])
         return j
     return full
 
