@@ -95,7 +95,7 @@ class PairRows(Stencils):
             if net is not None else None
         # Jacobi's late outputs of the loop's chain: their lag's error and the carried one
         self.late = {name: c for name, c, _ in plan.lagged} if loop is not None else {}
-        self.in_chain = {name for name, _ in loop.recorded} if loop is not None else set()
+        self.late_chain = self._late_in_chain(loop)
         # the chain's recorded outputs that are not late: their names and columns
         early = [(n, c) for n, c in (loop.recorded if loop else ()) if n not in self.late]
         self.chain_recorded = ([n for n, _ in early], [c for _, c in early])
@@ -135,6 +135,13 @@ class PairRows(Stencils):
             [at[d][1] for at in self.at if d in at] or [none])) for d, c in self.cols.items()}
         return needed, [n for _, names, _ in self.lags for n in names], np.concatenate(
             [self.cols[d][at] for d, _, at in self.lags] or [none])
+
+    def _late_in_chain(self, loop) -> tuple[list, list]:
+        """Those of Jacobi's late outputs in the loop's chain: their places among late_names,
+        their columns."""
+        chain = {name for name, _ in loop.recorded} if loop is not None else set()
+        return ([i for i, n in enumerate(self.late_names) if n in chain],
+                [self.late[n] for n in self.late_names if n in chain])
 
     @property
     def may_fail(self) -> bool:
@@ -226,7 +233,7 @@ class PairRows(Stencils):
         small against it on some row, or it comes near 0 (within NEAR_ZERO of its largest
         |value|), where 1 / its square magnifies the error of one row."""
         ill = {**self.plan.unresolved, **self.ill}
-        rough = self._rough
+        rough = set(self._rough.tolist())
         for name, c, _ in self.plan.lagged:     # Jacobi's late outputs
             if c in rough:
                 ill.setdefault(name, f"unresolved (its values{NOT_SMOOTH})")
@@ -389,17 +396,15 @@ class PairRows(Stencils):
         for (name, _, _), j in zip(net.checked, self.net.checked_at):
             self.fed[name] = max(self.fed[name], float(np.max(np.abs(errors[:, j]))))
 
-    def _late_carried(self, names: list[str], nodes: np.ndarray, branch: bool = False
-                      ) -> np.ndarray | float:
-        """The error the loop carries into Jacobi's late outputs `names` at `nodes` (0 for
-        those outside the loop's chain; `branch`: the branch's nodes): the true value at node
-        j is the run's d rows later, less the error that row carries."""
-        chain = [n for n in names if n in self.in_chain]
-        if not chain:
+    def _late_carried(self, nodes: np.ndarray, branch: bool = False) -> np.ndarray | float:
+        """The error the loop carries into Jacobi's late outputs (late_names) at `nodes` (0
+        for those outside the loop's chain; `branch`: the branch's nodes): the true value at
+        node j is the run's d rows later, less the error that row carries."""
+        places, cols = self.late_chain
+        if not places:
             return 0.0
-        out = np.zeros((len(nodes), len(names)))
-        out[:, [names.index(n) for n in chain]] = self.carry.carried(
-            [self.late[n] for n in chain], nodes, branch)
+        out = np.zeros((len(nodes), len(self.late_names)))
+        out[:, places] = self.carry.carried(cols, nodes, branch)
         return out
 
     def _rows(self, first: int, last: int) -> np.ndarray:
@@ -510,15 +515,15 @@ class PairRows(Stencils):
         `last` batch the last row, against the last step's end (the branch's: branch_end)."""
         names, cols = self.late_names, self.late_cols
         true = np.concatenate([stencils[d][1][:len(ks), at] for d, _, at in self.lags], axis=1)
-        errors = self.window[ks - self.lo][:, cols] - true + self._late_carried(names, ks)
+        errors = self.window[(ks - self.lo)[:, None], cols] - true + self._late_carried(ks)
         if last:
             end = np.concatenate([stencils[d][2][[len(ks) - 1, -1]][:, at] for d, _, at
                                   in self.lags], axis=1)
             ends = self.window[[self.n - self.lo]][:, cols] - end
-            ends[:1] += self._late_carried(names, ks[-1:] + 1)
+            ends[:1] += self._late_carried(ks[-1:] + 1)
             errors = np.concatenate((errors, ends[:1]))
             if branch:
-                ends[1:] += self._late_carried(names, ks[-1:] + 1, branch=True)
+                ends[1:] += self._late_carried(ks[-1:] + 1, branch=True)
                 self.branch_end.update(zip(names, np.abs(ends[1]).tolist()))
         self._keep(names, errors)
 

@@ -58,6 +58,8 @@ class Stencils:
         for i, d in enumerate(lags):
             part, cols = slice(i * n, (i + 1) * n), cols_by_lag[d]
             out[d] = [found[part, 0][:, cols], found[part, 1][:, cols], found[part, 2][:, cols]]
+            if not self._odd:
+                continue
             s_d, m_d = s[part], m[part]
             for at in (slice(0, len(ks)), slice(len(ks), n)) if branch else (slice(None),):
                 self._odd_steps(rows[at], d, cols, (s_d[at], m_d[at]), [o[at] for o in out[d]])
@@ -81,12 +83,17 @@ class Stencils:
                           len(self.window) - 1)
         return s, m, weight_table(offsets)[key] @ self.window[rows]   # (steps, 3, columns)
 
+    @property
+    def _odd(self) -> bool:
+        """Whether some steps are odd (_odd_steps): a breakpoint inside one, a shorter last
+        step."""
+        return bool(len(self.across_k)) or abs(self.last - 1.0) > 1e-9
+
     def _odd_steps(self, ks, d, cols, stencil, out) -> None:
-        """The steps the uniform stencils do not fit: a step with a breakpoint inside (its
-        mean split between the pieces on either side), and, where the last step is shorter,
-        those whose stencil reaches its end (node n is nearer than a step)."""
-        if not len(self.across_k) and abs(self.last - 1.0) <= 1e-9:
-            return
+        """The steps the uniform stencils do not fit (where there are some, _odd): a step
+        with a breakpoint inside (its mean split between the pieces on either side), and,
+        where the last step is shorter, those whose stencil reaches its end (node n is
+        nearer than a step)."""
         s, m = stencil
         first, last = int(ks[0]), int(ks[-1])
         # (a step whose right node is past the run's last true value (Jacobi's last d steps)
