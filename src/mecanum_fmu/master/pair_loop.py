@@ -151,14 +151,17 @@ class LoopCarry:
 def _recurrence(p: np.ndarray, q: np.ndarray, start: np.ndarray) -> np.ndarray:
     """e_k+1 = p_k e_k + q_k from e_0 = start, for k = 0 .. len(p) - 1: the rows e_1 ...
     By doubling (a scan of the affine maps: after the round of offset m, map k takes e_k-2m+1
-    to e_k+1), log2 of the steps NumPy calls rather than one per step."""
+    to e_k+1), log2 of the steps NumPy calls rather than one per step. From a start of 0 (a
+    run's first batch) the maps' p only carry the q of later rounds: the last round's
+    products, which would only multiply the start, are left out."""
     p, q = p.copy(), q.copy()
-    m = 1
+    m, zero = 1, not start.any()
     while m < len(p):
         q[m:] += (p[m:] @ q[:-m, :, None])[..., 0]
-        p[m:] = p[m:] @ p[:-m]
+        if 2 * m < len(p) or not zero:
+            p[m:] = p[m:] @ p[:-m]
         m *= 2
-    return p @ start + q
+    return q if zero else p @ start + q
 
 
 def _late(values: np.ndarray) -> np.ndarray:

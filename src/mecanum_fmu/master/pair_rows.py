@@ -548,14 +548,15 @@ class PairRows(Stencils):
         if self.plan.hold == "frozen":      # Jacobi: the values of t_k, late by the lag
             return now, now - mean, end - start
         seen = np.where(self.cut[ks + 1][:, None], end, self._row(g, ks, 1))
+        if self.plan.hold == "zoh":         # the newest value: of t_k where a loop closes
+            held = np.where(g.roles == "direct", seen, now)
+            return held, held - mean, end - start
         trapezoid = 0.5 * (now + seen)
         if self.plan.hold == "quadratic":
             trapezoid = trapezoid - self._parabola(ks, now, seen, self._row(g, ks, -1),
                                                    self._row(g, ks, -2))
-        if self.plan.hold == "zoh":         # the newest value: of t_k where a loop closes
-            held = np.where(g.roles == "direct", seen, now)
-        elif self.plan.rolled_back:     # the corrector, on the predicted end: the run's
-            held = np.where(np.isin(g.roles, ("direct", "fed_back")), seen, trapezoid)
+        if self.plan.rolled_back:       # the corrector, on the predicted end: the run's
+            held = np.where((g.roles == "direct") | (g.roles == "fed_back"), seen, trapezoid)
         else:
             held = self._extrapolated(g, ks, now, np.where(g.roles == "direct", seen,
                                                            trapezoid))

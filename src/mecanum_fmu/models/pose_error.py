@@ -151,6 +151,9 @@ class PoseBatch:
 
     def __init__(self, index: list[int], inst):
         self.index, self.name = np.array(index), inst.name
+        # the twist's columns: a slice where they are side by side in order (no copy)
+        self.twist = slice(index[0], index[0] + 3) if np.all(np.diff(index) == 1) \
+            else self.index
         self.outputs = _POSE
         self.theta = float(inst.value("theta0"))      # the run's heading
         self.e, self.heading = np.zeros(2), 0.0         # run - true: position, heading
@@ -181,15 +184,18 @@ class PoseBatch:
         ivx, ivy, iw = self.index
         w = held[:, iw]
         run, true = self._displacements(h, held, error, change)
-        run, true = (run.real, run.imag), (true.real, true.imag)
         turned, before = self._turned(h, w, branch)
         c, s = np.cos(before), np.sin(before)
+        # the run's step and its error (run - true), turned by the run's heading into the
+        # world: rows (x, y) of R(before) (x, y), one per (step, error)
+        steps = np.array((run, run - true))
+        x, y = steps.real, steps.imag
+        world = (c * x - s * y, s * x + c * y)
         rows = len(h)
         a = np.repeat(_EYE, rows, axis=0)
-        a[:, 0, 2], a[:, 1, 2] = -(s * run[0] + c * run[1]), c * run[0] - s * run[1]
-        bx, by = run[0] - true[0], run[1] - true[1]
+        a[:, 0, 2], a[:, 1, 2] = -world[1][0], world[0][0]
         made = np.empty((rows, 3))
-        made[:, 0], made[:, 1], made[:, 2] = c * bx - s * by, s * bx + c * by, h * error[:, iw]
+        made[:, 0], made[:, 1], made[:, 2] = world[0][1], world[1][1], h * error[:, iw]
         mid = before + 0.5 * h * w
         c, s = h * np.cos(mid), h * np.sin(mid)
         b = np.zeros((rows, 3, held.shape[1]))
@@ -209,10 +215,10 @@ class PoseBatch:
         SE(2)) and of the truth (the true mean twist, less the frame turning within the step,
         J (w dv - dw v) h^2 / 12: docs/masters.md)."""
         both = np.empty((2, len(h), 3))                 # the run's twist, the true one
-        both[0] = held[:, self.index]
-        np.subtract(both[0], error[:, self.index], out=both[1])
-        v, w = both[..., 0] + 1j * both[..., 1], both[..., 2]
-        dv = change[:, self.index]
+        both[0] = held[:, self.twist]
+        np.subtract(both[0], error[:, self.twist], out=both[1])
+        v, w = both[..., :2].view(complex)[..., 0], both[..., 2]    # vx + i vy, w
+        dv = change[:, self.twist]
         turning = (w[1] * (dv[:, 0] + 1j * dv[:, 1]) - dv[:, 2] * v[1]) * (h * h / 12)
         moved = _displacement(h, v, w)
         return moved[0], moved[1] + 1j * turning
