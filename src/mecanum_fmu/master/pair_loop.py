@@ -47,10 +47,12 @@ class LoopCarry:
         self.depths = np.array(list(self.depth.values()))   # per place, its column's depth
         self.places = np.arange(len(self.where))
         # the starts' places and indices in the model's outputs; per FMU of the chain, its
-        # inputs' and outputs' places; the held inputs' places (_places)
+        # inputs' and outputs' places, and (_direct) its inputs' indices in the model's
+        # outputs where it reads those alone; the held inputs' places (_places)
         self.starts = (self._places([c for c, _ in loop.starts]),
                        np.array([i for _, i in loop.starts], dtype=np.intp))
-        self.chain = [(t, self._places(t.ins), self._places(t.outs)) for t in loop.chain]
+        self.chain = [(t, self._places(t.ins), self._places(t.outs),
+                       _direct(t.ins, dict(loop.starts))) for t in loop.chain]
         self.held = self._places(group.cols)
         # this batch's, on rows first .. (sensitivities): S, and (Jacobi) the time's part
         self.sens = np.zeros((1, len(self.where) + 1, self.n))
@@ -76,17 +78,19 @@ class LoopCarry:
         sens = np.zeros((len(rows), len(self.where) + 1, self.n))
         sens[:, self.starts[0], self.starts[1]] = 1.0
         times = np.zeros(sens.shape[:2]) if self.frozen else None
-        for t, ins_at, outs_at in self.chain:
+        for t, ins_at, outs_at, direct in self.chain:
             ins, outs = rows[:, t.ins], rows[:, t.outs]
-            if not self.frozen:
-                sens[:, outs_at] = t.response.jacobian(ins, outs) @ sens[:, ins_at]
-                continue
-            before = _late(ins)             # the inputs of the row before
+            before = _late(ins) if self.frozen else ins     # Jacobi: the row before's
             jac = t.response.jacobian(before, outs)
-            sens[:, outs_at] = jac @ _late(sens[:, ins_at])
-            own = outs - _late(outs) - np.einsum("rij,rj->ri", jac, before - _late(before))
-            tau_in = _late(times.take(ins_at, axis=1))     # in rows' order (einsum's sums)
-            times[:, outs_at] = own + np.einsum("rij,rj->ri", jac, tau_in)
+            if direct is not None:      # of unit sensitivities (and no time's part): J's columns
+                sens[:, outs_at[:, None], direct] = jac
+            else:
+                s_in = sens[:, ins_at]
+                sens[:, outs_at] = jac @ (_late(s_in) if self.frozen else s_in)
+            if self.frozen:
+                own = outs - _late(outs) - np.einsum("rij,rj->ri", jac, before - _late(before))
+                times[:, outs_at] = own if direct is not None else own + np.einsum(
+                    "rij,rj->ri", jac, _late(times.take(ins_at, axis=1)))   # rows' order
         return sens, times
 
     def carried(self, cols: list[int], nodes: np.ndarray, branch: bool = False) -> np.ndarray:
@@ -162,6 +166,15 @@ def _recurrence(p: np.ndarray, q: np.ndarray, start: np.ndarray) -> np.ndarray:
             p[m:] = p[m:] @ p[:-m]
         m *= 2
     return q if zero else p @ start + q
+
+
+def _direct(ins, starts: dict) -> np.ndarray | None:
+    """The indices in the model's outputs of an FMU's inputs `ins` where it reads those alone,
+    each once (its sensitivities then are its Jacobian's columns), else None."""
+    index = [starts.get(c) for c in ins]
+    if None in index or len(set(index)) < len(index):
+        return None
+    return np.array(index, dtype=np.intp)
 
 
 def _late(values: np.ndarray) -> np.ndarray:

@@ -79,8 +79,8 @@ class Stencils:
         s = np.minimum(np.maximum(ks - 1, a), b - m + 1)
         offsets = 5 + self.lag
         key = (m - 1) * offsets + np.minimum(ks - s, offsets - 1)
-        rows = np.minimum(np.maximum(s[:, None] + FOUR + np.reshape(d, (-1, 1)) - self.lo, 0),
-                          len(self.window) - 1)
+        first = s + d - self.lo         # the stencil's first node's row in the window
+        rows = np.minimum(np.maximum(first[:, None] + FOUR, 0), len(self.window) - 1)
         return s, m, weight_table(offsets)[key] @ self.window[rows]   # (steps, 3, columns)
 
     @property

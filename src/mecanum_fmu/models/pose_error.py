@@ -254,7 +254,8 @@ def _displacement(h, v, w) -> np.ndarray:
     elif small.all():
         turn = _series(phi)
     else:
-        turn = np.where(small, _series(phi), _turn(np.where(small, 1.0, phi)))
+        turn = _turn(np.where(small, 1.0, phi))
+        turn[small] = _series(phi[small])
     return h * turn * v
 
 
