@@ -165,7 +165,7 @@ class PairRows(Stencils):
         tick = _time.perf_counter()
         new = rows[:, self.plan.slots]
         self.window = np.concatenate((self.window, new))
-        np.maximum(self.size, np.max(np.abs(new), axis=0, initial=0.0), out=self.size)
+        np.maximum(self.size, np.abs(new, out=new).max(axis=0, initial=0.0), out=self.size)
         if self.roughness is not None:
             self.roughness.tally(self.window, self.lo, first, len(rows))
         if first + len(rows) <= self.n:     # not the last chunk (finish works that out)

@@ -14,8 +14,9 @@ from .stencils import FOUR, means, values, weight_table
 
 def with_branch(a: np.ndarray, branch: int) -> np.ndarray:
     """The per-step values `a` with their last `branch` again after them: the rows of a batch
-    whose last steps are worked out a second time (PairRows._steps' branch)."""
-    return np.concatenate((a, a[len(a) - branch:]))
+    whose last steps are worked out a second time (PairRows._steps' branch); `a` itself
+    without one (its readers do not write to it)."""
+    return np.concatenate((a, a[len(a) - branch:])) if branch else a
 
 
 class Stencils:

@@ -82,14 +82,15 @@ def _follower(inst):
     """PathFollower (blocks/follower.follow): body = R(theta)^T (r' + k_pos (r - p)), w =
     theta_r' + k_theta wrap(theta_r - theta); d body / d theta = (vy, -vx) of the output."""
     kp, kt = _number(inst, "k_pos"), _number(inst, "k_theta")
+    still = np.zeros((1, 3, 3))     # the entries that do not move: 0, and d w / d theta
+    still[0, 2, 2] = -kt
 
     def full(ins, outs):
-        j = np.zeros((len(ins), 3, 3))
+        j = still.repeat(len(ins), axis=0)
         j[:, 0, 0] = j[:, 1, 1] = -kp * np.cos(ins[:, 2])
         j[:, 1, 0] = kp * np.sin(ins[:, 2])
         j[:, 0, 1] = -j[:, 1, 0]
         j[:, :2, 2] = outs[:, 1::-1] * _FLIP       # (vy, -vx)
-        j[:, 2, 2] = -kt
         return j
     return full
 
@@ -110,8 +111,7 @@ def _center2wheel(inst):
     def full(ins, outs):
         if not w_max > 0.0:
             return np.broadcast_to(m, (len(ins), 4, 3))
-        j = np.empty((len(ins), 4, 3))
-        j[:] = m
+        j = m[None].repeat(len(ins), axis=0)
         speeds = ins @ m.T
         size = np.abs(speeds)
         over = size.max(axis=1) > w_max       # the peak |w_i| past w_max
@@ -133,6 +133,7 @@ def _wheel2center(inst):
     n = _matrix(lambda *a: wheel_to_center(*a[:4], *a[4:8], a[8]), 4, *geometry, deviations)
 
     icr = np.array([-n[1], n[0]])     # d (icr_x, icr_y) / dw_i w, but for w's change
+    turn = np.array([n[2], -n[2]])    # w's change's: times (vy, vx) / w
 
     def full(ins, outs):
         j = np.empty((len(ins), 5, 4))
@@ -140,8 +141,8 @@ def _wheel2center(inst):
         w = outs[:, 2]
         # d (icr_x, icr_y) = (-dvy / w + vy dw / w^2, dvx / w - vx dw / w^2), 0 where no ICR
         inverse = np.divide(1.0, w, out=np.zeros_like(w), where=np.abs(w) >= ICR_TOLERANCE)
-        lever = outs[:, 1::-1] * inverse[:, None] * _FLIP     # (vy / w, -vx / w)
-        j[:, 3:] = inverse[:, None, None] * (icr + lever[:, :, None] * n[2])
+        lever = outs[:, 1::-1] * inverse[:, None]       # (vy / w, vx / w)
+        np.multiply(inverse[:, None, None], icr + lever[:, :, None] * turn, out=j[:, 3:])
         return j
     return full
 
