@@ -46,6 +46,7 @@ class LoopCarry:
         self.where = {c: i for i, c in enumerate(self.depth)}    # a column's place in table
         self.depths = np.array(list(self.depth.values()))   # per place, its column's depth
         self.places = np.arange(len(self.where))
+        self.at: dict[tuple, np.ndarray] = {}   # carried columns' places (_at)
         # the starts' places and indices in the model's outputs; per FMU of the chain, its
         # inputs' and outputs' places, and (_direct) its inputs' indices in the model's
         # outputs where it reads those alone; the held inputs' places (_places)
@@ -98,7 +99,14 @@ class LoopCarry:
         through the last one's end; `branch`: its branch's nodes), (nodes, cols)."""
         table, first = (self.branch_table, self.branch_nodes) if branch else \
             (self.table, self.nodes)
-        return table[(nodes - first)[:, None], [self.where[c] for c in cols]]
+        return table[(nodes - first)[:, None], self._at(cols)]
+
+    def _at(self, cols: list[int]) -> np.ndarray:
+        """The places of carried columns `cols` in table (worked out once per list)."""
+        key = tuple(cols)
+        if key not in self.at:
+            self.at[key] = np.array([self.where[c] for c in cols], dtype=np.intp)
+        return self.at[key]
 
     def _table(self, nodes: np.ndarray, at_nodes: np.ndarray) -> np.ndarray:
         """Every carried column's error at `nodes`, (nodes, columns in self.where's order): S

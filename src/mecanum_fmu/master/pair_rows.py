@@ -403,8 +403,11 @@ class PairRows(Stencils):
         places, cols = self.late_chain
         if not places:
             return 0.0
+        found = self.carry.carried(cols, nodes, branch)
+        if len(places) == len(self.late_names):     # every one of them, in order
+            return found
         out = np.zeros((len(nodes), len(self.late_names)))
-        out[:, places] = self.carry.carried(cols, nodes, branch)
+        out[:, places] = found
         return out
 
     def _rows(self, first: int, last: int) -> np.ndarray:

@@ -53,8 +53,9 @@ class Stencils:
         if not lags:
             return {}
         s, m, found = self._uniform(rows, lags[0], three) if len(lags) == 1 else \
-            self._uniform(np.tile(rows, len(lags)), np.repeat(np.array(lags, dtype=np.int64), n),
-                          np.tile(three, len(lags)))
+            self._uniform(np.concatenate((rows,) * len(lags)),
+                          np.repeat(np.array(lags, dtype=np.int64), n),
+                          np.concatenate((three,) * len(lags)))
         out = {}
         for i, d in enumerate(lags):
             part, cols = slice(i * n, (i + 1) * n), cols_by_lag[d]
