@@ -166,14 +166,14 @@ def _recurrence(p: np.ndarray, q: np.ndarray, start: np.ndarray) -> np.ndarray:
     to e_k+1), log2 of the steps NumPy calls rather than one per step. From a start of 0 (a
     run's first batch) the maps' p only carry the q of later rounds: the last round's
     products, which would only multiply the start, are left out."""
-    p, q = p.copy(), q.copy()
+    p, q = p.copy(), q[:, :, None].copy()     # q as columns, for the products
     m, zero = 1, not start.any()
     while m < len(p):
-        q[m:] += (p[m:] @ q[:-m, :, None])[..., 0]
+        q[m:] += p[m:] @ q[:-m]
         if 2 * m < len(p) or not zero:
             p[m:] = p[m:] @ p[:-m]
         m *= 2
-    return q if zero else p @ start + q
+    return q[..., 0] if zero else p @ start + q[..., 0]
 
 
 def _direct(ins, starts: dict) -> np.ndarray | None:
