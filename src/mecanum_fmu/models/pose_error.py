@@ -18,6 +18,9 @@ import numpy as np
 _TWIST = ("vx", "vy", "w")
 _POSE = ("x", "y", "theta")
 _EYE = np.eye(3)[None]      # a linearised step's A but for the heading's column
+# at most this many small phi (a run's first steps from rest) take their series in Python
+# floats, one by one: a NumPy call costs more than a handful of values
+_FEW = 8
 
 
 def pose_error(blend, names: list[str], inst) -> "PoseError | None":
@@ -255,11 +258,13 @@ def _displacement(h, v, w) -> np.ndarray:
         turn = _series(phi)
     else:
         turn = _turn(np.where(small, 1.0, phi))
-        turn[small] = _series(phi[small])
+        few = phi[small]
+        turn[small] = _series(few) if len(few) > _FEW else [_series(x) for x in few.tolist()]
     return h * turn * v
 
 
-def _series(phi: np.ndarray) -> np.ndarray:
+def _series(phi):
+    """(e^(i phi) - 1) / (i phi) by its series, of an array or a float (the same arithmetic)."""
     phi2 = phi * phi
     return (1.0 - phi2 / 6.0 + phi2 * phi2 / 120.0) + 1j * (phi / 2.0 - phi * phi2 / 24.0)
 
