@@ -78,10 +78,10 @@ class Stencils:
             piece = np.searchsorted(pc.starts, ks, side="right") - 1
             a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)
         m = np.minimum(np.maximum(b - a + 1, 1), np.where(three, 3, 4))
-        s = np.minimum(np.maximum(ks - 1, a), b - m + 1)
+        s = np.minimum(np.maximum(ks - 1, a), b + 1 - m)
         offsets = 5 + self.lag
         key = (m - 1) * offsets + np.minimum(ks - s, offsets - 1)
-        first = s + d - self.lo         # the stencil's first node's row in the window
+        first = s + (d - self.lo)       # the stencil's first node's row in the window
         rows = np.minimum(np.maximum(first[:, None] + FOUR, 0), len(self.window) - 1)
         return s, m, weight_table(offsets)[key] @ self.window[rows]   # (steps, 3, columns)
 
