@@ -450,11 +450,7 @@ class PairRows(Stencils):
             if self.net is not None:
                 holds[i] = (held, error, change)
                 continue
-            if self.carry is not None and i == self.plan.loop.origin:
-                signed = self._carried(g, ks, h, (held, error, change))
-            else:
-                signed = g.model.steps(h, held, error, change)
-            self._kept(i, signed)
+            self._kept(i, self._signed(i, g, ks, h, (held, error, change)))
         if self.net is not None:
             self._network(ks, h, holds)
         if self.lags:
@@ -465,6 +461,15 @@ class PairRows(Stencils):
         self.k = k_hi + 1
         drop = max(0, self.k - 4 - self.lo)
         self.window, self.lo = self.window[drop:], self.lo + drop
+
+    def _signed(self, i: int, g: Group, ks: np.ndarray, h: np.ndarray, hold: tuple,
+                branch: int = 0) -> np.ndarray:
+        """Group i's signed errors after each step (with a `branch`, its rows after them):
+        its model's (a branch only to a model that takes one: _branchable), or around the
+        loop it starts (_carried)."""
+        if self.carry is not None and i == self.plan.loop.origin:
+            return self._carried(g, ks, h, hold, branch)
+        return g.model.steps(h, *hold, branch=branch) if branch else g.model.steps(h, *hold)
 
     def _kept(self, i: int, signed: np.ndarray) -> None:
         """Keep group i's signed errors after each step: its covered outputs', those other
@@ -482,10 +487,7 @@ class PairRows(Stencils):
         if g.model is None:
             self._note_moved(i, error[:len(ks)])
             return
-        if self.carry is not None and i == self.plan.loop.origin:
-            signed = self._carried(g, ks, with_branch(h, branch), (held, error, change), branch)
-        else:
-            signed = g.model.steps(with_branch(h, branch), held, error, change, branch=branch)
+        signed = self._signed(i, g, ks, with_branch(h, branch), (held, error, change), branch)
         self._kept(i, signed[:len(ks)])
         names, index = self.covers[i]
         self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))

@@ -32,6 +32,7 @@ import time as _time
 
 import numpy as np
 
+from .pair_stencils import with_branch
 from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
@@ -136,8 +137,7 @@ class ProbedModel:
         before them again) in runs with one probe (the last made at or before each) and one
         step length: (rows, the probe's index in `found`)."""
         at = [f[0] for f in self.found]
-        ks = k + np.arange(len(h))
-        ks[len(h) - branch:] -= branch
+        ks = with_branch(k + np.arange(len(h) - branch), branch)
         which = np.maximum(np.searchsorted(at, ks, side="right") - 1, 0)
         return _segments(which, h)
 
