@@ -367,6 +367,36 @@ def test_an_fmu_written_again_within_one_clock_tick_is_extracted_anew(tmp_path):
     assert (Path(second) / "resources" / "a.txt").read_bytes() == b"two"
 
 
+def test_this_process_leaves_an_fmus_bundled_python_packed_and_runs_it(tmp_path, built_fmus):
+    """A Python host never opens the Python an FMU of ours carries (the loader uses the host's):
+    its libpython and standard library stay in the archive, the rest is unpacked, and the FMU
+    runs from there. Another FMU's resources/python/ (no MANIFEST of ours) is unpacked whole."""
+    import zipfile
+    from mecanum_fmu.storage import zip_bytes
+    fmu = tmp_path / "PoseIntegrator.fmu"
+    shutil.copyfile(built_fmus["PoseIntegrator"], fmu)
+    carried = set(zipfile.ZipFile(fmu).namelist())
+    assert {"resources/python/stdlib.zip", "binaries/linux64/libpython3.11.so.1.0"} <= carried
+    folder = Path(master.RUNTIME.extracted(fmu))
+    unpacked = {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
+    assert unpacked == {n for n in carried if not n.startswith("resources/python/lib")
+                        and "/libpython" not in n and n != "resources/python/stdlib.zip"}
+    scenario = write_scenario(tmp_path, "pose", """\
+name: pose
+experiment: {start_time: 0.0, stop_time: 1.0, step_size: 0.1}
+components:
+  pose: {fmu: PoseIntegrator.fmu, parameters: {x0: 0.5}}
+outputs: [pose.x]
+""")
+    graph = runner.prepare(scenario, estimate="none")
+    assert master.simulate(graph, graph.scenario.experiment)["pose.x"][-1] == 0.5
+    other = tmp_path / "Other.fmu"
+    other.write_bytes(zip_bytes({"resources/python/stdlib.zip": b"theirs",
+                                 "binaries/linux64/libpython3.so": b"theirs too"}))
+    assert sorted(p.name for p in Path(master.RUNTIME.extracted(other)).rglob("*")
+                  if p.is_file()) == ["libpython3.so", "stdlib.zip"]
+
+
 def test_a_rebuilt_fmu_at_the_same_path_is_extracted_anew(tmp_path, built_fmus):
     """The extraction is keyed by the FMU's content; its hash is kept per file (inode, size,
     modification time), so a file written again at the same path is hashed and unpacked

@@ -16,6 +16,7 @@ import shutil
 import tempfile
 import zipfile
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
 
@@ -143,14 +144,17 @@ def extract_file(zf: zipfile.ZipFile, info: zipfile.ZipInfo, target: Path,
     return target
 
 
-def extract_all(path: Path | str, prefix: str) -> str:
-    """Extract the archive at path into a new temporary folder and return it; on any failure
-    the folder is removed and ArchiveError raised."""
+def extract_all(path: Path | str, prefix: str,
+                leave: Callable[[list[str]], set[str]] | None = None) -> str:
+    """Extract the archive at path into a new temporary folder and return it, but the members
+    leave(all names) names; on any failure the folder is removed and ArchiveError raised."""
     folder = tempfile.mkdtemp(prefix=prefix)
     try:
         with zipfile.ZipFile(path) as zf:
             total = 0
-            for info in checked_members(zf):
+            members = checked_members(zf)
+            left = leave([i.filename for i in members]) if leave else set()
+            for info in (i for i in members if i.filename not in left):
                 target = Path(folder, *info.filename.rstrip("/").split("/"))
                 if info.filename.endswith("/"):
                     target.mkdir(parents=True, exist_ok=True)

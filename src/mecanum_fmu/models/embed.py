@@ -40,14 +40,13 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..bundle import HOME, MANIFEST
 from ..storage import cache_root, zip_bytes
 from .link import BINARY_DIR, binary_needs, find_libpython
 
 LOADER_SOURCE = Path(__file__).resolve().parent / "loader" / "loader.c"
 BINARY_DIR3 = "binaries/x86_64-linux/"     # FMI 3.0's platform folder
 REAL_SUFFIX = ".pythonfmu.so"           # the loader's REAL_SUFFIX
-HOME = "resources/python/"
-MANIFEST = HOME + "MANIFEST"            # the loader's MANIFEST
 # The libraries an extension module may need and still be bundled: glibc's own, and zlib's
 # libz.so.1 (binascii needs it; a "required" package on Debian/Ubuntu, in every base image).
 TARGET_LIBS = {"libc.so.6", "libm.so.6", "libpthread.so.0", "libdl.so.2", "librt.so.1",
