@@ -66,6 +66,20 @@ def test_the_model_is_the_sum_it_stands_for_in_any_batches():
     assert np.allclose(parts, want, rtol=1e-12, atol=1e-14)
 
 
+def test_the_loop_and_lfilter_carry_the_same_bits(monkeypatch):
+    """Short batches are carried by a loop (no scipy.signal import, 1.6 s), long ones by
+    lfilter: the same recursion, the same floating-point operations, so the same bits."""
+    from mecanum_fmu.master import probe
+    rng = np.random.default_rng(3)
+    found = [_probe(0, [0.09, 0.02], [0.08, 0.03], [0.9, -0.4]),
+             _probe(30, [0.1, 0.01], [0.07, 0.01], [1.02, 0.0])]
+    h, error, change = np.full(80, 0.1), rng.normal(size=(80, 2)), rng.normal(size=(80, 2))
+    looped = _model(found).steps(h, None, error, change)
+    monkeypatch.setattr(probe, "LOOP_MAX", 0)
+    filtered = _model(found).steps(h, None, error, change)
+    assert np.array_equal(looped, filtered) and np.abs(looped).max() > 0.1
+
+
 def test_a_first_order_response_fits_and_two_integrators_do_not():
     h, r = 0.1, np.exp(-2.0 * 0.1)
     g = np.array([(1 - r) / 2 * r ** n for n in range(4)]).reshape(4, 1, 1)   # a lag
