@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import ctypes
 import math
-from itertools import accumulate
 import time as _time
+from itertools import accumulate
 
 import numpy as np
 
