@@ -30,7 +30,7 @@ from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
 from .probe import prober
 from .recorder import Recorder, step_count
-from .stepping import NonFinite, StepFailure, check_finite, initialise, step_all
+from .stepping import NonFinite, StepFailure, check_finite, initialise, settled_end, step_all
 
 __all__ = ["simulate", "estimate_error", "release_instances", "RUNTIME"]
 
@@ -78,7 +78,7 @@ def simulate(graph: Graph, experiment: Experiment,
         _run_loop(recorder, ctrl_c, buffers, stepper)
         results = recorder.results(True)
         if with_estimate:
-            found = pair.finish() if isinstance(pair, PairRows) else pair
+            found = _finish(pair, running, graph, buffers)
             if recorder.probe is not None:      # its probes ran inside the stepping loop
                 found["seconds"] += recorder.probe.seconds
                 found["probe_seconds"] = recorder.probe.seconds
@@ -94,6 +94,22 @@ def simulate(graph: Graph, experiment: Experiment,
             results.extra["error_estimate"] = estimate_of(counts["names"], results, counts)
             results.extra["passes"] = counts["passes"]
         return results
+
+
+def _finish(pair, running: list[RunningInstance], graph: Graph, buffers: Buffers):
+    """The pair's finish() (or why there is none); under Jacobi on a chain, with the late
+    outputs' values at the last node read after the run first (stepping.settled_end,
+    PairRows.settle_end; in the estimate's time): the end is then not extrapolated past the
+    rows, and the pass is a plain one."""
+    if not isinstance(pair, PairRows):
+        return pair
+    if pair.wants_end:
+        tick = _time.perf_counter()
+        settled = settled_end(running, graph, buffers.real)
+        if settled is not None:
+            pair.settle_end(settled[pair.plan.slots])
+        pair.seconds += _time.perf_counter() - tick
+    return pair.finish()
 
 
 def _adaptive_holds(how: Master, graph: Graph) -> AdaptiveHolds | None:

@@ -12,6 +12,7 @@ chunk's steps of them.
 from __future__ import annotations
 
 import copy
+import functools
 import time as _time
 
 import numpy as np
@@ -25,6 +26,7 @@ from .pair_network import NetworkCarry
 from .pair_rough import ROUGH, Roughness, whole_windows
 from .probe import ProbedModel, ProbedResponse
 from .pair_stencils import Stencils, with_branch
+from .stencils import values
 
 # a carried error over this share of the value an output divides by: its linearisation fails
 ILL = 0.1
@@ -63,6 +65,13 @@ def _columns(plan: PairPlan) -> tuple[dict, list, list]:
     lags = [(d, [n for n, _ in pairs], np.array([c for _, c in pairs]))
             for d, pairs in by_lag.items()]
     return {d: np.array(c, dtype=np.intp) for d, c in cols.items()}, at, lags
+
+
+@functools.lru_cache(maxsize=None)
+def _gap(d: int) -> np.ndarray:
+    """The weights of the nodes n-d-2, n-d-1, n-d and n for the nodes between (n-d+1 ..
+    n-1): the cubic through them (PairRows.settle_end)."""
+    return values((-d - 2.0, -d - 1.0, -float(d), 0.0), np.arange(1 - d, 0, dtype=float))
 
 
 class PairRows(Stencils):
@@ -107,6 +116,7 @@ class PairRows(Stencils):
         self.size = np.zeros(len(plan.slots))
         self.seconds = 0.0
         self.tail = n_steps     # from this step on, the stencils' nodes are 3 (else 4)
+        self.ended = False      # the late outputs' nodes up to n in the window (settle_end)
         self.branch_end: dict[str, float] = {}      # Jacobi's end with the parabola
         # the nodes a step ends on a jump at (the master cuts it: it sees the left value)
         self.cut = np.zeros(n_steps + 2, dtype=bool)
@@ -172,13 +182,49 @@ class PairRows(Stencils):
             self._steps(min(self.n - 1, self.lo + len(self.window) - 1 - self.reach))
         self.seconds += _time.perf_counter() - tick
 
+    @property
+    def wants_end(self) -> bool:
+        """Whether the run's settled end would tell late outputs' nodes (settle_end): under
+        Jacobi, where the rows do not already tell everything (the tables, a still run), on
+        a chain, not around a loop or a network. Row j + d stands for node j, while an FMU
+        whose output moves with time by itself made that row at t_j+1: its value settled
+        at t_n is no row's, and the cubic through both goes astray. Around the loops that
+        FMU is the PathFollower (the figure eight's ends at 2x and 4x came out 3.8x and 12x
+        off); on the bundled chains only sources move with time, and they are not late (a
+        third-party FMU in a chain that did would be read so too)."""
+        return bool(self.lag) and not self.failed and self.known is None \
+            and self.carry is None and self.net is None and not self._still()
+
+    def settle_end(self, real: np.ndarray) -> None:
+        """Under Jacobi, the pair's columns after the run with every FMU set its sources'
+        newest values (stepping.settled_end): a late column's value there is its true value
+        at node n, which its rows would show d rows later. Its nodes between (a lag over 1)
+        are the cubic through that and the three before. The window gets them as rows past
+        n, and the stencils read the late columns up to node n instead of extrapolating past
+        node n - d. Left alone where a breakpoint falls among those nodes or a value is not
+        finite."""
+        start = max(0, self.n - self.lag - 3)
+        if not self.wants_end or self.lo > start or self.pieces.starts[-1] > start \
+                or (self.across_k >= start).any() or not np.isfinite(real).all():
+            return
+        extra = np.repeat(self.window[-1:], self.lag, axis=0)
+        rows = self.window[self.n - 2 - self.lo:self.n + 1 - self.lo]   # nodes n-d-2 .. n-d
+        for d, cols in self.cols.items():
+            if d:
+                extra[d - 1, cols] = real[cols]
+                if d > 1:
+                    extra[:d - 1, cols] = _gap(d) @ np.vstack((rows[:, cols], real[cols]))
+        self.window = np.concatenate((self.window, extra))
+        self.ended = True
+
     def finish(self) -> dict:
         """results.extra["pair"]: per output the largest |error| and the end's, the seconds
         it took, and why the estimate falls back to Richardson (None: it does not). Under
-        Jacobi the last steps' true inputs lie past the run's values (node j is row j + d)
-        and are extrapolated: the end is worked out with the cubic and with the parabola
-        there (the estimate's third value per output; estimate.py words an end the two do not
-        agree on within half of it as unresolved)."""
+        Jacobi the last steps' true inputs lie past the run's values (node j is row j + d):
+        read after the run on a chain (settle_end), else extrapolated, the end worked out
+        with the cubic and with the parabola there (the estimate's third value per output;
+        estimate.py words an end the two do not agree on within half of it as
+        unresolved)."""
         tick = _time.perf_counter()
         parabola = self._rest()
         self.seconds += _time.perf_counter() - tick
@@ -202,8 +248,8 @@ class PairRows(Stencils):
             self.k = self.n     # every error is 0: nothing to work out
         if self.failed or self.k >= self.n:
             return self.end
-        if not self.lag or (self.known and self.known.told()):
-            self._steps(self.n - 1)
+        if not self.lag or (self.known and self.known.told()) or self.ended:
+            self._steps(self.n - 1)     # (a settled end: nothing extrapolated past the rows)
             return self.end
         if self._branchable:    # the parabola's steps a branch of the same pass
             self._steps(self.n - 1, branch=min(self.reach + 1, self.n - self.k))

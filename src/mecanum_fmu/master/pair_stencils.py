@@ -73,10 +73,10 @@ class Stencils:
         from the uniform weights."""
         pc = self.pieces
         if len(pc.starts) == 1:     # one smooth piece
-            a, b = pc.starts[0], np.minimum(pc.ends[0], self.n - d)
+            a, b = pc.starts[0], np.minimum(pc.ends[0], self._told(d))
         else:
             piece = np.searchsorted(pc.starts, ks, side="right") - 1
-            a, b = pc.starts[piece], np.minimum(pc.ends[piece], self.n - d)
+            a, b = pc.starts[piece], np.minimum(pc.ends[piece], self._told(d))
         m = np.minimum(np.maximum(b - a + 1, 1), np.where(three, 3, 4))
         s = np.minimum(np.maximum(ks - 1, a), b + 1 - m)
         offsets = 5 + self.lag
@@ -84,6 +84,11 @@ class Stencils:
         first = s + (d - self.lo)       # the stencil's first node's row in the window
         rows = np.minimum(np.maximum(first[:, None] + FOUR, 0), len(self.window) - 1)
         return s, m, weight_table(offsets)[key] @ self.window[rows]   # (steps, 3, columns)
+
+    def _told(self, d) -> int:
+        """The last node whose true value the window holds for values late by d rows: n - d,
+        or n where the run's end was settled (PairRows.settle_end)."""
+        return self.n if self.ended else self.n - d
 
     @property
     def _odd(self) -> bool:
@@ -100,7 +105,7 @@ class Stencils:
         first, last = int(ks[0]), int(ks[-1])
         # (a step whose right node is past the run's last true value (Jacobi's last d steps)
         # keeps the left piece's polynomial)
-        lo, hi = np.searchsorted(self.across_k, [first, min(last, self.n - d - 1) + 1])
+        lo, hi = np.searchsorted(self.across_k, [first, min(last, self._told(d) - 1) + 1])
         if hi > lo:
             jump = self.across_jump[lo:hi]
             self._across(self.across_k[lo:hi][jump], self.across_f[lo:hi][jump], first, d,
@@ -125,7 +130,7 @@ class Stencils:
         pc = self.pieces
         a = pc.starts[np.searchsorted(pc.starts, ks, side="right") - 1]
         right = np.searchsorted(pc.starts, ks + 1, side="right") - 1
-        return a, np.minimum(pc.ends[right], self.n - d)
+        return a, np.minimum(pc.ends[right], self._told(d))
 
     def _kinked(self, ks, fs, first: int, d: int, cols, out: list) -> None:
         """Steps with a kink at fraction f inside (the value is continuous there): the mean

@@ -53,6 +53,52 @@ def initialise(running: list[RunningInstance], graph: Graph, start: float, stop:
             r.call("get", c_get(r.component, vrs, n, pointer))
 
 
+def settled_end(running: list[RunningInstance], graph: Graph, real: np.ndarray
+                ) -> np.ndarray | None:
+    """After the run's last step: the links walked in dependency order once more, each FMU
+    set its sources' newest values (no doStep), and every output read again, as initialise
+    does at t0. An output with direct feedthrough then shows its value for inputs of the
+    last time (FMI 2.0 lets a master read it so, as stepping.settle does after a sample),
+    which under Jacobi its rows reach only steps later. The Real buffer after it (a copy),
+    the run's own `real` left as it was; None where a call fails (that FMU is marked)."""
+    by_name, saved = {r.name: r for r in running}, real.copy()
+    try:
+        for r in running:       # in step order: only FMUs whose outputs their inputs move
+            if any(u.dependencies != [] for u in r.inst.model.outputs):
+                _settle_one(r, [l for l in graph.links if l.target.ref.instance == r.name],
+                            by_name)
+                for c_get, vrs, n, pointer in r.reads:
+                    r.call("get", c_get(r.component, vrs, n, pointer))
+        return real.copy()
+    except FmuCallError as err:
+        err.running.mark_failed(err.status)
+        return None
+    finally:
+        real[:] = saved
+
+
+def _settle_one(target: RunningInstance, links: list, by_name: dict) -> None:
+    """Set target's linked inputs to their sources' values now: the Reals in one call, read
+    by one call per source. Raises FmuCallError."""
+    reals = [l for l in links if l.source.type == l.target.type == "Real"]
+    for link in (l for l in links if l not in reals):
+        source, value = by_name[link.source.ref.instance], []
+        _guarded(source, lambda: value.append(source.get_one(link.source)))
+        _guarded(target, lambda: target.set_one(link.target, value[0]))
+    if not reals:
+        return
+    values = (ctypes.c_double * len(reals))()
+    for name in dict.fromkeys(l.source.ref.instance for l in reals):
+        mine = [i for i, l in enumerate(reals) if l.source.ref.instance == name]
+        got, source = (ctypes.c_double * len(mine))(), by_name[name]
+        vrs = (ctypes.c_uint * len(mine))(*(reals[i].source.vr for i in mine))
+        source.call("get", source.c_get["Real"](source.component, vrs, len(mine), got))
+        for i, v in zip(mine, got):
+            values[i] = v
+    vrs = (ctypes.c_uint * len(reals))(*(l.target.vr for l in reals))
+    target.call("set", target.c_set["Real"](target.component, vrs, len(reals), values))
+
+
 class NonFinite(Exception):
     """The Real buffer holds NaN or an infinity after the step that ended at `time`."""
 
