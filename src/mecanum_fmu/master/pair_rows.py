@@ -201,11 +201,12 @@ class PairRows(Stencils):
         at node n, which its rows would show d rows later. Its nodes between (a lag over 1)
         are the cubic through that and the three before. The window gets them as rows past
         n, and the stencils read the late columns up to node n instead of extrapolating past
-        node n - d. Left alone where a breakpoint falls among those nodes or a value is not
-        finite."""
+        node n - d. Left alone where a breakpoint falls among those nodes, a value is not
+        finite, or the read looks stale (_stale)."""
         start = max(0, self.n - self.lag - 3)
         if not self.wants_end or self.lo > start or self.pieces.starts[-1] > start \
-                or (self.across_k >= start).any() or not np.isfinite(real).all():
+                or (self.across_k >= start).any() or not np.isfinite(real).all() \
+                or self._stale(real):
             return
         extra = np.repeat(self.window[-1:], self.lag, axis=0)
         rows = self.window[self.n - 2 - self.lo:self.n + 1 - self.lo]   # nodes n-d-2 .. n-d
@@ -216,6 +217,14 @@ class PairRows(Stencils):
                     extra[:d - 1, cols] = _gap(d) @ np.vstack((rows[:, cols], real[cols]))
         self.window = np.concatenate((self.window, extra))
         self.ended = True
+
+    def _stale(self, real: np.ndarray) -> bool:
+        """Whether a late column moved on the last step but its read is its last row to the
+        bit: an FMU that works its output out in its doStep only (against FMI 2.0: an input
+        set after the step does not move it), whose read would pass the row for node n."""
+        now, before = self.window[self.n - self.lo], self.window[self.n - 1 - self.lo]
+        return any(((real[c] == now[c]) & (now[c] != before[c])).any()
+                   for d, c in self.cols.items() if d)
 
     def finish(self) -> dict:
         """results.extra["pair"]: per output the largest |error| and the end's, the seconds

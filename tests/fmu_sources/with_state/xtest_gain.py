@@ -1,6 +1,7 @@
 """Test FMU (third-party style), without a state: a proportional controller, u = kp e + cube
 e^3, e = r - y (linear where cube = 0, the default), its output computed from its inputs
-whenever it is read (direct feedthrough)."""
+whenever it is read (direct feedthrough); with lazy = 1, only in its doStep, as some
+exporters do against FMI 2.0 (an input set after the step does not move it)."""
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 
@@ -10,8 +11,9 @@ class XtestGain(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.kp, self.cube, self.r, self.y = 1.0, 0.0, 0.0, 0.0
-        for name in ("kp", "cube"):
+        self.kp, self.cube, self.lazy, self.r, self.y = 1.0, 0.0, 0.0, 0.0, 0.0
+        self._stepped = 0.0
+        for name in ("kp", "cube", "lazy"):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter,
                                         variability=Fmi2Variability.fixed))
         self.register_variable(Real("r", causality=Fmi2Causality.input,
@@ -22,9 +24,13 @@ class XtestGain(Fmi2Slave):
                                     variability=Fmi2Variability.continuous,
                                     getter=self._u))
 
-    def _u(self):
+    def _law(self):
         e = self.r - self.y
         return self.kp * e + self.cube * e ** 3
 
+    def _u(self):
+        return self._stepped if self.lazy else self._law()
+
     def do_step(self, current_time, step_size):
+        self._stepped = self._law()
         return True
