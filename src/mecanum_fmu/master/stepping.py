@@ -55,12 +55,13 @@ def initialise(running: list[RunningInstance], graph: Graph, start: float, stop:
 
 def settled_end(running: list[RunningInstance], graph: Graph, real: np.ndarray
                 ) -> np.ndarray | None:
-    """After the run's last step: the links walked in dependency order once more, each FMU
-    set its sources' newest values (no doStep), and every output read again, as initialise
-    does at t0. An output with direct feedthrough then shows its value for inputs of the
-    last time (FMI 2.0 lets a master read it so, as stepping.settle does after a sample),
-    which under Jacobi its rows reach only steps later. The Real buffer after it (a copy),
-    the run's own `real` left as it was; None where a call fails (that FMU is marked)."""
+    """After the run's last step, each FMU whose outputs its inputs move (in step order, the
+    graph's dependency order) set its sources' newest values, no doStep, and its outputs
+    read again, as initialise walks the links at t0. An output with direct feedthrough then
+    shows its value for inputs of the last time (FMI 2.0 lets a master read it so, as
+    settle does after a sample), which under Jacobi its rows reach only steps later. The Real buffer after it (a copy),
+    the run's own `real` left as it was; None where a call fails (an FMU whose call
+    returned Error or Fatal is marked failed: FMI allows nothing more of it)."""
     by_name, saved = {r.name: r for r in running}, real.copy()
     try:
         for r in running:       # in step order: only FMUs whose outputs their inputs move
@@ -71,7 +72,8 @@ def settled_end(running: list[RunningInstance], graph: Graph, real: np.ndarray
                     r.call("get", c_get(r.component, vrs, n, pointer))
         return real.copy()
     except FmuCallError as err:
-        err.running.mark_failed(err.status)
+        if err.status >= 3:
+            err.running.mark_failed(err.status)
         return None
     finally:
         real[:] = saved
