@@ -327,6 +327,28 @@ def test_jacobis_end_is_read_after_the_run_and_unresolved_without(monkeypatch):
     assert isinstance(found["error_estimate"]["pose.theta"]["end"], float)
 
 
+@pytest.mark.parametrize("status", [2, 4], ids=["discard", "fatal"])
+def test_a_refused_read_of_jacobis_end_leaves_it_extrapolated(monkeypatch, status):
+    """An FMU that refuses the read after the run (Discard; Fatal, after which FMI allows
+    nothing more of it): the end is the extrapolated one, and the next run in the process
+    runs and reads it (a fatal instance is not reused)."""
+    from mecanum_fmu.master.instance import FmuCallError
+    path = SCENARIOS / "profiles" / "quiet_then_busy.yaml"
+    graph, exp = with_experiment(runner.prepare(path, master_name="jacobi"), step_size=0.1)
+
+    def refused(target, links, by_name):
+        raise FmuCallError(target, "fmi2SetReal", status)
+    with monkeypatch.context() as patch:
+        patch.setattr(stepping, "_settle_one", refused)
+        results = master.simulate(graph, exp, with_estimate=True)
+    assert master.estimate_error(graph, results)["error_estimate"]["pose.theta"]["end"] == \
+        LATE_END
+    again = master.simulate(graph, exp, with_estimate=True)
+    assert isinstance(master.estimate_error(graph, again)["error_estimate"]["pose.theta"][
+        "end"], float)
+    assert np.array_equal(np.asarray(again["pose.theta"]), np.asarray(results["pose.theta"]))
+
+
 def test_reading_jacobis_end_after_the_run_changes_no_row():
     """The late outputs' end is read after the last row (quiet_then_busy at 0.2 s: it is):
     the run's rows are those of the run without an estimate, bit for bit."""
