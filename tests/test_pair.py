@@ -510,3 +510,21 @@ def test_a_loop_closed_through_ideal_sensors_is_second_order_and_the_method_says
     assert "a run at half the step keeps them" in method and "The step's share" in method
     first, second = np.linalg.norm(ends[0] - ends[1]), np.linalg.norm(ends[1] - ends[2])
     assert second > 0 and 3.0 < first / second < 5.0
+
+
+def test_the_pairs_seconds_count_its_set_up(monkeypatch):
+    """error_estimate_cost counts the pair's set-up before the run (its plan, the probes'
+    prober, the t0 kept for Richardson) with its work after: a set-up made 50 ms slower
+    shows in its seconds."""
+    import time
+    graph = runner.prepare(ROOT / "scenarios" / "circle.yaml")
+    taps = master.pair_tap
+
+    def slow_tap(*args):
+        time.sleep(0.05)
+        return taps(*args)
+    monkeypatch.setattr(master, "pair_tap", slow_tap)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    assert results.extra["pair"]["found"]["seconds"] >= 0.05
+    found = master.estimate_error(graph, results)
+    assert found["error_estimate_cost"] >= 0.05 / results.wall_time - 1e-3

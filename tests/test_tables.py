@@ -311,3 +311,28 @@ def test_a_damaged_row_is_found_on_its_line(case, data):
         parse_table("\n".join(lines))
     assert info.value.count == len(hit)
     assert [line for line, _ in info.value.problems] == [i + 1 for i in hit][:MAX_REPORTED]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.sampled_from([0.0, -0.0, 0.5, 1.0, 1.0 + 2e-16, 2.5, 1e300, -3.0]),
+                max_size=12))
+def test_distinct_times_are_numpys_unique(times):
+    from mecanum_fmu.scenario.tables import distinct
+    np.testing.assert_array_equal(distinct(np.array(times)), np.unique(np.array(times)))
+    assert distinct(np.array(times)).dtype == np.float64
+
+
+def test_a_run_with_its_estimate_leaves_numpy_ma_unimported():
+    """np.unique imports numpy.ma on its first call (15-30 ms once per process), which landed in
+    the first run's error estimate (summary.json's error_estimate_cost): the run's breakpoints
+    take distinct() instead. The seed segments' showcase has jumps and kinks."""
+    code = ("import sys\nfrom mecanum_fmu import master, runner\n"
+            f"g = runner.prepare({str(ROOT / 'scenarios' / 'modes' / 'showcase.yaml')!r})\n"
+            "r = master.simulate(g, g.scenario.experiment, with_estimate=True)\n"
+            "found = master.estimate_error(g, r)\n"
+            "assert found['error_estimate_method'].startswith('the embedded pair'), found\n"
+            "print('numpy.ma' in sys.modules)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=child_env(), timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"

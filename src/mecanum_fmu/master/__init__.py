@@ -156,17 +156,21 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
     (PairRows, or why there is none: estimate.pair_tap), and the t0 Richardson's coarser
     runs start from, where they may be needed (the pair does not apply, or may find after
     the run that it does not). `rolled_back`: _rolls_back_loops, how the pair rebuilds the
-    hold of a loop's inputs."""
+    hold of a loop's inputs. The pair's seconds count this set-up too."""
+    tick = _time.perf_counter()
     pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back)
     if isinstance(pair, PairRows):
         recorder.tap = pair
         recorder.probe = prober(pair.plan, running, buffers.real, recorder.n_steps)
     needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
     try:
-        return pair, _start(graph, exp, running, buffers, stack) if needs_t0 else None
+        start = _start(graph, exp, running, buffers, stack) if needs_t0 else None
     except StepFailure as err:      # a state save that returned Error or worse
         raise _failure(err.running, err.function, err.status, exp.start_time,
                        recorder) from None
+    if isinstance(pair, PairRows):
+        pair.seconds += _time.perf_counter() - tick
+    return pair, start
 
 
 def _start(graph: Graph, exp: Experiment, running: list[RunningInstance], buffers: Buffers,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scenario.graph import Graph
-from ..scenario.tables import Breaks
+from ..scenario.tables import Breaks, distinct
 
 __all__ = ["Breaks", "Cut", "Pieces", "graph_breaks", "pieces", "step_cuts"]
 
@@ -46,7 +46,7 @@ def step_cuts(breaks: np.ndarray, start: float, h: float, n_steps: int, stop: fl
     the next step is cut at b - delta and at b, the holds restarting at b. A breakpoint inside
     a step (off the grid) is left alone: O(h) for a fixed step."""
     pieces: dict[int, dict[float, bool]] = {}
-    for b in (float(x) for x in np.unique(breaks[(breaks > start) & (breaks <= stop)])):
+    for b in (float(x) for x in distinct(breaks[(breaks > start) & (breaks <= stop)])):
         j = n_steps if abs(b - stop) <= NEAR * h else int(round((b - start) / h))
         if j < 1 or abs(b - (stop if j >= n_steps else start + j * h)) > NEAR * h:
             continue

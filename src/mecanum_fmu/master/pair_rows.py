@@ -141,8 +141,10 @@ class PairRows(Stencils):
         """Per lag, which of its columns the groups hold (not only Jacobi's late outputs);
         Jacobi's late outputs, every lag's side by side: their names and window columns."""
         none = np.array([], dtype=np.intp)
-        needed = {d: np.isin(np.arange(len(c)), np.concatenate(
-            [at[d][1] for at in self.at if d in at] or [none])) for d, c in self.cols.items()}
+        needed = {d: np.zeros(len(c), dtype=bool) for d, c in self.cols.items()}
+        for at in self.at:
+            for d, (_, places) in at.items():
+                needed[d][places] = True
         return needed, [n for _, names, _ in self.lags for n in names], np.concatenate(
             [self.cols[d][at] for d, _, at in self.lags] or [none])
 

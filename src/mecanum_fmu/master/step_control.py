@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from ..scenario.tables import distinct
 from .breakpoints import graph_breaks
 
 SAFETY, K_I, K_P = 0.9, 0.7 / 3, 0.4 / 3
@@ -40,7 +41,7 @@ class Stops:
     def __init__(self, graph, start: float, stop: float, interval: float):
         breaks = graph_breaks(graph)
         jumps = breaks.taken_as_jumps()
-        marks = np.unique(np.concatenate([[start], np.asarray(breaks.kinks, dtype=float),
+        marks = distinct(np.concatenate([[start], np.asarray(breaks.kinks, dtype=float),
                                           jumps]))
         gap = jumps - marks[np.maximum(np.searchsorted(marks, jumps) - 1, 0)]
         gap = np.where(gap > 0, gap, interval)

@@ -137,13 +137,14 @@ class Graph:
                 return frozenset(reached)
             reached |= more
 
-    @property
-    def sampled(self) -> list[str]:
+    @cached_property
+    def sampled(self) -> tuple[str, ...]:
         """The models in it that sample at their own period (Encoder, Gyro, Odometry) or whose
         discrete outputs an FMU with a continuous output reads (`held`): a coarser step
         samples them differently (the Richardson estimate says so)."""
-        return sorted(({i.model_name for i in self.instances} & set(SAMPLED_MODELS)) |
-                      {self.instance(l.source.ref.instance).model_name for l in self.held})
+        return tuple(sorted(({i.model_name for i in self.instances} & set(SAMPLED_MODELS)) |
+                            {self.instance(l.source.ref.instance).model_name
+                             for l in self.held}))
 
     def find_model(self, model_name: str) -> Instance | None:
         """The single instance of a model, or None when there is none or several."""

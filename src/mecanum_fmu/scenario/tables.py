@@ -84,6 +84,14 @@ def table_or_none(text, model: str) -> Table | None:
         return None
 
 
+def distinct(times) -> np.ndarray:
+    """The times sorted, each once: np.unique's result for a 1-D float array, without its
+    first call's cost (numpy imports numpy.ma then: 15-30 ms once per process, which landed
+    in the first run's error estimate)."""
+    times = np.sort(np.asarray(times, dtype=float).ravel())
+    return times[np.concatenate(([True], times[1:] != times[:-1]))] if times.size else times
+
+
 @dataclass(frozen=True)
 class Breaks:
     kinks: np.ndarray    # a twist table's value turns: the corners of a linear table
@@ -93,12 +101,12 @@ class Breaks:
 
     def times(self) -> np.ndarray:
         """Every breakpoint, sorted, once."""
-        return np.unique(np.concatenate((self.kinks, self.jumps, self.others)))
+        return distinct(np.concatenate((self.kinks, self.jumps, self.others)))
 
     def taken_as_jumps(self) -> np.ndarray:
         """The jumps and the breakpoints that may be one (`others`), sorted, once: what the
         masters treat as a jump (the fixed-step cuts, the adaptive stops, the pair's pieces)."""
-        return np.unique(np.concatenate((self.jumps, self.others)))
+        return distinct(np.concatenate((self.jumps, self.others)))
 
 
 def source_breaks(instances) -> Breaks:
@@ -116,7 +124,7 @@ def source_breaks(instances) -> Breaks:
         for name, value in inst.start_values.items():
             if name.endswith("_expr") and isinstance(value, str):
                 others.append(np.array(compared_times(value), dtype=float))
-    return Breaks(*(np.unique(np.concatenate(p)) for p in (kinks, jumps, others)))
+    return Breaks(*(distinct(np.concatenate(p)) for p in (kinks, jumps, others)))
 
 
 @dataclass(frozen=True, eq=False)
