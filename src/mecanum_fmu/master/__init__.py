@@ -69,8 +69,7 @@ def simulate(graph: Graph, experiment: Experiment,
                            recorder) from None
         except NonFinite as err:
             raise _not_finite(buffers, err.time, recorder) from None
-        _ = graph.breaks    # the stepping's cuts read them; cached on the graph, their first
-        #                     computation is the run's set-up, not the estimate's
+        _ = graph.breaks    # cached; the stepping reads them: run set-up, not the estimate
         pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack,
                                        _rolls_back_loops(how, running, holds))
                        if with_estimate else (None, None))
