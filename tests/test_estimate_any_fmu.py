@@ -533,3 +533,45 @@ def test_an_fmu_whose_state_save_fails_stops_the_run_with_one_message(tmp_path, 
     code, _, err = run_main(capsys, "run", str(path), "--no-plots", "--out", str(out),
                             "--estimate", "none")
     assert code == 0, err
+
+
+def _stair_recorded(folder, fmus):
+    """The wave on its own 0.2 s grid (cos 2 t_p) recorded as it is, and the P controller it
+    drives around the lag, under the adaptive master at 1e-4 (rows every 0.05 s)."""
+    return write_scenario(folder, "stair_rows", f"""\
+name: stair_rows
+experiment: {{start_time: 0.0, stop_time: 2.0, step_size: 0.05, master: adaptive,
+             tolerance: 1e-4}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{period: 0.2, omega: 2.0}}}}
+  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0}}}}
+  plant: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, ctrl.r], [plant.x, ctrl.y], [ctrl.u, plant.u]]
+outputs: [wave.u, ctrl.u]
+""")
+
+
+def test_the_adaptive_master_steps_over_a_staircases_jumps_and_says_it_does_not_control_them(
+        tmp_path, fmus, monkeypatch):
+    """A staircase recorded as it is: a step over one of its jumps errs as much however
+    short it is. The adaptive master finds each (a step 1000x shorter still rejected),
+    closes in on it by halves, lands on the rows before it, and takes the step over it,
+    at most 1e-6 of the output interval, whatever its error: every row holds the
+    staircase's own value (the jumps fall on rows), and the estimate says the tolerance is
+    not controlled there. Without that, the run stopped asking for a looser tolerance, which
+    no tolerance met."""
+    from mecanum_fmu.master import step_control
+    graph = runner.prepare(_stair_recorded(tmp_path, fmus))
+    results = master.simulate(graph, graph.scenario.experiment)
+    t = results.time
+    stair = np.cos(2.0 * 0.2 * np.floor(np.round(t / 0.2, 9)))     # the value of each stair
+    np.testing.assert_allclose(results["wave.u"], stair, rtol=0, atol=1e-12)
+    found = master.estimate_error(graph, results)["error_estimate"]
+    for name in ("wave.u", "ctrl.u"):
+        words = found[name]["max"]
+        assert "were taken over a jump that no breakpoint announces" in words, words
+        first = float(re.search(r"the first ending at t = (\S+) s", words).group(1))
+        assert abs(first - 0.2) <= 1e-6 * 0.05      # the first stair
+    monkeypatch.setattr(step_control.Bracket, "SHRINK", math.inf)
+    with pytest.raises(SimulationError, match="the tolerance needs a step of"):
+        master.simulate(graph, graph.scenario.experiment)

@@ -51,7 +51,7 @@ from .recorder import Recorder
 from .trajectory import WholeSteps, slot_positions, values_at
 from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
 from .pair_rough import ADAPTIVE_ROUGH, rough_columns
-from .step_control import Controller, NoProgress, Stops, first_step, smallest_step
+from .step_control import Bracket, Controller, NoProgress, Stops, first_step, smallest_step
 
 _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))   # two-point Gauss, on [0, 1]
 
@@ -366,16 +366,18 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
     while t != stop:
         t = loop.step(t, stops.next(t, stop), ctrl_c, stops.near)
         loop.rows.add(t, loop.estimate())
-        at_stop = stops.on(t)
+        crossed = loop.bracket.crossed      # an unannounced jump: what follows is unknown
+        at_stop = stops.on(t) or crossed
         counts["estimates"].extend(loop.rows.emit(final=at_stop or t == stop))
         if at_stop:
-            holds.at_breakpoint(stops.before_jump(t))
-            loop.control.restart(stops.restart_step(t, stop, loop.first, loop.rows.row_inside))
+            holds.at_breakpoint(stops.before_jump(t) and not crossed)
+            loop.control.restart(loop.first if crossed else stops.restart_step(
+                t, stop, loop.first, loop.rows.row_inside))
             loop.rows.restart(t, loop.estimate())
         if progress is not None and _time.perf_counter() >= next_report:
             progress((t - start) / (stop - start))
             next_report = _time.perf_counter() + 0.5
-    counts["terms"] = loop.terms()
+    counts["terms"], counts["jumps"] = loop.terms(), loop.bracket.found
     counts["not_smooth"] = holds.not_smooth(counts["steps_taken"])
     if loop.whole is not None:
         loop.whole.close(t)
@@ -404,6 +406,8 @@ class _Loop:
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
         self.whole = WholeSteps(running, self.program, holds.blends, self.real, self.ints,
                                 self.errors.slots) if len(self.errors.slots) else None
+        # where the graph holds FMUs the scenario layer knows nothing of: their jumps
+        self.bracket = Bracket(Stops.JUMP * exp.step_size, holds.check, self.rows.row_after)
 
     def estimate(self) -> list[float]:
         """The accumulated error now, per covered output: the models' then the pair's."""
@@ -452,9 +456,10 @@ class _Loop:
 
     def _take(self, t: float, goal: float, ctrl_c) -> tuple:
         """A step tried, rejected and rolled back (the FMUs and the values) until its error
-        ratio is at most 1: (h, the models' updates, the ratio, the accumulated error)."""
-        control = self.control
-        h = control.step_to(t, goal)
+        ratio is at most 1: (h, the models' updates, the ratio, the accumulated error); the
+        step over an unannounced jump (Bracket) whatever its ratio."""
+        control, bracket = self.control, self.bracket
+        h = bracket.within(t, control.step_to(t, goal))
         while True:
             if ctrl_c[0]:
                 raise KeyboardInterrupt
@@ -466,14 +471,15 @@ class _Loop:
                                           self.holds.jump_next)
             rows = self.rows.ratio(t + h)     # the rows in the step: their interpolation
             ratio, worst = max(ratio, rows), max(worst, rows)
-            if worst <= 1.0:
+            if bracket.over(t, h) or worst <= 1.0:
                 return h, updates, ratio, drift[0]
             self.counts["steps_rejected"] += 1
+            bracket.rejected(t, h)
             control.reject(worst, h)
             smallest = smallest_step(t, self.span, self.interval)
-            if control.wanted < smallest:
+            if control.wanted < smallest and not bracket.narrow(t):
                 raise NoProgress(t, control.wanted, smallest)
-            h = control.step_to(t, goal)
+            h = bracket.within(t, control.step_to(t, goal))
             self._restore(t, self.saved)
 
     def _restore(self, t: float, values: tuple) -> None:
@@ -508,17 +514,32 @@ class _Loop:
         one_pass(self.program, t, h)
 
 
+def _not_controlled(counts: dict) -> str | None:
+    """Why the run's estimate is unresolved (every recorded output's), or None: held inputs
+    that do not move as smooth curves, or steps taken over jumps no breakpoint announces."""
+    if counts.get("not_smooth"):
+        return (f"unresolved (the held inputs of {', '.join(counts['not_smooth'])} do not move "
+                "as smooth curves between the steps: a staircase on an FMU's own grid, or a "
+                "curve faster than the steps, which the steps' error estimates do not see; the "
+                "tolerance is not controlled)")
+    if counts.get("jumps"):
+        found = counts["jumps"]
+        return (f"unresolved ({len(found)} steps, the first ending at t = {found[0]:.9g} s, "
+                "were taken over a jump that no breakpoint announces, whatever their error: "
+                "an FMU's output on a grid of its own, a staircase; the rows near such jumps "
+                "may blend the values on either side; the tolerance is not controlled there; "
+                "a fixed-step master on a step that divides the FMU's grid holds it exactly)")
+    return None
+
+
 def estimate_of(names: list[str], results, counts: dict) -> dict:
     """summary.json's error estimate of an adaptive run: the accepted steps' signed errors
     accumulated, per covered output and row: its largest and its last. An end under CANCELS
     of the size of the terms it sums is unresolved (results.cancelled), as the embedded
     pair's: what is left of estimates that cancel (the circle's y end: 0.02 to 0.08 of its
     terms, its number 5x to 9x under the true error at TOL 1e-4 and 1e-2)."""
-    if counts.get("not_smooth"):
-        why = (f"unresolved (the held inputs of {', '.join(counts['not_smooth'])} do not move "
-               "as smooth curves between the steps: a staircase on an FMU's own grid, or a "
-               "curve faster than the steps, which the steps' error estimates do not see; the "
-               "tolerance is not controlled)")
+    why = _not_controlled(counts)
+    if why:
         return {name: {"max": why, "end": why} for name in names if name in results.names}
     rows = np.array(counts["estimates"], dtype=float).reshape(len(counts["estimates"]), -1)
     estimate = {}

@@ -20,6 +20,8 @@ A row waits until its segment has POINTS points or ends (a stop), so that it has
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .recorder import Recorder, grid_times
@@ -89,6 +91,11 @@ class DenseRows:
         interpolated from its points; one on either end is that point's values)."""
         i = int(np.searchsorted(self.row_times, start + self.near, side="right"))
         return i < len(self.row_times) and self.row_times[i] < end - self.near
+
+    def row_after(self, t: float) -> float:
+        """The first output row after t (past `near`), or infinity."""
+        i = int(np.searchsorted(self.row_times, t + self.near, side="right"))
+        return float(self.row_times[i]) if i < len(self.row_times) else math.inf
 
     def restart(self, t: float, estimate: list[float]) -> None:
         """A new segment from t (a stop, the start): the values now are its first point."""

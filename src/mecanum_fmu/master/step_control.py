@@ -1,11 +1,13 @@
 """The adaptive master's step (adaptive.py steps with it): where a step must end (Stops: the
 graph's breakpoints), how long the next one is (Controller: PI on the error ratio, under the
-line FLOOR + SLOPE elapsed / span), the first step's length, and the shortest the times can
-carry (NoProgress below it). docs/masters.md, "The adaptive master"."""
+line FLOOR + SLOPE elapsed / span), the first step's length, the shortest the times can
+carry (NoProgress below it), and a jump no breakpoint announces (Bracket: closed in on and
+stepped over). docs/masters.md, "The adaptive master"."""
 from __future__ import annotations
 
 import bisect
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -174,3 +176,67 @@ def first_step(tolerance: float, span: float) -> float:
     then is h^3 |u''| / 12 per step, below the tolerance for any smooth input of size ~1),
     FIRST of the run's span times TOL^(1/3), whatever the output interval."""
     return span * FIRST * min(1.0, tolerance ** (1 / 3))
+
+
+class Bracket:
+    """A jump that no breakpoint announces: an FMU's output on a grid of its own (the
+    Reference FMUs' Dahlquist, Euler at 0.1 s: its x jumps at each of its steps). A step
+    over it errs (its rows' interpolation, a held input's blend) as much however short it
+    is, so the controller's rejections would close in on it for ever (NoProgress). Where a
+    step SHRINK x shorter than the first rejected before its end is rejected too (a smooth
+    error falls as h^2 to h^3 in these units: a million-fold), a jump lies before its end,
+    `end` (the rejections between may come from later times: each step that does not reach
+    the jump is taken): the steps then halve what is left before it, each rejection
+    moves `end` in, and the step that ends on it, once within `width` (Stops.JUMP x the
+    output interval, as short as a jump's own step before a breakpoint of the graph's), is
+    taken whatever its error (a row before `end` is landed on first: within); the holds
+    and the rows restart after it (adaptive.step_adaptive), as after a breakpoint that may be a
+    jump, and the estimate says the tolerance is not controlled there (adaptive._not_controlled).
+    Only where the graph holds FMUs the scenario layer knows nothing of (`active`): the
+    bundled ones announce every jump."""
+
+    SHRINK = 1e3
+
+    def __init__(self, width: float, active: bool, row_after: Callable[[float], float]):
+        self.width, self.active, self.row_after = width, active, row_after
+        self.end: float | None = None
+        self.first: tuple | None = None     # the first rejected step (its end, h)
+        self.crossed = False        # the last step taken was the one over the jump
+        self.found: list[float] = []
+
+    def within(self, t: float, h: float) -> float:
+        """The step to try from t: h, at most half of what is left before the jump (all
+        of it once within `width`), or one that lands on an output row before `end` (the
+        row then holds the FMUs' own values; a staircase's jump often falls on one: the
+        step over it then ends on it)."""
+        if self.end is None:
+            return h
+        left, row = self.end - t, self.row_after(t)
+        if row < self.end:
+            return min(h, row - t)
+        return left if left <= self.width else min(h, 0.5 * left)
+
+    def rejected(self, t: float, h: float) -> None:
+        """A step of h from t rejected."""
+        if not self.active:
+            return
+        if self.end is not None:
+            self.end = min(self.end, t + h)
+            return
+        if self.first is None or t >= self.first[0]:     # none, or passed: this one first
+            self.first = (t + h, h)
+        elif h * self.SHRINK <= self.first[1]:
+            self.end, self.first = t + h, None
+
+    def narrow(self, t: float) -> bool:
+        """Whether the next step from t is the one over the jump."""
+        return self.end is not None and self.end - t <= self.width
+
+    def over(self, t: float, h: float) -> bool:
+        """Whether the step of h from t is the one over the jump (taken whatever its
+        error); the jump is then found."""
+        self.crossed = self.narrow(t) and t + h >= self.end
+        if self.crossed:
+            self.found.append(self.end)
+            self.end = None
+        return self.crossed
