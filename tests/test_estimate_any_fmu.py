@@ -575,3 +575,42 @@ def test_the_adaptive_master_steps_over_a_staircases_jumps_and_says_it_does_not_
     monkeypatch.setattr(step_control.Bracket, "SHRINK", math.inf)
     with pytest.raises(SimulationError, match="the tolerance needs a step of"):
         master.simulate(graph, graph.scenario.experiment)
+
+
+def _wave_lag(folder, fmus, period: float):
+    """The wave (on its own grid of `period`, or smooth: 0) into the lag, both recorded,
+    under the adaptive master at 1e-2, rows every 0.1 s."""
+    return runner.prepare(write_scenario(folder, f"wave_lag_{period:g}", f"""\
+name: wave_lag
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: adaptive,
+             tolerance: 1e-2}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{period: {period}}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [wave.u, it.x]
+"""))
+
+
+def test_rows_that_cross_a_staircases_jumps_leave_the_adaptive_estimate_unresolved(
+        tmp_path, fmus, monkeypatch):
+    """With the jumps not searched (as at a loose tolerance, where no rejection goes 1000x
+    down), the steps cross the staircase's jumps and its rows blend them: the rows' own
+    points sum fourth differences far over their changes, and the estimate says the
+    tolerance is not controlled, where it gave a number against rows off by more than
+    the tolerance. A smooth source into the same lag keeps its numbers."""
+    from mecanum_fmu.master import dense, step_control
+    monkeypatch.setattr(step_control.Bracket, "SHRINK", math.inf)
+    graph = _wave_lag(tmp_path, fmus, 0.2)
+    results = master.simulate(graph, graph.scenario.experiment)
+    stair = np.cos(0.2 * np.floor(np.round(results.time / 0.2, 9)))
+    assert np.abs(results["wave.u"] - stair).max() > 1e-2      # rows that blend a jump
+    found = master.estimate_error(graph, results)["error_estimate"]
+    assert found["wave.u"]["max"].startswith("unresolved (wave.u did not move as smooth")
+    monkeypatch.setattr(dense, "ADAPTIVE_ROUGH", math.inf)
+    found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
+    assert isinstance(found["error_estimate"]["wave.u"]["max"], float)
+    monkeypatch.setattr(dense, "ADAPTIVE_ROUGH", 1.0)
+    smooth = _wave_lag(tmp_path, fmus, 0.0)
+    found = master.estimate_error(smooth, master.simulate(smooth, smooth.scenario.experiment))
+    assert all(isinstance(found["error_estimate"][n]["max"], float) for n in ("wave.u", "it.x"))

@@ -379,6 +379,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
             next_report = _time.perf_counter() + 0.5
     counts["terms"], counts["jumps"] = loop.terms(), loop.bracket.found
     counts["not_smooth"] = holds.not_smooth(counts["steps_taken"])
+    counts["rough_rows"] = loop.rows.not_smooth(loop.names())
     if loop.whole is not None:
         loop.whole.close(t)
 
@@ -402,7 +403,7 @@ class _Loop:
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
         self.rows = DenseRows(recorder, tol, near, self.names(),
-                              len(self.names()) - len(self.errors.names))
+                              len(self.names()) - len(self.errors.names), holds.check)
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
         self.whole = WholeSteps(running, self.program, holds.blends, self.real, self.ints,
                                 self.errors.slots) if len(self.errors.slots) else None
@@ -529,6 +530,11 @@ def _not_controlled(counts: dict) -> str | None:
                 "an FMU's output on a grid of its own, a staircase; the rows near such jumps "
                 "may blend the values on either side; the tolerance is not controlled there; "
                 "a fixed-step master on a step that divides the FMU's grid holds it exactly)")
+    if counts.get("rough_rows"):
+        return (f"unresolved ({', '.join(counts['rough_rows'])} did not move as smooth curves "
+                "between the steps: a staircase on an FMU's own grid, whose jumps the steps "
+                "crossed and the rows between them blend; the tolerance is not controlled; a "
+                "fixed-step master on a step that divides the FMU's grid holds it exactly)")
     return None
 
 

@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from .pair_rough import ADAPTIVE_ROUGH, rough_columns
 from .recorder import Recorder, grid_times
 
 POINTS = 4
@@ -74,7 +75,7 @@ class DenseRows:
     `signed` of them signed (the error models'), the others sizes (the pair's)."""
 
     def __init__(self, recorder: Recorder, tol: tuple[float, float], near: float,
-                 controlled: list[str], signed: int):
+                 controlled: list[str], signed: int, tally: bool = False):
         self.recorder, self.tol, self.near, self.signed = recorder, tol, near, signed
         exp = recorder.experiment
         self.row_times = grid_times(exp, np.arange(recorder.n_steps + 1), recorder.n_steps)
@@ -85,6 +86,10 @@ class DenseRows:
         self.slots = np.array([s for _, s in self.of], dtype=np.intp)
         self.times: list[float] = []
         self.points: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        # `tally` (FMUs the scenario layer knows nothing of): per controlled output, sum
+        # h^4 |u4|, sum |change|, largest |u| over the points (_tally)
+        self.rough = np.zeros((3, len(self.slots))) if tally else None
+        self.tallied = 0
 
     def row_inside(self, start: float, end: float) -> bool:
         """Whether an output row falls strictly between start and end (a segment's rows are
@@ -109,6 +114,34 @@ class DenseRows:
         self.points.append((buffers.real.copy(), buffers.int.copy(),
                             np.array(estimate, dtype=float)))
         del self.times[:-POINTS - 1], self.points[:-POINTS - 1]
+        if self.rough is not None and len(self.times) == POINTS + 1:
+            self._tally()
+
+    def _tally(self) -> None:
+        """Add the newest step's fourth difference (h^4 u4 from the fourth divided difference
+        over the segment's five points) and change, per controlled output: pair_rough's rule
+        on the rows' own points. A jump that the steps crossed unrejected (a staircase on an
+        FMU's grid, which the rows would blend) sums to several times its change; a smooth
+        curve to (h omega)^3."""
+        times = np.array(self.times)
+        values = np.array([p[0][self.slots] for p in self.points])
+        diff = values
+        for order in range(1, POINTS + 1):
+            diff = (diff[1:] - diff[:-1]) / (times[order:] - times[:-order])[:, None]
+        h = (times[-1] - times[0]) / POINTS     # the points' mean step
+        self.rough[0] += 24.0 * h ** 4 * np.abs(diff[0])
+        self.rough[1] += np.abs(values[-1] - values[-2])
+        np.maximum(self.rough[2], np.abs(values[-1]), out=self.rough[2])
+        self.tallied += 1
+
+    def not_smooth(self, names: list[str]) -> list[str]:
+        """The controlled outputs (`names`: their names, the estimate's order) whose points
+        did not move as smooth curves over the run (_tally)."""
+        if self.rough is None:
+            return []
+        cols = rough_columns(self.rough[:2], self.rough[2], max(self.tallied, 1),
+                             ADAPTIVE_ROUGH)
+        return [names[self.of[c][0]] for c in cols]
 
     def ratio(self, end: float) -> float:
         """The largest estimated interpolation error on a step to `end` (the values now are
