@@ -76,6 +76,7 @@ class DocCommand:
     text: str            # as written (continuation lines joined, trailing comment cut)
     comment: str         # the trailing comment, if any
     venv_active: bool    # the paragraph before it says "with the venv active"
+    before: tuple = ()   # the commands above it in its shell block: a reader runs them first
 
     def where(self) -> str:
         return f"{self.file}:{self.line}"
@@ -142,8 +143,11 @@ def extract(path: Path, root: Path = ROOT) -> list[DocCommand]:
         end = next((j for j in range(i + 1, len(lines)) if lines[j].startswith("```")), len(lines))
         if fence.group(1) in SHELL_LANGUAGES:
             active = "venv active" in paragraph_before(lines, i - 1)
+            block: list[DocCommand] = []
             for offset, text, comment in block_commands(lines[i + 1:end]):
-                found.append(DocCommand(rel, i + 2 + offset, text, comment, active))
+                block.append(DocCommand(rel, i + 2 + offset, text, comment, active,
+                                        tuple(block)))
+            found += block
         prose += [""] * (end + 1 - i)              # keep the line numbers of the prose
         i = end + 1
     return sorted(found + inline_commands(rel, prose), key=lambda c: c.line)
@@ -300,7 +304,14 @@ RAN: dict[tuple[Path, str, bool], subprocess.CompletedProcess] = {}
 def run_in_copy(command: DocCommand, copy: Path, tmp: Path) -> subprocess.CompletedProcess:
     """The command's process in the copy. A command written in two places (README.md and a
     doc: `fmus`, `doctor`, a 10,000-step run) runs once per copy and both places are held to
-    that one outcome (a TimeoutExpired is not kept: the next place runs it again)."""
+    that one outcome (a TimeoutExpired is not kept: the next place runs it again). The
+    commands above it in its block run first, in this copy, where they have not: the tests
+    are split between pytest-xdist's workers, each with a copy of its own, and a block's
+    later line may read what an earlier one wrote (docs/bags.md: the example bag, then its
+    run)."""
+    for earlier in command.before:
+        if skip_reason(earlier.text) is None:
+            run_in_copy(earlier, copy, tmp)
     key = (copy, runnable(command.text), command.venv_active)
     if key not in RAN:
         RAN[key] = subprocess.run(["bash", "-c", key[1]], cwd=copy,
