@@ -599,8 +599,9 @@ def test_rows_that_cross_a_staircases_jumps_leave_the_adaptive_estimate_unresolv
     points sum fourth differences far over their changes, and the estimate says the
     tolerance is not controlled, where it gave a number against rows off by more than
     the tolerance. A smooth source into the same lag keeps its numbers."""
-    from mecanum_fmu.master import dense, step_control
+    from mecanum_fmu.master import adaptive, dense, step_control
     monkeypatch.setattr(step_control.Bracket, "SHRINK", math.inf)
+    monkeypatch.setattr(adaptive, "ADAPTIVE_ROUGH", math.inf)     # the held inputs' tally
     graph = _wave_lag(tmp_path, fmus, 0.2)
     results = master.simulate(graph, graph.scenario.experiment)
     stair = np.cos(0.2 * np.floor(np.round(results.time / 0.2, 9)))
@@ -614,3 +615,19 @@ def test_rows_that_cross_a_staircases_jumps_leave_the_adaptive_estimate_unresolv
     smooth = _wave_lag(tmp_path, fmus, 0.0)
     found = master.estimate_error(smooth, master.simulate(smooth, smooth.scenario.experiment))
     assert all(isinstance(found["error_estimate"][n]["max"], float) for n in ("wave.u", "it.x"))
+
+
+def test_a_staircase_held_into_a_lag_is_unresolved_at_a_tight_tolerance_too(tmp_path, fmus):
+    """The staircase into the lag at 1e-6: the steps shrink around the jumps they cross, and
+    the held inputs' tally, weighed by each step's own h^4, summed them under its limit; the
+    estimate said 1.5e-7 against 8e-4 off gauss-seidel at h/64. Weighed by the mean of the
+    last three steps, the jumps show, and the estimate is unresolved."""
+    path = _stair(tmp_path, fmus, "master: adaptive, tolerance: 1e-6")
+    graph = runner.prepare(path)
+    fine, fexp = with_experiment(graph, master="gauss-seidel", step_size=0.1 / 64,
+                                 tolerance=None, estimate="none")
+    results = master.simulate(graph, graph.scenario.experiment)
+    error = np.abs(master.simulate(fine, fexp)["it.x"][::64] - results["it.x"])
+    assert error.max() > 1e-4
+    words = master.estimate_error(graph, results)["error_estimate"]["it.x"]["max"]
+    assert words.startswith("unresolved (the held inputs of it do not move as smooth curves")
