@@ -235,7 +235,7 @@ class Bracket:
     def over(self, t: float, h: float) -> bool:
         """Whether the step of h from t is the one over the jump (taken whatever its
         error); the jump is then found."""
-        self.crossed = self.narrow(t) and t + h >= self.end
+        self.crossed = self.narrow(t)   # (then `within` gave h = end - t, to round-off)
         if self.crossed:
             self.found.append(self.end)
             self.end = None
