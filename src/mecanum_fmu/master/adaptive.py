@@ -118,7 +118,7 @@ class AdaptiveHolds(Holds):
     def commit(self) -> None:
         if self.check and self.history >= 4 and not self.jump_next:
             for b in self.blends:
-                b.tally(self.h, self.f, (self.h + self.g + self.f) / 3)
+                b.tally()
         for b in self.blends:
             b.third_before[:] = b.third
         super().commit()
@@ -150,12 +150,14 @@ class _VarBlend:
         # largest |u| (tally)
         self.sums = np.zeros((3, m))
 
-    def tally(self, h: float, f: float, mean: float) -> None:
+    def tally(self) -> None:
         """Add the accepted step's fourth difference and change (pair_rough.py's rule on
         unequal steps: u4 from this step's third difference and the one before, times the
-        `mean` step's fourth power: steps that shrink around a jump they cross would make
-        the step's own h^4 small enough to hide it)."""
+        fourth power of the mean of the last three steps: steps that shrink around a jump
+        they cross would make the step's own h^4 small enough to hide it)."""
         now, u = self.rows[0], self.rows[1]
+        h, g, f = self.holds.h, self.holds.g, self.holds.f
+        mean = (h + g + f) / 3
         self.sums[0] += mean ** 4 * np.abs(2 * (self.third - self.third_before) / (h + f))
         self.sums[1] += np.abs(now - u)
         np.maximum(self.sums[2], np.abs(now), out=self.sums[2])
