@@ -6,11 +6,13 @@ import csv
 import dataclasses
 import os
 import re
+import shutil
 import subprocess
 import sys
 import zipfile
 from pathlib import Path
 
+import fmpy
 import numpy as np
 import pytest
 
@@ -69,15 +71,18 @@ def state_fmus(dest: Path) -> dict[str, Path]:
     """script stem -> FMU built into `dest` from tests/fmu_sources/with_state (third-party
     style FMUs that can save their state: a wave source, a lag, two integrators, a drag),
     the outputs of those with an input declared free of it (dependencies="", as a C
-    exporter would declare a state): tests/test_estimate_any_fmu.py, bench/third_party.py."""
+    exporter would declare a state), the P controller's declared to read its inputs
+    directly (an FMU whose dependencies are not declared may hold a state: plan.has_state):
+    tests/test_estimate_any_fmu.py, bench/third_party.py."""
     from pythonfmu import FmuBuilder
     built = {}
     for script in sorted((FMU_SOURCES / "with_state").glob("xtest_*.py")):
         built[script.stem] = Path(FmuBuilder.build_FMU(script, dest=dest,
                                                        canGetAndSetFMUstate=True))
-        if script.stem not in ("xtest_wave", "xtest_gain"):
-            declare_no_dependencies(built[script.stem],
-                                    {"y": ["u"]} if script.stem == "xtest_through" else None)
+        if script.stem != "xtest_wave":     # the P controller: u reads r and y directly
+            declare_no_dependencies(built[script.stem], {
+                "xtest_through": {"y": ["u"]}, "xtest_gain": {"u": ["r", "y"]}}.get(
+                    script.stem))
     return built
 
 
@@ -89,6 +94,32 @@ def state_fmu3(dest: Path) -> Path:
                                     canGetAndSetFMUState=True))
     declare_no_dependencies(fmu)
     return fmu
+
+
+_ENDING: list[Path] = []
+
+
+def ending_fmus(tmp_path_factory) -> Path:
+    """A folder with CStop.fmu (plain C, FMI 2.0: tests/fmu_sources/c_stop) and
+    X3testStop.fmu (pythonfmu3, FMI 3.0, no dependencies declared:
+    tests/fmu_sources/fmi3_stop), FMUs that ask to end the simulation at their t_end; built
+    once per process."""
+    if not _ENDING:
+        if shutil.which("gcc") is None:
+            tool_missing("gcc is needed to build the FMI 2.0 test FMU that ends its run")
+        dest = tmp_path_factory.mktemp("ending_fmus")
+        library, source = dest / "cstop.so", FMU_SOURCES / "c_stop"
+        subprocess.run(["gcc", "-shared", "-fPIC", "-O1", "-I",
+                        str(Path(fmpy.__file__).parent / "c-code"), "-o", str(library),
+                        str(source / "cstop.c")], check=True)
+        with zipfile.ZipFile(dest / "CStop.fmu", "w") as fmu:
+            fmu.write(source / "modelDescription.xml", "modelDescription.xml")
+            fmu.write(library, "binaries/linux64/cstop.so")
+        from pythonfmu3 import FmuBuilder
+        FmuBuilder.build_FMU(FMU_SOURCES / "fmi3_stop" / "x3test_stop.py", dest=dest,
+                             canGetAndSetFMUState=True)
+        _ENDING.append(dest)
+    return _ENDING[0]
 
 
 def declare_no_dependencies(fmu: Path, direct: dict[str, list[str]] | None = None) -> None:

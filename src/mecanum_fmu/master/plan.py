@@ -210,8 +210,11 @@ def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool 
 
 
 def has_state(inst: Instance) -> bool:
-    """Some output depends on no input (declared: an empty dependency list)."""
-    return any(u.dependencies == [] for u in inst.model.outputs)
+    """It may hold a state: some output depends on no input (declared: an empty dependency
+    list), or some output's dependencies are not declared (FMI 2.0: it may then depend on
+    every input and on a state; pythonfmu's and pythonfmu3's FMUs declare none). Only an FMU
+    whose every output declares a dependency on an input is taken to hold none."""
+    return any(not u.dependencies for u in inst.model.outputs)
 
 
 # How a hold sets a blended input, per role, in each mode (Holds.mode: single pass or

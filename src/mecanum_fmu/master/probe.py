@@ -55,16 +55,16 @@ def _probeable(inst) -> bool:
 
 def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
     """The ProbedModel of an FMU with a state and no error model, held inputs `inputs`: it
-    covers the Real outputs whose dependencies are declared (those a held input reaches
-    directly too: their direct part, ProbedModel); None where it cannot be probed
-    (_probeable)."""
+    covers its Real outputs (those a held input reaches directly too: their direct part,
+    ProbedModel; an output whose dependencies are not declared may depend on every input,
+    as FMI 2.0 says); None where it cannot be probed (_probeable)."""
     if not _probeable(inst):
         return None
-    declared = [u for u in inst.model.outputs if u.variable.type in _REAL
-                and u.dependencies is not None]
-    direct = np.array([[n in {d.name for d in u.dependencies} for n in inputs]
-                       for u in declared], dtype=bool).reshape(len(declared), len(inputs))
-    return ProbedModel(inst.name, inputs, [u.variable.name for u in declared], direct)
+    real = [u for u in inst.model.outputs if u.variable.type in _REAL]
+    direct = np.array([[u.dependencies is None or n in {d.name for d in u.dependencies}
+                        for n in inputs] for u in real], dtype=bool).reshape(len(real),
+                                                                            len(inputs))
+    return ProbedModel(inst.name, inputs, [u.variable.name for u in real], direct)
 
 
 class ProbedModel:
