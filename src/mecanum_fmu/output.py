@@ -284,6 +284,7 @@ def summarize(graph, results: Results) -> dict:
         "wall_time_s": round(results.wall_time, 6),
         "complete": results.complete,
         "end_time": float(results.time[-1]) if len(results.time) else None,
+        **({"ended_by": results.ended_by} if results.ended_by else {}),
         "recorded": list(results.names),
         "fmus": {i.name: {"model": i.model_name, "path": str(i.fmu_path), "guid": i.model.guid}
                  for i in graph.instances},

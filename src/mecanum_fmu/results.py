@@ -52,6 +52,15 @@ class Results:
     def final(self, name: str) -> float:
         return float(self.data[name][-1])
 
+    @property
+    def ended_by(self) -> str | None:
+        """Where an FMU asked to end the simulation before the stop time (extra["ended"],
+        master._ended): who, how, and the time of the last row; else None."""
+        ended = self.extra.get("ended")
+        return None if ended is None else (
+            f"{ended['by']} asked to end the simulation ({ended['how']}); the run ends at "
+            f"t = {ended['time']:g} s, its last row, complete there as the FMI standard has it")
+
 
 def csv_writer(fh, names: tuple[str, ...]):
     """A CSV writer on fh with the header written: `time`, then the recorded names."""

@@ -255,5 +255,6 @@ def _simulate_into(graph: Graph, topo: Topology, out: OutputFolder, plotter: Plo
 def report_lines(summary: dict) -> list[str]:
     return [f"{summary['scenario']}: {summary['master']}, step {summary['step_size']:g} s, "
             f"{summary['steps']} steps, stepping loop {summary['wall_time_s']:.3f} s",
+            *([f"ended early: {summary['ended_by']}"] if "ended_by" in summary else []),
             *evaluation_lines(summary), *error_estimate_lines(summary),
             *against_recorded.report_lines(summary.get("against_recorded", {}))]

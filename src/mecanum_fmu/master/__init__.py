@@ -30,7 +30,8 @@ from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
 from .probe import prober
 from .recorder import Recorder, step_count
-from .stepping import NonFinite, StepFailure, check_finite, initialise, settled_end, step_all
+from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, check_finite,
+                       initialise, settled_end, step_all)
 
 __all__ = ["simulate", "estimate_error", "release_instances", "RUNTIME"]
 
@@ -76,25 +77,37 @@ def simulate(graph: Graph, experiment: Experiment,
         recorder.record()
         holds.prime()
         stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
-        _run_loop(recorder, ctrl_c, buffers, stepper)
+        ended = _run_loop(recorder, ctrl_c, buffers, stepper)
         results = recorder.results(True)
-        if with_estimate:
-            found = _finish(pair, running, graph, buffers)
-            if recorder.probe is not None:      # its probes ran inside the stepping loop
-                found["seconds"] += recorder.probe.seconds
-                found["probe_seconds"] = recorder.probe.seconds
-                found["probe_calls"] = recorder.probe.calls
-            results.extra["pair"] = {"graph": graph, "found": found}
-            if start is not None and not (isinstance(found, dict) and found["failed"] is None):
-                results.extra["coarse"] = coarse_runs(
-                    graph, results, start, holds,
-                    lambda rec: _stepper(how, running, rec, ctrl_c, None, holds)[0], ctrl_c)
+        if ended:
+            results.extra["ended"] = ended
+        elif with_estimate:
+            _estimate_end(results, pair, start, running, recorder, holds,
+                          lambda rec: _stepper(how, running, rec, ctrl_c, None, holds)[0],
+                          ctrl_c)
         if counts:
             results.steps_taken, results.steps_rejected = (counts["steps_taken"],
                                                            counts["steps_rejected"])
             results.extra["error_estimate"] = estimate_of(counts["names"], results, counts)
             results.extra["passes"] = counts["passes"]
         return results
+
+
+def _estimate_end(results: Results, pair, start: Start | None,
+                  running: list[RunningInstance], recorder: Recorder, holds: Holds,
+                  stepper, ctrl_c) -> None:
+    """The estimate's part after a complete run: the pair's finish (results.extra["pair"])
+    and, where it does not hold and the t0 was kept, Richardson's coarser runs stepped on
+    the run's own instances (results.extra["coarse"])."""
+    graph = recorder.graph
+    found = _finish(pair, running, graph, recorder.buffers)
+    if recorder.probe is not None:      # its probes ran inside the stepping loop
+        found["seconds"] += recorder.probe.seconds
+        found["probe_seconds"] = recorder.probe.seconds
+        found["probe_calls"] = recorder.probe.calls
+    results.extra["pair"] = {"graph": graph, "found": found}
+    if start is not None and not (isinstance(found, dict) and found["failed"] is None):
+        results.extra["coarse"] = coarse_runs(graph, results, start, holds, stepper, ctrl_c)
 
 
 def _finish(pair, running: list[RunningInstance], graph: Graph, buffers: Buffers):
@@ -202,11 +215,16 @@ def _start_instances(graph: Graph, stack: ExitStack) -> list[RunningInstance]:
 
 
 def _run_loop(recorder: Recorder, ctrl_c, buffers: Buffers, stepper: Callable[[], None]
-              ) -> None:
+              ) -> dict | None:
+    """Step the run; where an FMU asked to end it before its stop time, how it ended
+    (_ended), else None."""
     tick = _time.perf_counter()
     try:
         with np.errstate(all="ignore"):     # an overflow is reported as a non-finite value
             stepper()
+    except EndRequested as err:
+        recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
+        return _ended(err.running, err.time, recorder)
     except StepFailure as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
         if not np.isfinite(buffers.real).all():   # the cause: a value that went non-finite
@@ -214,6 +232,8 @@ def _run_loop(recorder: Recorder, ctrl_c, buffers: Buffers, stepper: Callable[[]
             raise _not_finite(buffers, err.end, recorder, then=(
                 f"; then {err.running.name}'s {err.running.function_name(err.function)} returned "
                 f"{STATUS.get(err.status, err.status)}")) from None
+        if asked_to_end(err):   # in a step the run does not keep: it ends at its last row
+            return _ended(err.running, recorder.last_time, recorder, err.time)
         raise _failure(err.running, err.function, err.status, err.time, recorder) from None
     except NonFinite as err:
         recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
@@ -233,6 +253,28 @@ def _run_loop(recorder: Recorder, ctrl_c, buffers: Buffers, stepper: Callable[[]
         raise Interrupted(float(partial.time[-1]), results=partial,
                           terminated=ctrl_c[0] == signal.SIGTERM) from None
     recorder.wall = _time.perf_counter() - tick - recorder.sink_seconds
+    return None
+
+
+def _ended(r: RunningInstance, time: float, recorder: Recorder,
+           short: float | None = None) -> dict | None:
+    """An FMU asked to end the simulation (fmi2Discard with fmi2Terminated, fmi3DoStep's
+    terminateSimulation; stepping.asked_to_end), as FMPy and the FMI standard take it: the run
+    ends at `time`, its last row, and is complete there (`short`: the start of the step in
+    which it asked, where the run does not keep that step: a predictor's, the adaptive
+    master's try). That FMU is freed, never kept for reuse. At the stop
+    time it is a plain end (None); before it, results.extra["ended"]: who asked and when.
+    The pair's tap is let go (it was laid out for the whole run): the estimate is made on
+    the run to `time` (estimate.error_estimate)."""
+    r.mark_failed(2)
+    exp = recorder.experiment
+    if time >= exp.stop_time - 1e-9 * exp.step_size:
+        return None
+    recorder.tap = None
+    how = ("its fmi3DoStep set terminateSimulation" if r.fmi3 else
+           "its fmi2DoStep returned Discard, and fmi2Terminated is true")
+    return {"by": r.name, "time": time, "how": how if short is None else
+            f"{how} in the step from t = {short:g} s, which the run does not keep"}
 
 
 def _not_finite(buffers: Buffers, when: float, recorder: Recorder,

@@ -49,7 +49,8 @@ from .plan import Holds
 from .dense import DenseRows
 from .recorder import Recorder
 from .trajectory import WholeSteps, slot_positions, values_at
-from .stepping import NonFinite, free_states, one_pass, programs, restore_states, save_states
+from .stepping import (NonFinite, StepFailure, asked_to_end, free_states, one_pass,
+                       programs, restore_states, save_states)
 from .pair_rough import ADAPTIVE_ROUGH, rough_columns
 from .step_control import Bracket, Controller, NoProgress, Stops, first_step, smallest_step
 
@@ -358,17 +359,26 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
     """The adaptive loop: steps free of the output grid, ending on the stops and the stop
     time; the rows between from the values around them (dense.py). `tol`: (atol, rtol).
     counts gets steps_taken, steps_rejected, the passes and the accumulated error estimate
-    per row. Raises StepFailure, NonFinite, NoProgress, KeyboardInterrupt."""
+    per row. Raises StepFailure, NonFinite, NoProgress, KeyboardInterrupt; where an FMU asks
+    to end the run (RunningInstance.ends_run), its StepFailure once the rows up to the last
+    accepted step are recorded and counted (master._run_loop ends the run at the last)."""
     exp = recorder.experiment
     start, stop = exp.start_time, exp.stop_time
     stops = Stops(recorder.graph, start, stop, exp.step_size)
     loop = _Loop(running, recorder, holds, tol, counts, stops.near)
     counts["names"], counts["estimates"] = loop.names(), [loop.estimate()]
     loop.rows.restart(start, loop.estimate())
-    t = start
+    t, ended = start, None
     next_report = _time.perf_counter() + 1.0
     while t != stop:
-        t = loop.step(t, stops.next(t, stop), ctrl_c, stops.near)
+        try:
+            t = loop.step(t, stops.next(t, stop), ctrl_c, stops.near)
+        except StepFailure as err:      # an FMU asked to end the run: the rows up to t
+            if not asked_to_end(err):
+                raise
+            counts["estimates"].extend(loop.rows.emit(final=True))
+            ended = err
+            break
         loop.rows.add(t, loop.estimate())
         crossed = loop.bracket.crossed      # an unannounced jump: what follows is unknown
         at_stop = stops.on(t) or crossed
@@ -386,6 +396,8 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
     counts["rough_rows"] = loop.rows.not_smooth(loop.names())
     if loop.whole is not None:
         loop.whole.close(t)
+    if ended is not None:
+        raise ended
 
 
 class _Loop:

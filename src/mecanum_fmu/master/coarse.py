@@ -26,7 +26,8 @@ from .richardson import coarse_experiment, coarse_rows, coarse_sink
 from .instance import RunningInstance
 from .plan import Buffers, Holds
 from .recorder import Recorder, step_count
-from .stepping import NonFinite, StepFailure, free_states, restore_states, save_states
+from .stepping import (EndRequested, NonFinite, StepFailure, free_states, restore_states,
+                       save_states)
 
 
 class Start:
@@ -82,6 +83,11 @@ def coarse_runs(graph: Graph, results: Results, start: Start, holds: Holds,
         except NonFinite as err:
             runs[factor] = f"a value is not finite after the step that ended at {err.time:g} s"
             break
+        except EndRequested as err:     # an FMU asked to end the run: where it should end?
+            err.running.mark_failed(2)
+            if err.time < cexp.stop_time - 1e-9 * cexp.step_size:
+                runs[factor] = f"{err.running.name} asked to end it at t = {err.time:g} s"
+                break
         except KeyboardInterrupt:
             raise Interrupted(float(results.time[-1]), results=results,
                               terminated=ctrl_c[0] == signal.SIGTERM) from None

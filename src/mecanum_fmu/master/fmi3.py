@@ -15,6 +15,8 @@ from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback
 
 from ..runtime import RUNTIME
 
+DISCARD = 2     # fmi3Discard, fmi2Discard
+
 _TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 
 
@@ -85,13 +87,21 @@ def _set_booleans(function):
 
 
 def _do_step(function):
-    """fmi3DoStep with its four out-arguments; the last call's terminate flag is kept."""
+    """fmi3DoStep with its four out-arguments; the last call's terminate flag and last
+    successful time are kept. A step that returns OK with terminateSimulation set returns
+    Discard here, as FMI 2.0 says it: the stepping code sees a step that asks to end the
+    run (RunningInstance.ends_run) where it sees every other refusal."""
     event, terminate, early, last = (ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(),
                                      ctypes.c_double())
     refs = (ctypes.byref(event), ctypes.byref(terminate), ctypes.byref(early),
             ctypes.byref(last))
 
+    asked = [0.0]   # the end of the last step asked for
+
     def do_step(component, t, h, no_prior):
-        return function(component, t, h, no_prior, *refs)
+        asked[0] = t + h
+        status = function(component, t, h, no_prior, *refs)
+        return DISCARD if status < DISCARD and terminate.value else status
     do_step.terminated = lambda: terminate.value
+    do_step.last_time = lambda: last.value if early.value else asked[0]
     return do_step

@@ -15,6 +15,7 @@ from ..runtime import RUNTIME, STATUS, Kept, own_slave_module
 from . import fmi3
 
 _fmi2Terminated = 3    # fmi2StatusKind
+_fmi2LastSuccessfulTime = 2
 
 
 class FmuCallError(Exception):
@@ -157,18 +158,30 @@ class RunningInstance:
 
     def step_failure(self) -> str:
         """Name the failed step; 'terminated early' only when the FMU itself says so."""
-        if self.fmi3:       # fmi3DoStep's own terminateSimulation flag
-            early = " (the FMU terminated early)" if self.c_do_step.terminated() else ""
-            return "fmi3DoStep" + early
-        terminated = ctypes.c_int(0)
+        name = "fmi3DoStep" if self.fmi3 else "fmi2DoStep"
+        return name + (" (the FMU terminated early)" if self.ends_run() else "")
+
+    def ends_run(self) -> bool:
+        """Whether its last doStep asked to end the simulation: fmi2Discard with
+        fmi2GetBooleanStatus(fmi2Terminated) true, or fmi3DoStep's terminateSimulation."""
+        if self.fmi3:
+            return bool(self.c_do_step.terminated())
+        return self._status("fmi2GetBooleanStatus", _fmi2Terminated, ctypes.c_int(0)) == 1
+
+    def reached(self, end: float, h: float) -> bool:
+        """Whether its last doStep, one that asked to end the simulation, got to `end` (its
+        last successful time within 1e-6 of the step h): its outputs are then those at end."""
+        last = self.c_do_step.last_time() if self.fmi3 else self._status(
+            "fmi2GetRealStatus", _fmi2LastSuccessfulTime, ctypes.c_double(float("nan")))
+        return last is not None and abs(last - end) <= 1e-6 * h
+
+    def _status(self, function: str, kind: int, value):
+        """fmi2GetXStatus(kind): its value, or None where the call fails or is missing."""
         try:
-            status = self.fmu._functions["fmi2GetBooleanStatus"](
-                self.component, _fmi2Terminated, ctypes.byref(terminated))
+            status = self.fmu._functions[function](self.component, kind, ctypes.byref(value))
         except Exception:   # an FMU may not export it at all
-            return "fmi2DoStep"
-        if status == 0 and terminated.value == 1:
-            return "fmi2DoStep (the FMU terminated early)"
-        return "fmi2DoStep"
+            return None
+        return value.value if status == 0 else None
 
     def get_one(self, port: Port):
         getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,

@@ -79,6 +79,11 @@ class Recorder:
     def rows(self) -> int:
         return self.flushed + self.fill
 
+    @property
+    def last_time(self) -> float:
+        """The time of the last row recorded."""
+        return float(grid_times(self.experiment, np.array([self.rows - 1]), self.n_steps)[0])
+
     def record(self, real: np.ndarray | None = None, ints: np.ndarray | None = None) -> None:
         """A row of the buffers now, or of the values `real`, `ints` (the adaptive master's
         rows between its communication points, dense.py)."""

@@ -156,6 +156,8 @@ def coarse_run(graph: Graph, exp, names: list[str], simulate, fine: np.ndarray
         results = simulate(graph, exp, sink=keep, keep_rows=2)
     except SimulationError as err:
         return str(err)
+    if ended := results.extra.get("ended"):     # master._ended: its rows stop short
+        return f"{ended['by']} asked to end it at t = {ended['time']:g} s"
     return coarse_rows(results.wall_time, parts, names)
 
 

@@ -144,6 +144,7 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
     next_report = _time.perf_counter() + 1.0
     probe = recorder.probe
     probe_at = probe.at if probe is not None else ()
+    ending = None
     for k in range(n_steps):
         if ctrl_c[0]:
             raise KeyboardInterrupt
@@ -160,7 +161,10 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
         else:
             if rollback:
                 _predict(running, program, holds, t, h_k)
-            one_pass(program, t, h_k)
+            try:
+                one_pass(program, t, h_k)
+            except StepFailure as err:
+                ending = finish_pass(err, program, t, h_k)
             if commit is not None:
                 commit()
             if real_dot(zeros) != 0.0:
@@ -170,6 +174,8 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
             if real_dot(zeros) != 0.0:
                 raise NonFinite(t + h_k)
         record()
+        if ending is not None:
+            raise EndRequested(ending, t + h_k)
         if progress is not None and not k & 255:
             now = _time.perf_counter()
             if now >= next_report:
@@ -177,6 +183,40 @@ def step_all(running: list[RunningInstance], recorder: Recorder, ctrl_c: list[bo
                 next_report = now + 0.5
     if ctrl_c[0]:                 # pressed during the last step
         raise KeyboardInterrupt
+
+
+class EndRequested(Exception):
+    """An FMU asked to end the simulation (RunningInstance.ends_run) in the step that ends at
+    `time`, and the step was completed: the run's last row is at `time`."""
+
+    def __init__(self, running: RunningInstance, time: float):
+        super().__init__(running.name, time)
+        self.running, self.time = running, time
+
+
+def asked_to_end(err: "StepFailure") -> bool:
+    """Whether the doStep that failed asked to end the simulation and got to its step's
+    end: fmi2Discard with fmi2Terminated true and fmi2LastSuccessfulTime there (the
+    Reference FMUs' Stair), or fmi3DoStep's terminateSimulation with no early return. One
+    that stopped short is a failed step: pythonfmu's do_step that returns False says
+    fmi2Terminated too, at the step's start."""
+    r = err.running
+    return err.status == 2 and r.ends_run() and r.reached(err.end, err.end - err.time)
+
+
+def finish_pass(err: "StepFailure", program: list, t: float, h_k: float) -> RunningInstance:
+    """The pass in which an FMU's doStep asked to end the simulation (asked_to_end): that
+    FMU's outputs read, the FMUs after it set their inputs and stepped as in any pass. The
+    FMU that asked, or err raised again where its doStep failed otherwise."""
+    r = err.running
+    if err.time != t or not asked_to_end(err):
+        raise err
+    i = next(i for i, entry in enumerate(program) if entry[0] is r)
+    for c_get, vrs, n, pointer in r.reads:
+        if c_get(r.component, vrs, n, pointer) > 1:
+            raise err
+    one_pass(program[i + 1:], t, h_k)
+    return r
 
 
 def jump_cuts(graph: Graph, exp, n_steps: int) -> dict[int, Cut]:

@@ -57,7 +57,7 @@ def _run_one(graph, index, values, path_names) -> RunResult:
     variant = with_values(graph, values)
     try:
         results = master.simulate(variant, variant.scenario.experiment, with_estimate=True)
-        status, message = "ok", ""
+        status, message = "ok", results.ended_by or ""
     except MecanumError as err:        # SimulationError: keep what was reached
         results = getattr(err, "results", None)
         status, message = "failed", str(err)
