@@ -6,6 +6,7 @@ to its end. The reference each time is the same graph run to that time with no F
 (the plain stepping loop)."""
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 from pathlib import Path
@@ -13,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import ending_fmus, read_csv, run_main, write_scenario
+from helpers import ending_fmus, read_csv, run_child, run_main, write_scenario
 from mecanum_fmu import master
 from mecanum_fmu.runner import prepare
 
@@ -158,3 +159,27 @@ def _richardson(graph):
     graph = dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
                                                                     experiment=exp))
     return graph, master.simulate(graph, exp)
+
+
+def test_a_sweep_run_that_an_fmu_ends_is_ok_says_so_and_meets_the_truth_at_its_end(
+        capsys, fmus):
+    """runs.csv: the run's message says who ended it, and its end-point error is against the
+    ground truth at its own end (the `run` of the same values gives the same)."""
+    _scenario(fmus, "swept", "CStop", 2.0, 1.0)
+    sweep = fmus / "ends_sweep.yaml"
+    sweep.write_text("name: ends_sweep\nscenario: swept.yaml\n"
+                     "grid:\n  stop.t_end: [1.0, 3.0]\n")
+    done = run_child("sweep", sweep, "--out", fmus / "out_sweep", "--workers", "1",
+                     "--no-plots")
+    assert done.returncode == 0, done.stderr
+    with open(fmus / "out_sweep" / "runs.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["status"] for r in rows] == ["ok", "ok"]
+    assert rows[0]["message"].startswith("stop asked to end the simulation") and \
+        "t = 1 s" in rows[0]["message"] and rows[1]["message"] == ""
+    for row, stop_time, t_end in ((rows[0], 2.0, 1.0), (rows[1], 2.0, 3.0)):
+        _, _, summary, _ = _run(capsys, fmus, _scenario(fmus, f"alone_{t_end:g}", "CStop",
+                                                         stop_time, t_end))
+        assert float(row["error.position"]) == pytest.approx(summary["error"]["position"],
+                                                             rel=1e-9)
+        assert float(row["pose.x"]) == summary["end_pose"]["x"]

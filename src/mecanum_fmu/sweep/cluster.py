@@ -287,10 +287,11 @@ def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult],
         variant = with_values(graph, run.values)
         topo = topology(variant)            # the run's own values (a swept w_max, say)
         drive = topo.drives[0]
+        end = times[-1] if row.end_time is None else row.end_time     # an FMU ended it
         key = tuple(tuple(sorted(variant.instance(n).start_values.items()))
-                    for n in truth_inputs(variant, drive))
+                    for n in truth_inputs(variant, drive)) + (end,)
         if key not in truths:
-            truths[key] = solve_truth(variant, drive, times)
+            truths[key] = solve_truth(variant, drive, times[times <= end])
         truth, failure = truths[key]
         pose = evaluate(variant, _end_row(row, drive.pose, times), topo=topo,
                         truths={drive.pose: truth}).single
@@ -304,9 +305,11 @@ def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult],
 
 
 def _end_row(row: RunResult, pose: str, times: np.ndarray) -> Results:
-    """The run's end pose as a one-row Results at the run's end time."""
+    """The run's end pose as a one-row Results at the run's end time (its last row's: an FMU
+    may have ended the run before the stop time)."""
     names = tuple(f"{pose}.{k}" for k in ("x", "y", "theta"))
-    data = np.array([(times[-1],) + tuple(row.ends[n] for n in names)],
+    end = times[-1] if row.end_time is None else row.end_time
+    data = np.array([(end,) + tuple(row.ends[n] for n in names)],
                     dtype=[("time", "f8")] + [(n, "f8") for n in names])
     return Results(names, data, "", float(times[0]), float(times[-1]), 0.0, 0, 0.0)
 

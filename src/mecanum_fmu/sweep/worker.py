@@ -34,6 +34,7 @@ class RunResult:
     seconds: float                       # the whole run on the worker
     loop_seconds: float                  # its stepping loop
     estimate: dict = dataclasses.field(default_factory=dict)   # summary.json's error_estimate
+    end_time: float | None = None        # the last row's time (an FMU may end the run early)
 
 
 def with_values(graph: Graph, values: dict[VarRef, Scalar]) -> Graph:
@@ -73,7 +74,7 @@ def _run_one(graph, index, values, path_names) -> RunResult:
     estimate = (master.estimate_error(variant, results).get("error_estimate") or {}
                 if status == "ok" else {})
     return RunResult(index, status, message, ends, path, time.perf_counter() - tick, loop,
-                     estimate)
+                     estimate, float(results.time[-1]) if ends else None)
 
 
 class CleanUp(WorkerPlugin):
