@@ -8,6 +8,8 @@ third-party controller's measured Jacobian; two integrators in a row (x'' = u), 
 response is not of first order, and a nonlinear controller hand over to Richardson."""
 import math
 import re
+import zipfile
+
 import numpy as np
 import pytest
 
@@ -662,3 +664,37 @@ outputs:
     _within_3x(summary["error_estimate"]["lag.x"], error)
     if master_name == "adaptive":
         assert error.max() < 3e-4       # the tolerance, 1e-4, within the estimate's reach
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel"])
+def test_a_controller_that_declares_no_dependencies_reads_its_newest_input_exactly(
+        tmp_path, fmus, master_name):
+    # the P controller u = 3 (r - y) with its dependencies stripped from its model
+    # description: measured as an FMU that may hold a state, its response is all direct, and
+    # the direct part errs by the held value against the true end value: nothing where the
+    # master holds the newest value (it read h^2 u'' / 12 per step, 2.5e-3, from the held
+    # value against the true mean and half the change); the lag it feeds, within 3x
+    undeclared = tmp_path / "XtestGainUndeclared.fmu"
+    with zipfile.ZipFile(fmus["xtest_gain"]) as source, zipfile.ZipFile(undeclared, "w") as out:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                data = re.sub(rb' dependencies="[^"]*"', b"", data)
+            out.writestr(item, data)
+    scenario = write_scenario(tmp_path, "chain", f"""\
+name: chain
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  ctrl: {{fmu: {undeclared}, parameters: {{kp: 3.0}}}}
+  plant: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}}}}}
+connections: [[wave.u, ctrl.r], [ctrl.u, plant.u]]
+outputs: [plant.x, ctrl.u]
+""")
+    graph = runner.prepare(scenario)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    found = master.estimate_error(graph, results)["error_estimate"]
+    assert found["ctrl.u"] == {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
+    np.testing.assert_allclose(results["ctrl.u"], 3.0 * np.cos(results.time), atol=1e-12)
+    error = np.abs(results["plant.x"] - 3.0 * _truth(results.time))     # linear in u
+    _within_3x(found["plant.x"], error)

@@ -499,7 +499,8 @@ class PairRows(Stencils):
             if branch:
                 self._branched_group(i, g, ks, h, stencils, branch)
                 continue
-            held, error, change = self._group(g, ks, self._gathered(i, stencils))
+            gathered = self._gathered(i, stencils)
+            held, error, change = self._group(g, ks, gathered)
             error = self._forwarded_into(i, error)
             if g.model is None:
                 self._note_moved(i, error)
@@ -507,7 +508,8 @@ class PairRows(Stencils):
             if self.net is not None:
                 holds[i] = (held, error, change)
                 continue
-            self._kept(i, self._signed(i, g, ks, h, (held, error, change)))
+            self._kept(i, self._signed(i, g, ks, h, (held, error, change),
+                                       lead=gathered[2] - gathered[0]))
         if self.net is not None:
             self._network(ks, h, holds)
         if self.lags:
@@ -520,13 +522,16 @@ class PairRows(Stencils):
         self.window, self.lo = self.window[drop:], self.lo + drop
 
     def _signed(self, i: int, g: Group, ks: np.ndarray, h: np.ndarray, hold: tuple,
-                branch: int = 0) -> np.ndarray:
+                branch: int = 0, lead: np.ndarray | None = None) -> np.ndarray:
         """Group i's signed errors after each step (with a `branch`, its rows after them):
         its model's (a branch only to a model that takes one: _branchable), or around the
-        loop it starts (_carried)."""
+        loop it starts (_carried). `lead`: the true input's end value less its mean, per step,
+        for a measured model's direct part (ProbedModel: held - true end = error - lead)."""
         if self.carry is not None and i == self.plan.loop.origin:
             return self._carried(g, ks, h, hold, branch)
-        return g.model.steps(h, *hold, branch=branch) if branch else g.model.steps(h, *hold)
+        more = {"lead": lead} if lead is not None and isinstance(g.model, ProbedModel) else {}
+        return g.model.steps(h, *hold, branch=branch, **more) if branch else \
+            g.model.steps(h, *hold, **more)
 
     def _kept(self, i: int, signed: np.ndarray) -> None:
         """Keep group i's signed errors after each step: its covered outputs', those other
@@ -539,12 +544,13 @@ class PairRows(Stencils):
 
     def _branched_group(self, i: int, g: Group, ks, h, stencils: dict, branch: int) -> None:
         """Group i's steps with a branch (_steps): the steps kept, the branch's end apart."""
-        held, error, change = self._group(g, with_branch(ks, branch),
-                                          self._gathered(i, stencils))
+        gathered = self._gathered(i, stencils)
+        held, error, change = self._group(g, with_branch(ks, branch), gathered)
         if g.model is None:
             self._note_moved(i, error[:len(ks)])
             return
-        signed = self._signed(i, g, ks, with_branch(h, branch), (held, error, change), branch)
+        signed = self._signed(i, g, ks, with_branch(h, branch), (held, error, change), branch,
+                              lead=gathered[2] - gathered[0])
         self._kept(i, signed[:len(ks)])
         names, index = self.covers[i]
         self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))
