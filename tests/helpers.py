@@ -122,6 +122,27 @@ def ending_fmus(tmp_path_factory) -> Path:
     return _ENDING[0]
 
 
+def mode_fmu3(dest: Path) -> Path:
+    """X3testMode.fmu (pythonfmu3, FMI 3.0: tests/fmu_sources/fmi3_enum) built into `dest`,
+    its Int64 mode_in and mode rewritten into Enumerations of a declared type Mode (slow = 1,
+    fast = 2), as FMI 3.0's Reference FMU Feedthrough declares its Enumeration_input."""
+    from pythonfmu3 import FmuBuilder
+    fmu = Path(FmuBuilder.build_FMU(FMU_SOURCES / "fmi3_enum" / "x3test_mode.py", dest=dest))
+    with zipfile.ZipFile(fmu) as zf:
+        entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
+    xml = entries["modelDescription.xml"].decode()
+    xml = re.sub(r'<Int64 name="(mode_in|mode)"', r'<Enumeration name="\1" declaredType="Mode"',
+                 xml)
+    xml = xml.replace("<ModelVariables>", '<TypeDefinitions><EnumerationType name="Mode">'
+                      '<Item name="slow" value="1"/><Item name="fast" value="2"/>'
+                      "</EnumerationType></TypeDefinitions>\n\t<ModelVariables>", 1)
+    entries["modelDescription.xml"] = xml.encode()
+    with zipfile.ZipFile(fmu, "w") as zf:
+        for name, data in entries.items():
+            zf.writestr(name, data)
+    return fmu
+
+
 def declare_no_dependencies(fmu: Path, direct: dict[str, list[str]] | None = None) -> None:
     """Rewrite the FMU's model description: every output declared free of every input
     (dependencies="", as a C exporter declares a state; pythonfmu writes none), but those

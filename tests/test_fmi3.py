@@ -22,8 +22,8 @@ import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from helpers import CHAIN_CONNECTIONS, ROOT, run_host_or_skip, tool_missing as missing, \
-    write_scenario
+from helpers import CHAIN_CONNECTIONS, ROOT, mode_fmu3, run_host_or_skip, \
+    tool_missing as missing, write_scenario
 from mecanum_fmu import master
 from mecanum_fmu.errors import ScenarioError
 from mecanum_fmu.interop.cross_check import CSV_TOLERANCE, compared_outputs, cross_check, \
@@ -337,3 +337,30 @@ def test_a_failure_names_the_fmi3_function(fmu_dir, fmi3_fmus):
         r.free()
     assert names["c2w"] == ["fmi3GetFMUState", "fmi3SetFMUState", "fmi3FreeFMUState", "get"]
     assert names["w2c"] == ["fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "get"]
+
+
+def test_an_fmi3_enumeration_is_read_and_set_as_int64(tmp_path_factory, tmp_path):
+    """FMI 3.0 gets and sets an Enumeration as Int64 (the Reference FMUs' Feedthrough records
+    its Enumeration_output by default; read as Int32, the run failed: 'Get Int32 is not
+    allowed for value reference 34'). A start value, a link and the default recording."""
+    fmu = mode_fmu3(tmp_path_factory.mktemp("mode_fmu3"))
+    scenario = write_scenario(tmp_path, "modes", f"""\
+name: modes
+experiment: {{start_time: 0.0, stop_time: 1.0, step_size: 0.1, master: gauss-seidel}}
+components:
+  a: {{fmu: {fmu}, parameters: {{mode_in: 2}}}}
+  b: {{fmu: {fmu}}}
+connections:
+  - [a.mode, b.mode_in]
+""")
+    graph = prepare(scenario)
+    assert {str(p.ref): p.type for p in graph.recorded} == {
+        "a.mode": "Integer", "a.y": "Real", "a.count": "Integer",
+        "b.mode": "Integer", "b.y": "Real", "b.count": "Integer"}
+    results = master.simulate(graph, graph.scenario.experiment)
+    assert results.complete
+    steps = np.arange(len(results.time))
+    np.testing.assert_array_equal(results["a.count"], steps)     # Int32 beside the Int64s
+    np.testing.assert_array_equal(results["a.mode"][1:], 2)      # its start value, set
+    np.testing.assert_array_equal(results["b.mode"][1:], 2)      # a.mode read, b.mode_in set
+    np.testing.assert_array_equal(results["b.y"][1:], 2.0)

@@ -46,23 +46,56 @@ class Fmu3(FMU3Slave):
     def getReal(self, vr):
         return self.getFloat64(vr)
 
+    enums: frozenset = frozenset()      # its Enumeration references: Int64 in FMI 3.0
+
     def getInteger(self, vr):
-        return self.getInt32(vr)
+        return [self.getInt64([v])[0] if v in self.enums else self.getInt32([v])[0]
+                for v in vr] if self.enums else self.getInt32(vr)
 
     def setReal(self, vr, values):
         self.setFloat64(vr, values)
 
     def setInteger(self, vr, values):
-        self.setInt32(vr, values)
+        if not self.enums:
+            self.setInt32(vr, values)
+            return
+        for v, value in zip(vr, values):
+            (self.setInt64 if v in self.enums else self.setInt32)([v], [value])
 
 
-def raw_calls(f: dict) -> tuple[dict, dict, object]:
-    """(c_get, c_set, c_do_step) over fmpy's FMI 3.0 function table f."""
+def raw_calls(f: dict, enums: frozenset = frozenset()) -> tuple[dict, dict, object]:
+    """(c_get, c_set, c_do_step) over fmpy's FMI 3.0 function table f; `enums`: the FMU's
+    Enumeration references, which the master's Integer kind holds (int32, as FMI 2.0's) and
+    FMI 3.0 gets and sets as Int64."""
     c_get = {kind: _scalars(f[f"fmi3Get{t}"]) for kind, t in _TYPES.items()}
     c_set = {kind: _scalars(f[f"fmi3Set{t}"]) for kind, t in _TYPES.items()}
     c_get["Boolean"], c_set["Boolean"] = _get_booleans(f["fmi3GetBoolean"]), _set_booleans(
         f["fmi3SetBoolean"])
+    if enums:
+        c_get["Integer"] = _with_enums(c_get["Integer"], f["fmi3GetInt64"], enums, True)
+        c_set["Integer"] = _with_enums(c_set["Integer"], f["fmi3SetInt64"], enums, False)
     return c_get, c_set, _do_step(f["fmi3DoStep"])
+
+
+def _with_enums(int32, int64, enums: frozenset, get: bool):
+    """An Integer get or set (fn(component, vrs, n, pointer), the master's int32 values) that
+    takes the Enumeration references through fmi3Get/SetInt64, the others through `int32`."""
+    def call(component, vrs, n, pointer):
+        status = 0
+        for wide, function in ((False, int32), (True, int64)):
+            at = [i for i in range(n) if (vrs[i] in enums) == wide]
+            if not at:
+                continue
+            refs = (ctypes.c_uint * len(at))(*[vrs[i] for i in at])
+            values = ((ctypes.c_int64 if wide else ctypes.c_int32) * len(at))(
+                *([0] * len(at) if get else [pointer[i] for i in at]))
+            status = max(status, function(component, refs, len(at), values, len(at)) if wide
+                         else function(component, refs, len(at), values))
+            if get:
+                for j, i in enumerate(at):
+                    pointer[i] = values[j]
+        return status
+    return call
 
 
 def _scalars(function):

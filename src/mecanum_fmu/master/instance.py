@@ -78,7 +78,9 @@ class RunningInstance:
         self.fmi3 = isinstance(self.fmu, fmi3.Fmu3)
         self.names = _NAMES3 if self.fmi3 else _NAMES2    # the FMI functions, by what they do
         if self.fmi3:
-            self.c_get, self.c_set, self.c_do_step = fmi3.raw_calls(f)
+            self.fmu.enums = frozenset(v.valueReference for v in md.modelVariables
+                                       if v.type == "Enumeration")
+            self.c_get, self.c_set, self.c_do_step = fmi3.raw_calls(f, self.fmu.enums)
         else:
             self.c_get = {"Real": f["fmi2GetReal"], "Integer": f["fmi2GetInteger"],
                           "Boolean": f["fmi2GetBoolean"]}
