@@ -11,6 +11,7 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from typing import Callable
 
 import fmpy
 import numpy as np
@@ -128,40 +129,45 @@ def mode_fmu3(dest: Path) -> Path:
     fast = 2), as FMI 3.0's Reference FMU Feedthrough declares its Enumeration_input."""
     from pythonfmu3 import FmuBuilder
     fmu = Path(FmuBuilder.build_FMU(FMU_SOURCES / "fmi3_enum" / "x3test_mode.py", dest=dest))
+
+    def enumerations(xml: str) -> str:
+        xml = re.sub(r'<Int64 name="(mode_in|mode)"',
+                     r'<Enumeration name="\1" declaredType="Mode"', xml)
+        return xml.replace("<ModelVariables>", '<TypeDefinitions><EnumerationType name="Mode">'
+                           '<Item name="slow" value="1"/><Item name="fast" value="2"/>'
+                           "</EnumerationType></TypeDefinitions>\n\t<ModelVariables>", 1)
+    rewrite_description(fmu, enumerations)
+    return fmu
+
+
+def rewrite_description(fmu: Path, edit: Callable[[str], str], dest: Path | None = None
+                        ) -> Path:
+    """The FMU with its modelDescription.xml passed through `edit`, in place or as `dest`."""
     with zipfile.ZipFile(fmu) as zf:
         entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
-    xml = entries["modelDescription.xml"].decode()
-    xml = re.sub(r'<Int64 name="(mode_in|mode)"', r'<Enumeration name="\1" declaredType="Mode"',
-                 xml)
-    xml = xml.replace("<ModelVariables>", '<TypeDefinitions><EnumerationType name="Mode">'
-                      '<Item name="slow" value="1"/><Item name="fast" value="2"/>'
-                      "</EnumerationType></TypeDefinitions>\n\t<ModelVariables>", 1)
-    entries["modelDescription.xml"] = xml.encode()
-    with zipfile.ZipFile(fmu, "w") as zf:
+    entries["modelDescription.xml"] = edit(entries["modelDescription.xml"].decode()).encode()
+    with zipfile.ZipFile(dest or fmu, "w") as zf:
         for name, data in entries.items():
             zf.writestr(name, data)
-    return fmu
+    return dest or fmu
 
 
 def declare_no_dependencies(fmu: Path, direct: dict[str, list[str]] | None = None) -> None:
     """Rewrite the FMU's model description: every output declared free of every input
     (dependencies="", as a C exporter declares a state; pythonfmu writes none), but those
     in `direct` (FMI 2.0): output name -> the inputs that reach it directly."""
-    with zipfile.ZipFile(fmu) as zf:
-        entries = {i.filename: zf.read(i) for i in zf.infolist() if not i.is_dir()}
-    xml = entries["modelDescription.xml"].decode()
-    index = {name: i + 1 for i, name in enumerate(re.findall(r'<ScalarVariable name="([^"]+)"',
-                                                             xml))}
-    name_of = {str(i): name for name, i in index.items()}
-    xml = re.sub(r'<Unknown index="(\d+)"/>', lambda m: '<Unknown index="{}" dependencies="{}"/>'
-                 .format(m.group(1), " ".join(str(index[n]) for n in
-                                              (direct or {}).get(name_of[m.group(1)], []))), xml)
-    xml = re.sub(r'<Output valueReference="(\d+)"/>',               # FMI 3.0
-                 r'<Output valueReference="\1" dependencies=""/>', xml)
-    entries["modelDescription.xml"] = xml.encode()
-    with zipfile.ZipFile(fmu, "w") as zf:
-        for name, data in entries.items():
-            zf.writestr(name, data)
+    def declared(xml: str) -> str:
+        index = {name: i + 1 for i, name in enumerate(
+            re.findall(r'<ScalarVariable name="([^"]+)"', xml))}
+        name_of = {str(i): name for name, i in index.items()}
+        xml = re.sub(r'<Unknown index="(\d+)"/>',
+                     lambda m: '<Unknown index="{}" dependencies="{}"/>'.format(
+                         m.group(1), " ".join(str(index[n]) for n in
+                                              (direct or {}).get(name_of[m.group(1)], []))),
+                     xml)
+        return re.sub(r'<Output valueReference="(\d+)"/>',               # FMI 3.0
+                      r'<Output valueReference="\1" dependencies=""/>', xml)
+    rewrite_description(fmu, declared)
 
 
 def with_experiment(graph, **changes):

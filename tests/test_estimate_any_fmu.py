@@ -8,13 +8,12 @@ third-party controller's measured Jacobian; two integrators in a row (x'' = u), 
 response is not of first order, and a nonlinear controller hand over to Richardson."""
 import math
 import re
-import zipfile
 
 import numpy as np
 import pytest
 
-from helpers import (ROOT, ending_fmus, run_main, state_fmu3, state_fmus, test_fmus,
-                     with_experiment, write_scenario)
+from helpers import (ROOT, ending_fmus, rewrite_description, run_main, state_fmu3,
+                     state_fmus, test_fmus, with_experiment, write_scenario)
 from mecanum_fmu import master, runner
 from mecanum_fmu.errors import ScenarioError, SimulationError
 from mecanum_fmu.results import BELOW_ROUND_OFF
@@ -674,13 +673,9 @@ def test_a_controller_that_declares_no_dependencies_reads_its_newest_input_exact
     # the direct part errs by the held value against the true end value: nothing where the
     # master holds the newest value (it read h^2 u'' / 12 per step, 2.5e-3, from the held
     # value against the true mean and half the change); the lag it feeds, within 3x
-    undeclared = tmp_path / "XtestGainUndeclared.fmu"
-    with zipfile.ZipFile(fmus["xtest_gain"]) as source, zipfile.ZipFile(undeclared, "w") as out:
-        for item in source.infolist():
-            data = source.read(item)
-            if item.filename == "modelDescription.xml":
-                data = re.sub(rb' dependencies="[^"]*"', b"", data)
-            out.writestr(item, data)
+    undeclared = rewrite_description(fmus["xtest_gain"],
+                                     lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
+                                     tmp_path / "XtestGainUndeclared.fmu")
     scenario = write_scenario(tmp_path, "chain", f"""\
 name: chain
 experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
