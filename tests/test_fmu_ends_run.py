@@ -183,3 +183,16 @@ def test_a_sweep_run_that_an_fmu_ends_is_ok_says_so_and_meets_the_truth_at_its_e
         assert float(row["error.position"]) == pytest.approx(summary["error"]["position"],
                                                              rel=1e-9)
         assert float(row["pose.x"]) == summary["end_pose"]["x"]
+
+
+def test_an_estimate_whose_run_made_again_ends_early_says_so(fmus):
+    """Results that do not say the run ended early (an FMU whose end moved between runs; here
+    the mark taken off): the run made again for the pair ends early, and the estimate says
+    why it has none instead of failing."""
+    graph = prepare(_scenario(fmus, "ends_again", "CStop", 2.0, 1.0, "gauss-seidel"))
+    results = master.simulate(graph, graph.scenario.experiment)
+    unmarked = dataclasses.replace(results, extra={})
+    found = master.estimate_error(graph, unmarked)
+    assert found["error_estimate"] is None
+    # the pair's run made again ended (it fell to Richardson), and so did the coarser run
+    assert "failed (stop asked to end it at t = 1 s)" in found["error_estimate_method"]

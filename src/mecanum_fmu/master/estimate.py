@@ -180,6 +180,9 @@ def _pair_afresh(graph: Graph, results: Results, simulate) -> tuple:
         again = simulate(graph, exp, keep_rows=None if every else 2, with_estimate=True)
     except SimulationError as err:
         return f"the run made again for it failed ({err})", {}
+    if ended := again.extra.get("ended"):      # an FMU that does not end where it did
+        return (f"the run made again for it ended at t = {ended['time']:g} s, where "
+                f"{ended['by']} asked"), {}
     return again.extra["pair"]["found"], again.extra.get("coarse", {}) if every else {}
 
 
