@@ -693,3 +693,20 @@ outputs: [plant.x, ctrl.u]
     np.testing.assert_allclose(results["ctrl.u"], 3.0 * np.cos(results.time), atol=1e-12)
     error = np.abs(results["plant.x"] - 3.0 * _truth(results.time))     # linear in u
     _within_3x(found["plant.x"], error)
+
+
+def test_the_adaptive_master_warns_of_an_fmu_that_declares_a_fixed_step(tmp_path, fmus, lag3):
+    # pythonfmu3 declares canHandleVariableCommunicationStepSize false by default; the
+    # adaptive master varies the step (it steps the FMU anyway, as FMPy would): a warning
+    # names the FMU; a fixed-step master, or FMUs that declare true, get none
+    from fmpy import read_model_description
+    assert read_model_description(str(lag3)).coSimulation \
+        .canHandleVariableCommunicationStepSize is False
+    scenario = _scenario(tmp_path, fmus, "quadratic", lag=lag3)
+    adaptive = runner.prepare(scenario, tolerance=1e-4)
+    said = [w for w in adaptive.warnings if "varies the communication step" in w]
+    assert len(said) == 1 and "'lag'" in said[0] and "'wave'" not in said[0]
+    assert not any("varies the communication step" in w
+                   for w in runner.prepare(scenario).warnings)
+    both2 = runner.prepare(_scenario(tmp_path, fmus, "quadratic"), tolerance=1e-4)
+    assert not any("varies the communication step" in w for w in both2.warnings)

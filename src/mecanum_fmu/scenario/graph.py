@@ -202,7 +202,8 @@ def compile_graph(scenario: Scenario, fmu_dir: Path | None = None) -> Graph:
                             tuple(i.name for i in order if bundled_model(i.model) is None)))
     return dataclasses.replace(graph, warnings=tuple(
         check.warnings + _unconnected_inputs(instances, drivers, scenario.label)
-        + _rollback_warning(scenario, order, links) + plausibility.warnings(scenario, order)))
+        + _rollback_warning(scenario, order, links) + _variable_step_warning(scenario, order)
+        + plausibility.warnings(scenario, order)))
 
 
 def _watched(order: list[Instance], models: tuple, recorded: list[Port], links: list[Link]
@@ -334,6 +335,21 @@ def _rollback_warning(scenario: Scenario, order: list[Instance], links: list[Lin
             f"rolling back with fmi2SetFMUstate, which {', '.join(repr(n) for n in unable)} "
             f"cannot do (canGetAndSetFMUstate is false): the loop is stepped once on "
             f"extrapolated inputs instead, as by the trapezoidal master"]
+
+
+def _variable_step_warning(scenario: Scenario, order: list[Instance]) -> list[str]:
+    """The adaptive master varies the communication step; an FMU may declare that it cannot
+    handle that (canHandleVariableCommunicationStepSize false: pythonfmu3's default). It is
+    stepped anyway, as FMPy steps it; the warning says so and what keeps the step fixed."""
+    how = master_entry(scenario.experiment.master)
+    fixed = [inst.name for inst in order
+             if not inst.model.coSimulation.canHandleVariableCommunicationStepSize]
+    if not how.adaptive or not fixed:
+        return []
+    return [f"{scenario.label}: the {how.name} master varies the communication step, which "
+            f"{', '.join(repr(n) for n in fixed)} declare(s) it cannot handle "
+            "(canHandleVariableCommunicationStepSize is false); it is stepped so anyway, and a "
+            "fixed-step master (drop the tolerance) keeps the step it declares"]
 
 
 class _Checker:
