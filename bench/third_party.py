@@ -2,13 +2,15 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Five graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Six graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
 x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
 second output y = x + u, which the input reaches directly; a loop, cos t into a
 P controller u = 3 (r - x) (no state) around the lag (x' = -2 x + u: the error carried
-through the controller's measured Jacobian). The truths of the linear ones: their ODEs by
+through the controller's measured Jacobian); and "bare", the first lag with its model
+description's dependencies taken out, as pythonfmu and pythonfmu3 write it (an FMU whose
+outputs declare none may hold a state: plan.has_state). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
 for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
 the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
@@ -20,6 +22,7 @@ Run: .venv/bin/python bench/third_party.py
 """
 from __future__ import annotations
 
+import re
 import statistics
 import sys
 import tempfile
@@ -31,7 +34,7 @@ from scipy.integrate import solve_ivp
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from helpers import state_fmus, with_experiment  # noqa: E402
+from helpers import rewrite_description, state_fmus, with_experiment  # noqa: E402
 from mecanum_fmu import master  # noqa: E402
 from mecanum_fmu.runner import prepare  # noqa: E402
 
@@ -63,6 +66,11 @@ outputs: [one.x, two.x]""", lambda t, y: [-2 * y[0] + np.cos(t), y[0] - y[1]]),
   it: {{fmu: {xtest_through}, parameters: {{k: 2.0}}}}
 connections: [[wave.u, it.u]]
 outputs: [it.x, it.y]""", lambda t, y: [-2 * y[0] + np.cos(t), 0.0]),
+    "bare": ("""\
+  wave: {{fmu: {xtest_wave}}}
+  it: {{fmu: {xtest_lag_bare}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]""", lambda t, y: [-2 * y[0] + np.cos(t)]),
     "loop": ("""\
   wave: {{fmu: {xtest_wave}}}
   ctrl: {{fmu: {xtest_gain}, parameters: {{kp: 3.0}}}}
@@ -134,6 +142,9 @@ def _ratio(estimate, true: float) -> float:
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         fmus = state_fmus(Path(tmp))
+        fmus["xtest_lag_bare"] = rewrite_description(
+            fmus["xtest_lag"], lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
+            Path(tmp) / "XtestLagBare.fmu")
         print(f"{'graph':<5} {'output':<8} {'master':<12} {'h':>6} {'estimate':<12} {'max':>6} "
               f"{'end':>6} {'cost':>6} {'ms':>6} {'probe calls':>11}")
         rows = []
