@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import ending_fmus, read_csv, run_child, run_main, write_scenario
+from helpers import (ending_fmus, read_csv, run_child, run_main, with_experiment,
+                     write_scenario)
 from mecanum_fmu import master
 from mecanum_fmu.runner import prepare
 
@@ -155,9 +156,7 @@ def _same_estimate(found: dict, expected: dict) -> None:
 
 def _richardson(graph):
     """The graph under --estimate richardson and its run."""
-    exp = dataclasses.replace(graph.scenario.experiment, estimate="richardson")
-    graph = dataclasses.replace(graph, scenario=dataclasses.replace(graph.scenario,
-                                                                    experiment=exp))
+    graph, exp = with_experiment(graph, estimate="richardson")
     return graph, master.simulate(graph, exp)
 
 

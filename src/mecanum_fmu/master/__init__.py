@@ -30,8 +30,8 @@ from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
 from .probe import prober
 from .recorder import Recorder, step_count
-from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, check_finite,
-                       initialise, settled_end, step_all)
+from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, before_stop,
+                       check_finite, initialise, settled_end, step_all)
 
 __all__ = ["simulate", "estimate_error", "release_instances", "RUNTIME"]
 
@@ -267,8 +267,7 @@ def _ended(r: RunningInstance, time: float, recorder: Recorder,
     The pair's tap is let go (it was laid out for the whole run): the estimate is made on
     the run to `time` (estimate.error_estimate)."""
     r.mark_failed(2)
-    exp = recorder.experiment
-    if time >= exp.stop_time - 1e-9 * exp.step_size:
+    if not before_stop(time, recorder.experiment):
         return None
     recorder.tap = None
     how = ("its fmi3DoStep set terminateSimulation" if r.fmi3 else

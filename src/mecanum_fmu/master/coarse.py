@@ -26,8 +26,8 @@ from .richardson import coarse_experiment, coarse_rows, coarse_sink
 from .instance import RunningInstance
 from .plan import Buffers, Holds
 from .recorder import Recorder, step_count
-from .stepping import (EndRequested, NonFinite, StepFailure, free_states, restore_states,
-                       save_states)
+from .stepping import (EndRequested, NonFinite, StepFailure, before_stop, free_states,
+                       restore_states, save_states)
 
 
 class Start:
@@ -85,7 +85,7 @@ def coarse_runs(graph: Graph, results: Results, start: Start, holds: Holds,
             break
         except EndRequested as err:     # an FMU asked to end the run: where it should end?
             err.running.mark_failed(2)
-            if err.time < cexp.stop_time - 1e-9 * cexp.step_size:
+            if before_stop(err.time, cexp):
                 runs[factor] = f"{err.running.name} asked to end it at t = {err.time:g} s"
                 break
         except KeyboardInterrupt:

@@ -194,6 +194,12 @@ class EndRequested(Exception):
         self.running, self.time = running, time
 
 
+def before_stop(time: float, exp) -> bool:
+    """Whether a run that an FMU ended at `time` ended before exp's stop time (else it is a
+    plain end: the FMU asked on the last step)."""
+    return time < exp.stop_time - 1e-9 * exp.step_size
+
+
 def asked_to_end(err: "StepFailure") -> bool:
     """Whether the doStep that failed asked to end the simulation and got to its step's
     end: fmi2Discard with fmi2Terminated true and fmi2LastSuccessfulTime there (the

@@ -293,7 +293,7 @@ def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult],
         if key not in truths:
             truths[key] = solve_truth(variant, drive, times[times <= end])
         truth, failure = truths[key]
-        pose = evaluate(variant, _end_row(row, drive.pose, times), topo=topo,
+        pose = evaluate(variant, _end_row(row, drive.pose, times, end), topo=topo,
                         truths={drive.pose: truth}).single
         if failure is not None:
             failures[failure] = failures.get(failure, 0) + 1
@@ -304,11 +304,10 @@ def end_errors(graph: Graph, runs: list[Run], results: dict[int, RunResult],
     return errors
 
 
-def _end_row(row: RunResult, pose: str, times: np.ndarray) -> Results:
-    """The run's end pose as a one-row Results at the run's end time (its last row's: an FMU
-    may have ended the run before the stop time)."""
+def _end_row(row: RunResult, pose: str, times: np.ndarray, end: float) -> Results:
+    """The run's end pose as a one-row Results at the run's end time `end` (its last row's:
+    an FMU may have ended the run before the stop time)."""
     names = tuple(f"{pose}.{k}" for k in ("x", "y", "theta"))
-    end = times[-1] if row.end_time is None else row.end_time
     data = np.array([(end,) + tuple(row.ends[n] for n in names)],
                     dtype=[("time", "f8")] + [(n, "f8") for n in names])
     return Results(names, data, "", float(times[0]), float(times[-1]), 0.0, 0, 0.0)
