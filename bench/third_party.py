@@ -2,7 +2,7 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Six graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Seven graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
 x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
@@ -10,7 +10,9 @@ second output y = x + u, which the input reaches directly; a loop, cos t into a
 P controller u = 3 (r - x) (no state) around the lag (x' = -2 x + u: the error carried
 through the controller's measured Jacobian); and "bare", the first lag with its model
 description's dependencies taken out, as pythonfmu and pythonfmu3 write it (an FMU whose
-outputs declare none may hold a state: plan.has_state). The truths of the linear ones: their ODEs by
+outputs declare none may hold a state: plan.has_state); and "bare_loop", the loop with the
+controller's dependencies taken out (a probe at t0 finds it without a state:
+probe.memoryless). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
 for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
 the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
@@ -78,6 +80,8 @@ outputs: [it.x]""", lambda t, y: [-2 * y[0] + np.cos(t)]),
 connections: [[wave.u, ctrl.r], [plant.x, ctrl.y], [ctrl.u, plant.u]]
 outputs: [plant.x]""", lambda t, y: [-2 * y[0] + 3 * (np.cos(t) - y[0])]),
 }
+GRAPHS["bare_loop"] = (GRAPHS["loop"][0].replace("{xtest_gain}", "{xtest_gain_bare}"),
+                       GRAPHS["loop"][1])
 
 
 def scenario(folder: Path, fmus: dict, name: str) -> Path:
@@ -142,10 +146,11 @@ def _ratio(estimate, true: float) -> float:
 def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         fmus = state_fmus(Path(tmp))
-        fmus["xtest_lag_bare"] = rewrite_description(
-            fmus["xtest_lag"], lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
-            Path(tmp) / "XtestLagBare.fmu")
-        print(f"{'graph':<5} {'output':<8} {'master':<12} {'h':>6} {'estimate':<12} {'max':>6} "
+        for stem in ("xtest_lag", "xtest_gain"):
+            fmus[f"{stem}_bare"] = rewrite_description(
+                fmus[stem], lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
+                Path(tmp) / f"{stem}_bare.fmu")
+        print(f"{'graph':<9} {'output':<8} {'master':<12} {'h':>6} {'estimate':<12} {'max':>6} "
               f"{'end':>6} {'cost':>6} {'ms':>6} {'probe calls':>11}")
         rows = []
         for name in GRAPHS:
@@ -155,7 +160,7 @@ def main() -> None:
                     for estimate in ("auto", "richardson"):
                         for m in measure(name, path, master_name, h, estimate):
                             rows.append((estimate, m))
-                            print(f"{name:<5} {m['output']:<8} {master_name:<12} {h:>6g} "
+                            print(f"{name:<9} {m['output']:<8} {master_name:<12} {h:>6g} "
                                   f"{m['method'][:12]:<12} {m['max']:>6.2f} {m['end']:>6.2f} "
                                   f"{m['cost']:>6.2f} {m['ms']:>6.2f} {m['calls']:>11.3f}", flush=True)
         summary(rows)

@@ -279,15 +279,15 @@ outputs: [one.x, two.x]
         _within_3x(summary["error_estimate"][name], error)
 
 
-def _loop(folder, fmus, master_name, cube=0.0):
-    """cos t into a controller u = 3 (r - x) + cube (r - x)^3 (no state) closing a loop
-    around the lag x' = -2 x + u."""
+def _loop(folder, fmus, master_name, cube=0.0, ctrl=None, more=""):
+    """cos t into a controller u = 3 (r - x) + cube (r - x)^3 (no state; `ctrl`: another
+    build of it, `more`: further parameters) closing a loop around the lag x' = -2 x + u."""
     return write_scenario(folder, "loop", f"""\
 name: loop
 experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
 components:
   wave: {{fmu: {fmus["xtest_wave"]}}}
-  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0, cube: {cube}}}}}
+  ctrl: {{fmu: {ctrl or fmus["xtest_gain"]}, parameters: {{kp: 3.0, cube: {cube}{more}}}}}
   plant: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
 connections:
   - [wave.u, ctrl.r]
@@ -673,9 +673,7 @@ def test_a_controller_that_declares_no_dependencies_reads_its_newest_input_exact
     # the direct part errs by the held value against the true end value: nothing where the
     # master holds the newest value (it read h^2 u'' / 12 per step, 2.5e-3, from the held
     # value against the true mean and half the change); the lag it feeds, within 3x
-    undeclared = rewrite_description(fmus["xtest_gain"],
-                                     lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
-                                     tmp_path / "XtestGainUndeclared.fmu")
+    undeclared = _undeclared(fmus["xtest_gain"], tmp_path)
     scenario = write_scenario(tmp_path, "chain", f"""\
 name: chain
 experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
@@ -693,6 +691,72 @@ outputs: [plant.x, ctrl.u]
     np.testing.assert_allclose(results["ctrl.u"], 3.0 * np.cos(results.time), atol=1e-12)
     error = np.abs(results["plant.x"] - 3.0 * _truth(results.time))     # linear in u
     _within_3x(found["plant.x"], error)
+
+
+def _undeclared(fmu, folder):
+    """The FMU with every dependency taken out of its model description, as pythonfmu and
+    pythonfmu3 write it."""
+    return rewrite_description(fmu, lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
+                               folder / f"{fmu.stem}Undeclared.fmu")
+
+
+def _loop_truth(t: np.ndarray) -> np.ndarray:
+    """x' = -2 x + 3 (cos t - x), x(0) = 0, by scipy's DOP853."""
+    from scipy.integrate import solve_ivp
+    return solve_ivp(lambda _, y: [-5 * y[0] + 3 * np.cos(_)], (0.0, 6.0), [0.0], t_eval=t,
+                     rtol=1e-12, atol=1e-14, method="DOP853").y[0]
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
+def test_a_controller_that_declares_no_dependencies_carries_a_loop_when_probes_find_no_state(
+        tmp_path, fmus, master_name):
+    # the P controller as pythonfmu writes it (no dependencies): it may hold a state, and the
+    # pair did not carry a loop through it (Richardson: 1.37x under the quadratic master,
+    # "unresolved" under the others). A probe at t0 finds that its outputs keep no trace of
+    # an input's move one step later: the loop goes through its measured Jacobian, and the
+    # run is the declared controller's
+    graph = runner.prepare(_loop(tmp_path, fmus, master_name,
+                                 ctrl=_undeclared(fmus["xtest_gain"], tmp_path)))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    method = summary["error_estimate_method"]
+    assert method.startswith("the embedded pair") and "Jacobians of ctrl (measured)" in method
+    error = np.abs(results["plant.x"] - _loop_truth(results.time))
+    assert error.max() > 1e-6
+    _within_3x(summary["error_estimate"]["plant.x"], error)
+    (tmp_path / "declared").mkdir()
+    declared = runner.prepare(_loop(tmp_path / "declared", fmus, master_name))
+    same = master.simulate(declared, declared.scenario.experiment)
+    np.testing.assert_array_equal(same["plant.x"], results["plant.x"])
+
+
+def test_the_pair_of_a_run_made_without_it_finds_a_controller_without_a_state_too(
+        tmp_path, fmus):
+    # master.simulate without with_estimate: estimate_error makes the run again for the pair,
+    # where the probes find the undeclared controller free of a state
+    graph = runner.prepare(_loop(tmp_path, fmus, "gauss-seidel",
+                                 ctrl=_undeclared(fmus["xtest_gain"], tmp_path)))
+    results = master.simulate(graph, graph.scenario.experiment)
+    summary = master.estimate_error(graph, results)
+    assert summary["error_estimate_method"].startswith("the embedded pair")
+    _within_3x(summary["error_estimate"]["plant.x"],
+               np.abs(results["plant.x"] - _loop_truth(results.time)))
+
+
+@pytest.mark.parametrize("after", [0.0, 2.0], ids=["at t0", "later"])
+def test_a_controller_that_declares_no_dependencies_and_holds_a_state_is_not_carried_through(
+        tmp_path, fmus, after):
+    # a PI controller whose integral starts at `after`: at t0 the probe finds it, and the
+    # pair does not apply; later, the probe that finds it hands the pair over to Richardson
+    graph = runner.prepare(_loop(tmp_path, fmus, "quadratic",
+                                 ctrl=_undeclared(fmus["xtest_gain"], tmp_path),
+                                 more=f", ki: 1.0, after: {after}"))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    method = master.estimate_error(graph, results)["error_estimate_method"]
+    assert method.startswith("Richardson")
+    assert ("ctrl.u carries an error into plant" if after == 0 else
+            "ctrl's outputs kept a trace of an input's move one step later (probed at t = 3.2 "
+            "s)") in method
 
 
 def test_the_adaptive_master_warns_of_an_fmu_that_declares_a_fixed_step(tmp_path, fmus, lag3):

@@ -24,11 +24,11 @@ from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario.document import Experiment
 from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .coarse import Start, coarse_runs
-from .estimate import coarse_plan, error_estimate, pair_tap
+from .estimate import coarse_plan, error_estimate, pair_tap, wants_pair
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
-from .probe import prober
+from .probe import memoryless, prober
 from .recorder import Recorder, step_count
 from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, before_stop,
                        check_finite, initialise, settled_end, step_all)
@@ -172,14 +172,17 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
     the run that it does not). `rolled_back`: _rolls_back_loops, how the pair rebuilds the
     hold of a loop's inputs. The pair's seconds count this set-up too."""
     tick = _time.perf_counter()
-    pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back)
-    if isinstance(pair, PairRows):
-        recorder.tap = pair
-        recorder.probe = prober(pair.plan, running, buffers.real, recorder.n_steps)
-    needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
     try:
+        quiet = frozenset(memoryless(graph, running, buffers.real_slots, buffers.real,
+                                     exp.start_time, exp.step_size)
+                          if wants_pair(graph, exp) else ())
+        pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back, quiet)
+        if isinstance(pair, PairRows):
+            recorder.tap = pair
+            recorder.probe = prober(pair.plan, running, buffers.real, recorder.n_steps)
+        needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
         start = _start(graph, exp, running, buffers, stack) if needs_t0 else None
-    except StepFailure as err:      # a state save that returned Error or worse
+    except StepFailure as err:      # a probe's or a state save's call: Error or worse
         raise _failure(err.running, err.function, err.status, exp.start_time,
                        recorder) from None
     if isinstance(pair, PairRows):

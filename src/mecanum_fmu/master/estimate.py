@@ -22,6 +22,7 @@ from .breakpoints import graph_breaks
 from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
 from .pair_parts import PairPlan
 from .pair_rows import PairRows
+from .probe import undeclared
 from .richardson import FINER, coarse_experiment, coarse_factors, coarse_run, richardson
 
 ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
@@ -78,15 +79,21 @@ def _fixed_with_reals(graph: Graph, exp) -> bool:
                                                          for p in graph.recorded)
 
 
-def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int, rolled_back: bool
-             ) -> PairRows | str | None:
+def wants_pair(graph: Graph, exp) -> bool:
+    """Whether the run may get the pair: the estimate auto, a fixed-step master and some
+    recorded Real output."""
+    return exp.estimate == "auto" and _fixed_with_reals(graph, exp)
+
+
+def pair_tap(graph: Graph, exp, real_slots: dict, n_steps: int, rolled_back: bool,
+             memoryless: frozenset = frozenset()) -> PairRows | str | None:
     """The recorder's tap of the pair for this run (pair_rows.py), or why the pair does not
     apply (Richardson then estimates), or None where the run gets no pair: an estimate other
     than auto, the adaptive master, no recorded Real output. `rolled_back`: the run predicts,
-    rolls back and corrects each step (master._rolls_back_loops)."""
-    if exp.estimate != "auto" or not _fixed_with_reals(graph, exp):
+    rolls back and corrects each step (master._rolls_back_loops); `memoryless`: pair_plan's."""
+    if not wants_pair(graph, exp):
         return None
-    plan = pair_plan(graph, real_slots, rolled_back)
+    plan = pair_plan(graph, real_slots, rolled_back, memoryless)
     if not isinstance(plan, PairPlan):
         return plan
     if n_steps < 4:
@@ -171,9 +178,12 @@ def _pair_afresh(graph: Graph, results: Results, simulate) -> tuple:
     from .recorder import step_count
     exp = graph.scenario.experiment
     n = step_count(exp)
-    # (whether the pair applies does not depend on the hold it rebuilds: rolled_back False)
-    tap = pair_tap(graph, exp, Buffers(graph, freeze=False).real_slots, n, False)
-    if not isinstance(tap, PairRows):
+    # (whether the pair applies does not depend on the hold it rebuilds: rolled_back False;
+    # it may where the run's probes find FMUs without a state: probe.memoryless)
+    slots, maybe = Buffers(graph, freeze=False).real_slots, undeclared(graph)
+    tap = pair_tap(graph, exp, slots, n, False)
+    if not isinstance(tap, PairRows) and not (
+            maybe and isinstance(pair_tap(graph, exp, slots, n, False, maybe), PairRows)):
         return tap, {}
     every = len(results.time) == n + 1
     try:

@@ -64,28 +64,33 @@ LOOP_METHOD = (", and through the Jacobians of {through}, whose outputs carry it
                "loop, back into the model's inputs)")
 
 
-def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
+def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool,
+              memoryless: frozenset = frozenset()) -> PairPlan | str:
     """The pair's plan for this graph's fixed-step master, or why it has none: in step
     order, each FMU's outputs are exact (Jacobi: late by a lag), or an error model's, or
     (an FMU with a state and no model) exact if its held inputs do not move; an FMU that
     reads a model's outputs (or closes a loop) holds them exact if they carry no error.
     `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives);
-    `rolled_back`: the run predicts, rolls back and corrects each step (PairPlan.rolled_back).
+    `rolled_back`: the run predicts, rolls back and corrects each step (PairPlan.rolled_back);
+    `memoryless`: the FMUs whose dependencies are not declared and that probes found without
+    a state (probe.memoryless), taken as such.
     The sensors that sample at their own period, and what reads them, are left out (_opaque):
     their outputs are unresolved."""
     opaque = _opaque(graph)
     if isinstance(opaque, str):
         return opaque
     graph, unresolved = _without(graph, opaque)
-    plan = _plan(graph, real_slots, rolled_back)
+    plan = _plan(graph, real_slots, rolled_back, memoryless)
     if isinstance(plan, PairPlan):
         plan.unresolved, plan.unknown = unresolved, bool(graph.measured)
     return plan
 
 
-def _plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
+def _plan(graph: Graph, real_slots: dict, rolled_back: bool, memoryless: frozenset
+          ) -> PairPlan | str:
     """pair_plan's, on a graph without the sensors."""
     how = master_entry(graph.scenario.experiment.master)
+    stateful = lambda inst: has_state(inst) and inst.name not in memoryless   # noqa: E731
     position = {inst.name: i for i, inst in enumerate(graph.instances)}
     lag: dict[str, int] = {}        # the FMUs whose outputs are exact (Jacobi: late by lag)
     slots: dict[int, int] = {}
@@ -98,10 +103,10 @@ def _plan(graph: Graph, real_slots: dict, rolled_back: bool) -> PairPlan | str:
     for inst in graph.instances:
         links = into[inst.name]
         loop = [l for l in links if position[l.source.ref.instance] >= position[inst.name]]
-        if loop and not has_state(inst):
+        if loop and not stateful(inst):
             return (f"{inst.name}'s input {loop[0].target.ref.variable} closes a feedback "
                     "loop through an FMU without a state, whose error the pair does not follow")
-        if not links or not has_state(inst):
+        if not links or not stateful(inst):
             d = _lag_in(inst, links, lag)
             if isinstance(d, str):
                 return d

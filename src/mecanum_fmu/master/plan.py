@@ -217,6 +217,14 @@ def has_state(inst: Instance) -> bool:
     return any(not u.dependencies for u in inst.model.outputs)
 
 
+def state_undeclared(inst: Instance) -> bool:
+    """It may hold a state only because some output's dependencies are not declared (every
+    declared list names an input): a probe may find that it holds none (probe.memoryless)."""
+    outputs = inst.model.outputs
+    return any(u.dependencies is None for u in outputs) and \
+        all(u.dependencies is None or u.dependencies for u in outputs)
+
+
 # How a hold sets a blended input, per role, in each mode (Holds.mode: single pass or
 # predictor, corrector): weights over (value in the buffer now, u_k, u_k-1) and whether the
 # parabola's correction is added. While a step runs, the buffer holds u_k+1 for "state" inputs

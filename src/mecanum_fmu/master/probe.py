@@ -34,6 +34,7 @@ from itertools import accumulate
 import numpy as np
 
 from .pair_stencils import with_branch
+from .plan import has_state, state_undeclared
 from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
@@ -319,28 +320,62 @@ def prober(plan, running: list, real: np.ndarray, n_steps: int) -> Prober | None
     for t in plan.throughs():
         if isinstance(t.response, ProbedResponse):
             targets.append(Target(by_name[t.name], t.response, t.response.inputs,
-                                  t.response.outputs, plan.slots[t.ins], steps=1))
+                                  t.response.outputs, plan.slots[t.ins], t.response.steps))
     return Prober(targets, real, n_steps) if targets else None
 
 
 def probed_response(inputs: list[str], inst) -> "ProbedResponse | None":
     """The response (models/responses.Response's interface: outputs, divides, jacobian) of a
     third-party FMU without a state, measured by probes, its linked inputs `inputs`; None
-    where it cannot be probed (_probeable)."""
+    where it cannot be probed (_probeable). One that may hold a state (its dependencies not
+    declared, and memoryless found none) is checked for one at each probe."""
     if not _probeable(inst):
         return None
     outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in _REAL]
-    return ProbedResponse(inst.name, inputs, outputs)
+    return ProbedResponse(inst.name, inputs, outputs, 2 if has_state(inst) else 1)
+
+
+def undeclared(graph) -> frozenset[str]:
+    """The third-party FMUs that may hold a state only because their outputs' dependencies
+    are not declared (plan.state_undeclared): those memoryless probes."""
+    return frozenset(i.name for i in graph.instances
+                     if i.name in graph.measured and state_undeclared(i) and _probeable(i))
+
+
+def memoryless(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
+               h: float) -> set[str]:
+    """The third-party FMUs that may hold a state only because their outputs' dependencies
+    are not declared (plan.state_undeclared: pythonfmu and pythonfmu3 write none) and whose
+    outputs, probed at t0, keep no trace of an input's move one step later: the pair takes
+    them as FMUs without a state (a loop's error carried through their measured Jacobian),
+    and each later probe checks it again. Raises StepFailure (a probe's call returned Error
+    or worse)."""
+    by_name, maybe = {r.name: r for r in running}, undeclared(graph)
+    found = set()
+    for inst in graph.instances:
+        links = [l for l in graph.links if l.target.ref.instance == inst.name
+                 and l.target.type in _REAL and l.source in real_slots]
+        if inst.name not in maybe or not links:
+            continue
+        response = probed_response([l.target.ref.variable for l in links], inst)
+        slots = np.array([real_slots[l.source] for l in links], dtype=np.intp)
+        Target(by_name[inst.name], response, response.inputs, response.outputs, slots,
+               response.steps).probe(0, t0, h, real)
+        if response.failed is None:
+            found.add(inst.name)
+    return found
 
 
 class ProbedResponse:
     """The Jacobian of an FMU without a state's Real outputs in its linked inputs, as its
     last probe measured it (a Target of one step: the outputs after one step from a saved
     state with each input moved, over the move). Per probe, in `found`: (its step, its step
-    size, J (outputs x inputs))."""
+    size, J (outputs x inputs)). `steps` 2: one that may hold a state (its dependencies not
+    declared) is stepped once more, and an output that keeps a trace of the move marks it
+    failed."""
 
-    def __init__(self, name: str, inputs: list[str], outputs: list[str]):
-        self.name, self.inputs, self.outputs = name, inputs, outputs
+    def __init__(self, name: str, inputs: list[str], outputs: list[str], steps: int = 1):
+        self.name, self.inputs, self.outputs, self.steps = name, inputs, outputs, steps
         self.divides: dict = {}
         self.found: list[tuple] = []
         self.failed: str | None = None
@@ -406,6 +441,12 @@ class Target:
         g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)   # (steps, o, j)
         floor = (64 * _EPS) * size[:, :, None] / eps
         if isinstance(self.model, ProbedResponse):
+            if self.steps > 1 and (np.abs(g[1]) > floor[1]).any():
+                self.model.failed = (
+                    f"{self.r.name}'s outputs kept a trace of an input's move one step later "
+                    f"(probed at t = {k * h:g} s): it holds a state, and its outputs declare "
+                    "no dependencies")
+                return
             found = (k, h, np.where(np.abs(g[0]) <= floor[0], 0.0, g[0]))
             if self.model.found and not _agree(found, self.model.found[-1]):
                 self.model.failed = (
