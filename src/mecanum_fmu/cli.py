@@ -339,6 +339,11 @@ def cmd_export_ssp(args) -> int:
     graph = prepare(args.scenario, fmu_dir=args.fmu_dir)
     path = export_ssp(graph, args.output)
     print(f"wrote {path} ({len(graph.instances)} components, {len(graph.links)} connections)")
+    said = [c.name for c in graph.scenario.components if c.dependencies]
+    if said:
+        print(f"note: the dependencies: of {', '.join(said)} are the scenario's, not the FMUs': "
+              "the SSP has no place for them, and a host that reads them from the FMUs may "
+              "see an algebraic loop", file=sys.stderr)
     return 0
 
 

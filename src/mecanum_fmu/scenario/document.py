@@ -30,7 +30,8 @@ Scalar = Union[bool, int, float, str]
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _TOP_KEYS = ("name", "description", "experiment", "components", "connections", "outputs",
              "parameters", "recorded")
-_COMPONENT_KEYS = ("fmu", "parameters", "description", "segments", "table", "waypoints")
+_COMPONENT_KEYS = ("fmu", "parameters", "description", "segments", "table", "waypoints",
+                   "dependencies")
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,9 @@ class Component:
     parameters: dict[str, Scalar]
     place: str                    # where it is declared, for messages
     table: Any = None             # its table, read once (tables.Table; profiles.py)
+    # `dependencies: {x: [], y: [u]}`: the inputs each output depends on, for outputs whose
+    # model description declares none (graph.with_dependencies): (output, (input, ...)) pairs
+    dependencies: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -484,7 +488,27 @@ def _components(raw: Any, bad) -> tuple[Component, ...]:
                                 "or a path to a .fmu file")
             continue
         params = _parameters(spec.get("parameters", {}), f"{place}.parameters", bad)
-        out.append(Component(name, fmu, params, place))
+        out.append(Component(name, fmu, params, place, dependencies=_dependencies(
+            spec.get("dependencies", {}), f"{place}.dependencies", bad)))
+    return tuple(out)
+
+
+def _dependencies(raw: Any, place: str, bad) -> tuple:
+    """`dependencies: {output: [input, ...]}` as (output, (input, ...)) pairs; the names are
+    checked against the FMU when the graph is built (graph.with_dependencies)."""
+    if not isinstance(raw, dict):
+        bad(place, f"expected a mapping of output: [inputs it depends on] (e.g. {{x: []}} for "
+                   f"an output that depends on no input), got {_type_name(raw)}")
+        return ()
+    out = []
+    for output, inputs in raw.items():
+        names = inputs if isinstance(inputs, list) else None
+        if not isinstance(output, str) or names is None or \
+                not all(isinstance(n, str) for n in names):
+            bad(f"{place}.{output}", "expected an output's name and a list of the FMU's "
+                                     f"input names (may be empty: []), got {show(inputs)}")
+            continue
+        out.append((output, tuple(names)))
     return tuple(out)
 
 
@@ -498,7 +522,7 @@ def _profiles(components: tuple[Component, ...], raw: Any, path: Path, start_tim
         if comp.fmu in PROFILE_KEYS:
             params, table = resolve_profile(comp.fmu, spec, comp.parameters, path.parent,
                                             start_time, comp.place, str(path), problems.append)
-            comp = Component(comp.name, comp.fmu, params, comp.place, table)
+            comp = dataclasses.replace(comp, parameters=params, table=table)
         for key in (k for k in ("segments", "table", "waypoints") if k in spec):
             if key not in PROFILE_KEYS.get(comp.fmu, ()):
                 problems.append(Problem(str(path), f"{comp.place}.{key}", f"{key}: only a "

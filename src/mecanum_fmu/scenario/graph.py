@@ -24,6 +24,7 @@ from ..models.responses import has_response, response
 from ..errors import Problem, ScenarioError
 from ..masters import DEFAULT, entry as master_entry
 from ..values import is_finite
+from .dependencies import loop_hint, with_dependencies
 from .document import Scalar, Scenario, VarRef, did_you_mean, is_number, show
 from .tables import Breaks, Known, Table, source_breaks, source_known, table_or_none
 
@@ -370,7 +371,8 @@ class _Checker:
                     problem = fmu_library.loading_problem(path, cache[path])
                     if problem:
                         self.bad(f"{comp.place}.fmu", problem)
-                self.models[comp.name] = (path, cache[path])
+                self.models[comp.name] = (path, with_dependencies(
+                    cache[path], comp.dependencies, f"{comp.place}.dependencies", self.bad))
             except ValueError as err:
                 self.bad(f"{comp.place}.fmu", str(err))
         self.variables = {name: {v.name: v for v in md.modelVariables}
@@ -617,7 +619,8 @@ def _dependency_order(instances: list[Instance], links: list[Link], label: str):
         places = sorted({link_of[n].place for n in cycle if n in link_of})
         raise ScenarioError([Problem(label, ", ".join(places) or "connections",
             "algebraic loop: " + " -> ".join(cycle) + " (every block on it has direct "
-            "feedthrough; break it with a block whose outputs do not depend on its inputs)")]) from None
+            "feedthrough; break it with a block whose outputs do not depend on its inputs)"
+            + loop_hint(cycle, instances))]) from None
     position = {node: i for i, node in enumerate(order)}
     link_order = sorted(links, key=lambda l: position[str(l.target.ref)])
     # An instance steps after the latest of its connected inputs in the dependency order.

@@ -1,0 +1,124 @@
+"""A component's `dependencies:` (scenario/dependencies.py): what an FMU's model description
+leaves undeclared, said in the scenario. Two pythonfmu FMUs (which declare no dependencies)
+in a feedback loop are an algebraic loop to FMI; the message says how to break it, and with
+the plant's output declared free of its inputs the loop runs as the declared FMUs' does."""
+import re
+
+import numpy as np
+import pytest
+
+from helpers import rewrite_description, run_main, state_fmus, write_scenario
+from mecanum_fmu import master, runner
+
+
+@pytest.fixture(scope="module")
+def bare(tmp_path_factory):
+    """The test FMUs as built with their dependencies declared (helpers.state_fmus), and the
+    lag and the P controller with every dependency taken out, as pythonfmu writes them."""
+    folder = tmp_path_factory.mktemp("bare_fmus")
+    fmus = state_fmus(folder)
+    for stem in ("xtest_lag", "xtest_gain"):
+        fmus[f"{stem}_bare"] = rewrite_description(
+            fmus[stem], lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
+            folder / f"{stem}_bare.fmu")
+    return fmus
+
+
+def _loop(folder, fmus, plant="xtest_lag_bare", ctrl="xtest_gain_bare", plant_extra="",
+          ctrl_extra="", master_name="quadratic"):
+    """cos t into a P controller u = 3 (r - x) around the lag x' = -2 x + u."""
+    return write_scenario(folder, "loop", f"""\
+name: loop
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  ctrl: {{fmu: {fmus[ctrl]}, parameters: {{kp: 3.0}}{ctrl_extra}}}
+  plant: {{fmu: {fmus[plant]}, parameters: {{k: 2.0}}{plant_extra}}}
+connections:
+  - [wave.u, ctrl.r]
+  - [plant.x, ctrl.y]
+  - [ctrl.u, plant.u]
+outputs: [plant.x]
+""")
+
+
+def test_a_loop_of_fmus_that_declare_no_dependencies_is_refused_with_the_fix(tmp_path, bare,
+                                                                          capsys):
+    path = _loop(tmp_path, bare)
+    code, out, err = run_main(capsys, "run", path, "--no-plots", "--out", tmp_path / "out")
+    assert code == 2 and "Traceback" not in err, err
+    assert str(path) in err and "connections[" in err and "algebraic loop" in err
+    assert "ctrl.u, plant.x declare no dependencies" in err
+    assert "`plant: {fmu: ..., dependencies: {x: []}}`" in err
+    assert not (tmp_path / "out" / "summary.json").exists()
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
+def test_an_output_declared_free_of_its_inputs_in_the_scenario_breaks_the_loop(
+        tmp_path, bare, master_name):
+    # the run is that of the lag that declares it in its model description, to the bit; the
+    # estimate is the pair's (the controller found without a state by a probe), within 3x of
+    # the closed loop's ODE x' = -5 x + 3 cos t
+    from scipy.integrate import solve_ivp
+    graph = runner.prepare(_loop(tmp_path, bare, plant_extra=", dependencies: {x: []}",
+                                 master_name=master_name))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    (tmp_path / "declared").mkdir()
+    declared = runner.prepare(_loop(tmp_path / "declared", bare, plant="xtest_lag",
+                                    master_name=master_name))
+    np.testing.assert_array_equal(
+        master.simulate(declared, declared.scenario.experiment)["plant.x"], results["plant.x"])
+    assert summary["error_estimate_method"].startswith("the embedded pair")
+    x = solve_ivp(lambda t, y: [-5 * y[0] + 3 * np.cos(t)], (0.0, 6.0), [0.0],
+                  t_eval=results.time, rtol=1e-12, atol=1e-14, method="DOP853").y[0]
+    error = np.abs(results["plant.x"] - x)
+    for which, value in (("max", error.max()), ("end", error[-1])):
+        assert value / 3 <= summary["error_estimate"]["plant.x"][which] <= 3 * value
+
+
+def test_the_scenarios_dependencies_belong_to_its_instance_alone(tmp_path, bare):
+    # two instances of one FMU: the one that says `dependencies:` gets them, the other keeps
+    # its model description's (none declared)
+    path = write_scenario(tmp_path, "two", f"""\
+name: two
+experiment: {{start_time: 0.0, stop_time: 1.0, step_size: 0.1}}
+components:
+  wave: {{fmu: {bare["xtest_wave"]}}}
+  one: {{fmu: {bare["xtest_gain_bare"]}, dependencies: {{u: [r]}}}}
+  two: {{fmu: {bare["xtest_gain_bare"]}}}
+connections: [[wave.u, one.r], [wave.u, two.r]]
+""")
+    graph = runner.prepare(path)
+    deps = {i.name: [u.dependencies for u in i.model.outputs] for i in graph.instances}
+    assert [[v.name for v in d] for d in deps["one"]] == [["r"]]
+    assert deps["two"] == [None]
+
+
+@pytest.mark.parametrize("entry,place,words", [
+    ("{y: []}", "components.plant.dependencies.y", "'y' is not an output of this FMU"),
+    ("{x: [v]}", "components.plant.dependencies.x", "'v' is not an input of this FMU"),
+    ("{x: u}", "components.plant.dependencies.x", "a list of the FMU's input names"),
+    ("[x]", "components.plant.dependencies", "expected a mapping of output"),
+])
+def test_a_wrong_dependencies_entry_names_its_place(tmp_path, bare, capsys, entry, place,
+                                                    words):
+    path = _loop(tmp_path, bare, plant_extra=f", dependencies: {entry}")
+    code, _, err = run_main(capsys, "validate", path)
+    assert code == 2 and place in err and words in err and "Traceback" not in err, err
+
+
+def test_a_dependency_the_fmu_declares_is_not_overridden(tmp_path, bare, capsys):
+    path = _loop(tmp_path, bare, plant="xtest_lag", ctrl="xtest_gain",
+                 plant_extra=", dependencies: {x: [u]}")
+    code, _, err = run_main(capsys, "validate", path)
+    assert code == 2 and "components.plant.dependencies.x" in err, err
+    assert "declares its dependencies (none)" in err and "remove this entry" in err
+
+
+def test_export_ssp_says_the_scenarios_dependencies_are_not_in_the_fmus(tmp_path, bare,
+                                                                        capsys):
+    path = _loop(tmp_path, bare, plant_extra=", dependencies: {x: []}")
+    code, out, err = run_main(capsys, "export-ssp", path, "-o", tmp_path / "loop.ssp")
+    assert code == 0 and (tmp_path / "loop.ssp").is_file(), err
+    assert "note: the dependencies: of plant are the scenario's" in err
