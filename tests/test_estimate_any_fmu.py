@@ -721,6 +721,10 @@ def test_a_controller_that_declares_no_dependencies_carries_a_loop_when_probes_f
     summary = master.estimate_error(graph, results)
     method = summary["error_estimate_method"]
     assert method.startswith("the embedded pair") and "Jacobians of ctrl (measured)" in method
+    # the doStep calls it says: at t0, 2 steps x (1 + 2 inputs) for ctrl; then probes at
+    # steps 0 and 32 (the next, 128, is past the run's last, 60 - 1 - 4): ctrl's 2 x 3, the
+    # plant's 4 x (1 + 1)
+    assert "no extra doStep but the probes' 34)" in method
     error = np.abs(results["plant.x"] - _loop_truth(results.time))
     assert error.max() > 1e-6
     _within_3x(summary["error_estimate"]["plant.x"], error)

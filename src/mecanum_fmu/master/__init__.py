@@ -104,7 +104,7 @@ def _estimate_end(results: Results, pair, start: Start | None,
     if recorder.probe is not None:      # its probes ran inside the stepping loop
         found["seconds"] += recorder.probe.seconds
         found["probe_seconds"] = recorder.probe.seconds
-        found["probe_calls"] = recorder.probe.calls
+        found["probe_calls"] += recorder.probe.calls
     results.extra["pair"] = {"graph": graph, "found": found}
     if start is not None and not (isinstance(found, dict) and found["failed"] is None):
         results.extra["coarse"] = coarse_runs(graph, results, start, holds, stepper, ctrl_c)
@@ -173,11 +173,12 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
     hold of a loop's inputs. The pair's seconds count this set-up too."""
     tick = _time.perf_counter()
     try:
-        quiet = frozenset(memoryless(graph, running, buffers.real_slots, buffers.real,
-                                     exp.start_time, exp.step_size)
-                          if wants_pair(graph, exp) else ())
+        quiet, calls = memoryless(graph, running, buffers.real_slots, buffers.real,
+                                  exp.start_time, exp.step_size) \
+            if wants_pair(graph, exp) else (frozenset(), 0)
         pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back, quiet)
         if isinstance(pair, PairRows):
+            pair.probe_calls = calls
             recorder.tap = pair
             recorder.probe = prober(pair.plan, running, buffers.real, recorder.n_steps)
         needs_t0 = not isinstance(pair, PairRows) or pair.may_fail

@@ -115,6 +115,7 @@ class PairRows(Stencils):
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
         self.size = np.zeros(len(plan.slots))
         self.seconds = 0.0
+        self.probe_calls = 0    # the doStep calls of the probes before the run (memoryless)
         self.tail = n_steps     # from this step on, the stencils' nodes are 3 (else 4)
         self.ended = False      # the late outputs' nodes up to n in the window (settle_end)
         self.branch_end: dict[str, float] = {}      # Jacobi's end with the parabola
@@ -244,6 +245,7 @@ class PairRows(Stencils):
                 "unresolved_end": dict.fromkeys(self.net.cancelled(self.end), CANCELLED)
                 if self.net is not None else {},
                 "seconds": self.seconds,
+                "probe_calls": self.probe_calls,
                 "failed": self.failed or self._moved() or self._probe_failed()
                 or self._not_smooth(),
                 "lagged": bool(self.lag),

@@ -343,15 +343,15 @@ def undeclared(graph) -> frozenset[str]:
 
 
 def memoryless(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
-               h: float) -> set[str]:
+               h: float) -> tuple[frozenset[str], int]:
     """The third-party FMUs that may hold a state only because their outputs' dependencies
     are not declared (plan.state_undeclared: pythonfmu and pythonfmu3 write none) and whose
     outputs, probed at t0, keep no trace of an input's move one step later: the pair takes
     them as FMUs without a state (a loop's error carried through their measured Jacobian),
-    and each later probe checks it again. Raises StepFailure (a probe's call returned Error
-    or worse)."""
+    and each later probe checks it again; and the probes' doStep calls. Raises StepFailure (a
+    probe's call returned Error or worse)."""
     by_name, maybe = {r.name: r for r in running}, undeclared(graph)
-    found = set()
+    found, calls = set(), 0
     for inst in graph.instances:
         links = [l for l in graph.links if l.target.ref.instance == inst.name
                  and l.target.type in _REAL and l.source in real_slots]
@@ -361,9 +361,10 @@ def memoryless(graph, running: list, real_slots: dict, real: np.ndarray, t0: flo
         slots = np.array([real_slots[l.source] for l in links], dtype=np.intp)
         Target(by_name[inst.name], response, response.inputs, response.outputs, slots,
                response.steps).probe(0, t0, h, real)
+        calls += response.steps * (1 + len(links))
         if response.failed is None:
             found.add(inst.name)
-    return found
+    return frozenset(found), calls
 
 
 class ProbedResponse:
