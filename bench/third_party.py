@@ -12,7 +12,7 @@ through the controller's measured Jacobian); and "bare", the first lag with its 
 description's dependencies taken out, as pythonfmu and pythonfmu3 write it (an FMU whose
 outputs declare none may hold a state: plan.has_state); and "bare_loop", the loop with the
 controller's dependencies taken out (a probe at t0 finds it without a state:
-probe.memoryless). The truths of the linear ones: their ODEs by
+master/memory.py). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
 for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
 the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,

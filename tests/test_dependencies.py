@@ -122,3 +122,19 @@ def test_export_ssp_says_the_scenarios_dependencies_are_not_in_the_fmus(tmp_path
     code, out, err = run_main(capsys, "export-ssp", path, "-o", tmp_path / "loop.ssp")
     assert code == 0 and (tmp_path / "loop.ssp").is_file(), err
     assert "note: the dependencies: of plant are the scenario's" in err
+
+
+def test_a_dependencies_claim_that_the_probe_contradicts_is_said(tmp_path, bare):
+    # the other choice the loop's message offers, the controller's u declared free of its
+    # inputs: u = 3 (r - y) moves with them within the step and keeps no trace a step later;
+    # the run is the user's, the pair does not apply and says why
+    graph = runner.prepare(_loop(tmp_path, bare, ctrl_extra=", dependencies: {u: []}"))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    method = master.estimate_error(graph, results)["error_estimate_method"]
+    assert "ctrl.u: the scenario's dependencies: says it depends on no input, but probed at " \
+           "t = 0 s it moves with ctrl's inputs within the step" in method
+    # the plant's {x: []} holds: the lag keeps a trace
+    right = runner.prepare(_loop(tmp_path, bare, plant_extra=", dependencies: {x: []}"))
+    again = master.simulate(right, right.scenario.experiment, with_estimate=True)
+    assert "dependencies: says" not in master.estimate_error(right, again)[
+        "error_estimate_method"]

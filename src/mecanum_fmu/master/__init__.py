@@ -28,7 +28,8 @@ from .estimate import coarse_plan, error_estimate, pair_tap, wants_pair
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
-from .probe import memoryless, prober
+from .memory import AtStart, probe_at_start
+from .probe import prober
 from .recorder import Recorder, step_count
 from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, before_stop,
                        check_finite, initialise, settled_end, step_all)
@@ -173,12 +174,13 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
     hold of a loop's inputs. The pair's seconds count this set-up too."""
     tick = _time.perf_counter()
     try:
-        quiet, calls = memoryless(graph, running, buffers.real_slots, buffers.real,
-                                  exp.start_time, exp.step_size) \
-            if wants_pair(graph, exp) else (frozenset(), 0)
-        pair = pair_tap(graph, exp, buffers.real_slots, recorder.n_steps, rolled_back, quiet)
+        found = probe_at_start(graph, running, buffers.real_slots, buffers.real,
+                               exp.start_time, exp.step_size) \
+            if wants_pair(graph, exp) else AtStart()
+        pair = found.refuted or pair_tap(graph, exp, buffers.real_slots, recorder.n_steps,
+                                         rolled_back, found.memoryless)
         if isinstance(pair, PairRows):
-            pair.probe_calls = calls
+            pair.probe_calls = found.calls
             recorder.tap = pair
             recorder.probe = prober(pair.plan, running, buffers.real, recorder.n_steps)
         needs_t0 = not isinstance(pair, PairRows) or pair.may_fail

@@ -22,7 +22,7 @@ from .breakpoints import graph_breaks
 from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
 from .pair_parts import PairPlan
 from .pair_rows import PairRows
-from .probe import undeclared
+from .memory import undeclared
 from .richardson import FINER, coarse_experiment, coarse_factors, coarse_run, richardson
 
 ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
@@ -179,7 +179,7 @@ def _pair_afresh(graph: Graph, results: Results, simulate) -> tuple:
     exp = graph.scenario.experiment
     n = step_count(exp)
     # (whether the pair applies does not depend on the hold it rebuilds: rolled_back False;
-    # it may where the run's probes find FMUs without a state: probe.memoryless)
+    # it may where the probes before the run find FMUs without a state: memory.py)
     slots, maybe = Buffers(graph, freeze=False).real_slots, undeclared(graph)
     tap = pair_tap(graph, exp, slots, n, False)
     if not isinstance(tap, PairRows) and not (

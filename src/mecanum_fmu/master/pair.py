@@ -73,7 +73,7 @@ def pair_plan(graph: Graph, real_slots: dict, rolled_back: bool,
     `real_slots`: the run's plan.Buffers.real_slots (where each Real output's value lives);
     `rolled_back`: the run predicts, rolls back and corrects each step (PairPlan.rolled_back);
     `memoryless`: the FMUs whose dependencies are not declared and that probes found without
-    a state (probe.memoryless), taken as such.
+    a state (memory.probe_at_start), taken as such.
     The sensors that sample at their own period, and what reads them, are left out (_opaque):
     their outputs are unresolved."""
     opaque = _opaque(graph)

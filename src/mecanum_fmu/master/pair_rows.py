@@ -115,7 +115,7 @@ class PairRows(Stencils):
         self.moved = [np.zeros(len(g.cols)) for g in plan.groups]
         self.size = np.zeros(len(plan.slots))
         self.seconds = 0.0
-        self.probe_calls = 0    # the doStep calls of the probes before the run (memoryless)
+        self.probe_calls = 0    # the doStep calls of the probes before the run (memory.py)
         self.tail = n_steps     # from this step on, the stencils' nodes are 3 (else 4)
         self.ended = False      # the late outputs' nodes up to n in the window (settle_end)
         self.branch_end: dict[str, float] = {}      # Jacobi's end with the parabola

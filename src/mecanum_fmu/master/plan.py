@@ -219,7 +219,7 @@ def has_state(inst: Instance) -> bool:
 
 def state_undeclared(inst: Instance) -> bool:
     """It may hold a state only because some output's dependencies are not declared (every
-    declared list names an input): a probe may find that it holds none (probe.memoryless)."""
+    declared list names an input): a probe may find that it holds none (memory.py)."""
     outputs = inst.model.outputs
     return any(u.dependencies is None for u in outputs) and \
         all(u.dependencies is None or u.dependencies for u in outputs)

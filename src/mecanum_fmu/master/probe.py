@@ -34,7 +34,7 @@ from itertools import accumulate
 import numpy as np
 
 from .pair_stencils import with_branch
-from .plan import has_state, state_undeclared
+from .plan import has_state
 from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
@@ -46,10 +46,10 @@ LOOP_MAX = 20_000       # steps x (output, input) pairs a call carries by a loop
 FIT = 0.1               # relative: g3 against the model's g2 r (x'' = u is 16% off)
 PROBED = ", its response measured by probes"
 _EPS = float(np.finfo(float).eps)
-_REAL = ("Real", "Float64")     # FMI 2, FMI 3
+REAL = ("Real", "Float64")      # FMI 2, FMI 3
 
 
-def _probeable(inst) -> bool:
+def probeable(inst) -> bool:
     """Whether the FMU can be probed: FMI 2 or 3, and it says it can save its state."""
     return inst.model.fmiVersion in ("2.0", "3.0") and inst.can_get_set_state
 
@@ -58,10 +58,10 @@ def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
     """The ProbedModel of an FMU with a state and no error model, held inputs `inputs`: it
     covers its Real outputs (those a held input reaches directly too: their direct part,
     ProbedModel; an output whose dependencies are not declared may depend on every input,
-    as FMI 2.0 says); None where it cannot be probed (_probeable)."""
-    if not _probeable(inst):
+    as FMI 2.0 says); None where it cannot be probed (probeable)."""
+    if not probeable(inst):
         return None
-    real = [u for u in inst.model.outputs if u.variable.type in _REAL]
+    real = [u for u in inst.model.outputs if u.variable.type in REAL]
     direct = np.array([[u.dependencies is None or n in {d.name for d in u.dependencies}
                         for n in inputs] for u in real], dtype=bool).reshape(len(real),
                                                                             len(inputs))
@@ -327,44 +327,13 @@ def prober(plan, running: list, real: np.ndarray, n_steps: int) -> Prober | None
 def probed_response(inputs: list[str], inst) -> "ProbedResponse | None":
     """The response (models/responses.Response's interface: outputs, divides, jacobian) of a
     third-party FMU without a state, measured by probes, its linked inputs `inputs`; None
-    where it cannot be probed (_probeable). One that may hold a state (its dependencies not
-    declared, and memoryless found none) is checked for one at each probe."""
-    if not _probeable(inst):
+    where it cannot be probed (probeable). One that may hold a state (its dependencies not
+    declared, and the probes before the run found none: memory.py) is checked for one at
+    each probe."""
+    if not probeable(inst):
         return None
-    outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in _REAL]
+    outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in REAL]
     return ProbedResponse(inst.name, inputs, outputs, 2 if has_state(inst) else 1)
-
-
-def undeclared(graph) -> frozenset[str]:
-    """The third-party FMUs that may hold a state only because their outputs' dependencies
-    are not declared (plan.state_undeclared): those memoryless probes."""
-    return frozenset(i.name for i in graph.instances
-                     if i.name in graph.measured and state_undeclared(i) and _probeable(i))
-
-
-def memoryless(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
-               h: float) -> tuple[frozenset[str], int]:
-    """The third-party FMUs that may hold a state only because their outputs' dependencies
-    are not declared (plan.state_undeclared: pythonfmu and pythonfmu3 write none) and whose
-    outputs, probed at t0, keep no trace of an input's move one step later: the pair takes
-    them as FMUs without a state (a loop's error carried through their measured Jacobian),
-    and each later probe checks it again; and the probes' doStep calls. Raises StepFailure (a
-    probe's call returned Error or worse)."""
-    by_name, maybe = {r.name: r for r in running}, undeclared(graph)
-    found, calls = set(), 0
-    for inst in graph.instances:
-        links = [l for l in graph.links if l.target.ref.instance == inst.name
-                 and l.target.type in _REAL and l.source in real_slots]
-        if inst.name not in maybe or not links:
-            continue
-        response = probed_response([l.target.ref.variable for l in links], inst)
-        slots = np.array([real_slots[l.source] for l in links], dtype=np.intp)
-        Target(by_name[inst.name], response, response.inputs, response.outputs, slots,
-               response.steps).probe(0, t0, h, real)
-        calls += response.steps * (1 + len(links))
-        if response.failed is None:
-            found.add(inst.name)
-    return frozenset(found), calls
 
 
 class ProbedResponse:
@@ -377,6 +346,7 @@ class ProbedResponse:
 
     def __init__(self, name: str, inputs: list[str], outputs: list[str], steps: int = 1):
         self.name, self.inputs, self.outputs, self.steps = name, inputs, outputs, steps
+        self.moved = self.trace = np.zeros(len(outputs), dtype=bool)    # steps 2: per output
         self.divides: dict = {}
         self.found: list[tuple] = []
         self.failed: str | None = None
@@ -442,13 +412,17 @@ class Target:
         g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)   # (steps, o, j)
         floor = (64 * _EPS) * size[:, :, None] / eps
         if isinstance(self.model, ProbedResponse):
-            if self.steps > 1 and (np.abs(g[1]) > floor[1]).any():
+            g0 = np.where(np.abs(g[0]) <= floor[0], 0.0, g[0])
+            if self.steps > 1:      # per output: moved within the step, kept a trace after
+                self.model.moved = g0.any(axis=1)
+                self.model.trace = (np.abs(g[1]) > floor[1]).any(axis=1)
+            if self.steps > 1 and self.model.trace.any():
                 self.model.failed = (
                     f"{self.r.name}'s outputs kept a trace of an input's move one step later "
                     f"(probed at t = {k * h:g} s): it holds a state, and its outputs declare "
                     "no dependencies")
                 return
-            found = (k, h, np.where(np.abs(g[0]) <= floor[0], 0.0, g[0]))
+            found = (k, h, g0)
             if self.model.found and not _agree(found, self.model.found[-1]):
                 self.model.failed = (
                     f"{self.r.name}'s measured Jacobian changed along the run (probed at t = "

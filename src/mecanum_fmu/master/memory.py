@@ -1,0 +1,86 @@
+"""The probes before the run steps: which third-party FMUs hold a state, where their model
+descriptions do not say (docs/masters.md, "An FMU that declares no dependencies").
+
+An output whose dependencies are not declared may depend on every input and on a state (FMI);
+pythonfmu and pythonfmu3 declare none. From each such FMU's state at t0 (after
+initialisation), it is stepped twice with its linked inputs as they are, then again with each
+input moved by a small eps over the first step only; its state is set back after each
+(probe.Target, 2 (1 + inputs) doStep calls). An FMU whose outputs keep no trace of the move
+after the second step holds no state the coupling can see: the pair takes it as an FMU
+without a state (pair.pair_plan's `memoryless`), and its later probes check it again.
+
+A scenario's `dependencies:` (scenario/dependencies.py) that says an output depends on no
+input (a state's) is the user's word, and the step order rests on it. The same probe checks
+it: an output that the move changes within the first step and that keeps no trace after the
+second is made from the inputs, not from a state; the pair does not apply, and says why.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .plan import state_undeclared
+from .probe import REAL, ProbedResponse, Target, probeable
+
+
+@dataclass(frozen=True)
+class AtStart:
+    """What the probes before the run found."""
+    memoryless: frozenset = frozenset()     # the FMUs the pair takes as without a state
+    calls: int = 0                          # their doStep calls
+    refuted: str | None = None              # a scenario's `dependencies:` they contradict
+
+
+def undeclared(graph) -> frozenset[str]:
+    """The third-party FMUs that may hold a state only because their outputs' dependencies
+    are not declared (plan.state_undeclared), and can be probed."""
+    return frozenset(i.name for i in graph.instances
+                     if i.name in graph.measured and state_undeclared(i) and probeable(i))
+
+
+def _claimed(graph) -> dict[str, list[str]]:
+    """Per third-party FMU that can be probed, the outputs its component's `dependencies:`
+    says depend on no input."""
+    said = {c.name: [o for o, inputs in c.dependencies if not inputs]
+            for c in graph.scenario.components}
+    return {i.name: said[i.name] for i in graph.instances
+            if said.get(i.name) and i.name in graph.measured and probeable(i)}
+
+
+def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
+                   h: float) -> AtStart:
+    """Probe the FMUs of undeclared() and _claimed() at t0, with step h. Raises
+    stepping.StepFailure (a probe's call returned Error or worse)."""
+    by_name, maybe, claims = {r.name: r for r in running}, undeclared(graph), _claimed(graph)
+    found, calls, refuted = set(), 0, None
+    for inst in graph.instances:
+        links = [l for l in graph.links if l.target.ref.instance == inst.name
+                 and l.target.type in REAL and l.source in real_slots]
+        if not links or (inst.name not in maybe and inst.name not in claims):
+            continue
+        outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in REAL]
+        response = ProbedResponse(inst.name, [l.target.ref.variable for l in links], outputs, 2)
+        Target(by_name[inst.name], response, response.inputs, outputs,
+               np.array([real_slots[l.source] for l in links], dtype=np.intp), 2
+               ).probe(0, t0, h, real)
+        calls += 2 * (1 + len(links))
+        if inst.name in maybe and response.failed is None:
+            found.add(inst.name)
+        refuted = refuted or _refuted(response, claims.get(inst.name, ()), t0)
+    return AtStart(frozenset(found), calls, refuted)
+
+
+def _refuted(response: ProbedResponse, claimed: list[str], t0: float) -> str | None:
+    """Why the probe contradicts the scenario's word that these outputs depend on no input
+    (moved within the step, no trace after the next), or None."""
+    for name in claimed:
+        i = response.outputs.index(name) if name in response.outputs else None
+        if i is not None and response.moved[i] and not response.trace[i]:
+            return (f"{response.name}.{name}: the scenario's dependencies: says it depends on "
+                    f"no input, but probed at t = {t0:g} s it moves with {response.name}'s "
+                    "inputs within the step and keeps no trace of them a step later (it is "
+                    "made from them, not from a state): the step order breaks the loop where "
+                    "no state holds it; give the dependencies: to the output of the FMU that "
+                    "holds the state instead")
+    return None
