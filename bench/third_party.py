@@ -20,7 +20,11 @@ medians of 5 runs; "ms", the same in milliseconds, the pair's own), and the prob
 calls against the run's. The same with
 `--estimate richardson` for comparison.
 
-Run: .venv/bin/python bench/third_party.py
+With --adaptive: the adaptive master at tolerances 1e-2 to 1e-6 on the same graphs, its
+steps against the fixed quadratic master's that meet the tolerance, each output's true
+error in tolerances and the estimate over it.
+
+Run: .venv/bin/python bench/third_party.py [--adaptive]
 """
 from __future__ import annotations
 
@@ -99,9 +103,11 @@ def true_errors(name: str, graph, results, outputs: list[str]) -> dict:
     """Per recorded output |run - truth|: the ODEs' solution, or (the drag) the same graph
     at 1/REFINE of the step."""
     rates = GRAPHS[name][1]
-    if rates is None:
+    if rates is None:       # (the adaptive master's reference: the quadratic one's)
         exp = graph.scenario.experiment
-        fine, fexp = with_experiment(graph, step_size=exp.step_size / REFINE, estimate="none")
+        fine, fexp = with_experiment(graph, step_size=exp.step_size / REFINE, estimate="none",
+                                     master="quadratic" if exp.tolerance else exp.master,
+                                     tolerance=None)
         reference = master.simulate(fine, fexp)
         return {o: np.abs(results[o] - reference[o][::REFINE]) for o in outputs}
     truth = solve_ivp(rates, (0.0, 6.0), [0.0] * len(outputs), t_eval=results.time,
@@ -150,6 +156,9 @@ def main() -> None:
             fmus[f"{stem}_bare"] = rewrite_description(
                 fmus[stem], lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
                 Path(tmp) / f"{stem}_bare.fmu")
+        if sys.argv[1:] == ["--adaptive"]:
+            adaptive(Path(tmp), fmus)
+            return
         print(f"{'graph':<9} {'output':<8} {'master':<12} {'h':>6} {'estimate':<12} {'max':>6} "
               f"{'end':>6} {'cost':>6} {'ms':>6} {'probe calls':>11}")
         rows = []
@@ -164,6 +173,32 @@ def main() -> None:
                                   f"{m['method'][:12]:<12} {m['max']:>6.2f} {m['end']:>6.2f} "
                                   f"{m['cost']:>6.2f} {m['ms']:>6.2f} {m['calls']:>11.3f}", flush=True)
         summary(rows)
+
+
+def adaptive(folder: Path, fmus: dict) -> None:
+    """Per graph and tolerance, the adaptive master's steps and each recorded output's true
+    error (in tolerances) and estimate over it; and the steps the fixed quadratic master
+    needs to meet the tolerance, from its error at 0.05 s and 0.025 s (its observed order)."""
+    for name in GRAPHS:
+        path = scenario(folder, fmus, name)
+        worst = []
+        for h in (0.05, 0.025):
+            fixed, exp = with_experiment(prepare(path), step_size=h, master="quadratic",
+                                         estimate="none")
+            outputs = [str(p.ref) for p in fixed.recorded]
+            worst.append(max(e.max() for e in true_errors(
+                name, fixed, master.simulate(fixed, exp), outputs).values()))
+        order = np.log2(worst[0] / worst[1])
+        for tol in (1e-2, 1e-3, 1e-4, 1e-6):
+            graph = prepare(path, tolerance=tol)
+            results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+            found = master.estimate_error(graph, results)["error_estimate"]
+            said = "; ".join(
+                f"{o} {e.max() / tol:.2f} tol, estimate {_ratio(found[o]['max'], e.max()):.2f}"
+                for o, e in true_errors(name, graph, results, outputs).items())
+            print(f"{name:<9} {tol:<6g} {results.steps_taken:>5} steps (fixed, order "
+                  f"{order:.2f}: {120 * (worst[0] / tol) ** (1 / order):>6.0f}): {said}",
+                  flush=True)
 
 
 def summary(rows: list) -> None:

@@ -169,6 +169,26 @@ def test_a_tolerance_holds_on_third_party_fmus(tmp_path, fmus, tolerance):
                                        + results.steps_taken)
 
 
+@pytest.mark.parametrize("tolerance", [1e-3, 1e-4])
+def test_a_tolerance_on_third_party_fmus_takes_no_more_than_1_5x_the_fixed_steps(
+        tmp_path, fmus, tolerance):
+    # the fixed quadratic master's steps that meet the tolerance, from its own error at
+    # 0.05 s (second order on the lag: the mean held over a step it weighs unevenly) against
+    # the closed form. The adaptive master kept the sum of its steps' errors under the
+    # tolerance, which the lag's decay makes a bound far above the error: 85 and 264 steps
+    # (1.6x); the whole-step trajectory's estimate (the error the dynamics carried) is the
+    # accumulated error it keeps under the tolerance now
+    scenario = _scenario(tmp_path, fmus)
+    fixed, exp = with_experiment(runner.prepare(scenario), step_size=0.05, estimate="none")
+    error = np.abs(master.simulate(fixed, exp)["lag.x"] - _truth(
+        np.linspace(0.0, 6.0, 121))).max()
+    needed = 120 * math.sqrt(error / tolerance)
+    graph = runner.prepare(scenario, tolerance=tolerance)
+    results = master.simulate(graph, graph.scenario.experiment)
+    assert np.abs(results["lag.x"] - _truth(results.time)).max() <= tolerance
+    assert results.steps_taken <= 1.5 * needed, (results.steps_taken, needed)
+
+
 def test_the_relative_tolerance_loosens_the_bound_by_the_outputs_size(tmp_path, fmus):
     # |x| reaches 1/sqrt(k^2 + 1) = 0.45: with rtol = 10 atol the bound is up to 5.5x atol,
     # so fewer steps are needed; the error stays under atol + rtol max|x|

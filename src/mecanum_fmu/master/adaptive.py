@@ -293,6 +293,7 @@ class OutputErrors:
         self.whole, self.step, self.sum, self.scaled, self.weighted = (
             np.zeros(len(self.slots)) for _ in range(5))
         self.positions = slot_positions(self.slots)
+        self.carried = None     # a WholeSteps: the accumulated error the dynamics carried
 
     def upstream(self, slots) -> np.ndarray:
         """Per slot (an error model's inputs' sources), the signed accumulated error of that
@@ -313,15 +314,19 @@ class OutputErrors:
         self.step /= 3.0
 
     def ratios(self, atol: float, rtol: float) -> tuple[float, float, float]:
-        """(this step's own error, the sum with it, the sum without it), each in the max
-        norm of e_i / (atol + rtol |y_i|), every step's error weighed by |y_i| at its end
-        (so that a fall of |y_i| later does not make an error made earlier count more)."""
+        """(this step's own error, the accumulated error with it, without it), each in the
+        max norm of e_i / (atol + rtol |y_i|). The accumulated error is the sum of the
+        steps' errors, each weighed by |y_i| at its end (so that a fall of |y_i| later does
+        not make an error made earlier count more); with `carried`, the whole-step
+        trajectory's signed estimate at t_k instead, which the dynamics damped."""
         if not len(self.slots):
             return 0.0, 0.0, 0.0
-        np.divide(self.step, atol + rtol * np.abs(self.real[self.slots]), out=self.scaled)
+        scale = atol + rtol * np.abs(self.real[self.slots])
+        np.divide(self.step, scale, out=self.scaled)
+        before = self.weighted if self.carried is None else self.carried.now() / scale
         return (float(np.max(np.abs(self.scaled))),
-                float(np.max(np.abs(self.weighted + self.scaled))),
-                float(np.max(np.abs(self.weighted))))
+                float(np.max(np.abs(before + self.scaled))),
+                float(np.max(np.abs(before))))
 
     def accept(self) -> None:
         self.sum += self.step
@@ -423,6 +428,8 @@ class _Loop:
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
         self.whole = WholeSteps(running, self.program, holds.blends, self.real, self.ints,
                                 self.errors.slots) if len(self.errors.slots) else None
+        if holds.check and not holds.ahead:     # third-party FMUs, no loop: see docs
+            self.errors.carried = self.whole
         # where the graph holds FMUs the scenario layer knows nothing of: their jumps
         self.bracket = Bracket(Stops.JUMP * exp.step_size, holds.check, self.rows.row_after)
 

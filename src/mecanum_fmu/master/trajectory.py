@@ -73,13 +73,17 @@ class WholeSteps:
             free_states(self.running, t, self.states)
             self.states = None
 
+    def now(self) -> np.ndarray:
+        """The kept run's signed error per recorded output: the difference over 3."""
+        return self.difference / 3.0
+
     def error(self) -> np.ndarray:
-        """|the kept run's error| per recorded output: the difference over 3."""
-        return np.abs(self.difference) / 3.0
+        """|the kept run's error| per recorded output."""
+        return np.abs(self.now())
 
     def signed(self, slots) -> np.ndarray:
         """The kept run's signed error at the given buffer slots now (0 where it has none)."""
-        return values_at(self.positions, self.difference / 3.0, slots)
+        return values_at(self.positions, self.now(), slots)
 
     def _swap_in(self) -> list:
         """The blends take this trajectory's history; the later sources' values are shifted
