@@ -9,6 +9,7 @@ import pytest
 
 from helpers import rewrite_description, run_main, state_fmus, write_scenario
 from mecanum_fmu import master, runner
+from mecanum_fmu.errors import ScenarioError
 
 
 @pytest.fixture(scope="module")
@@ -138,3 +139,19 @@ def test_a_dependencies_claim_that_the_probe_contradicts_is_said(tmp_path, bare)
     again = master.simulate(right, right.scenario.experiment, with_estimate=True)
     assert "dependencies: says" not in master.estimate_error(right, again)[
         "error_estimate_method"]
+
+
+def test_an_fmi3_output_gets_its_dependencies_from_the_scenario_too(tmp_path, bare):
+    # pythonfmu3's lag (its dependencies taken out, as pythonfmu3 writes them) around the
+    # pythonfmu controller: refused as a loop, then run with {x: []} and the pair applies
+    from helpers import state_fmu3
+    lag3 = rewrite_description(state_fmu3(tmp_path), lambda xml: re.sub(
+        r' dependencies="[^"]*"', "", xml), tmp_path / "X3Bare.fmu")
+    fmus = dict(bare, lag3=lag3)
+    with pytest.raises(ScenarioError, match="plant: {fmu: ..., dependencies: {x: \\[\\]}}"):
+        runner.prepare(_loop(tmp_path, fmus, plant="lag3"))
+    graph = runner.prepare(_loop(tmp_path, fmus, plant="lag3",
+                                 plant_extra=", dependencies: {x: []}"))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    assert master.estimate_error(graph, results)["error_estimate_method"].startswith(
+        "the embedded pair")
