@@ -55,9 +55,11 @@ def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0:
     by_name, maybe, claims = {r.name: r for r in running}, undeclared(graph), _claimed(graph)
     found, calls, refuted = set(), 0, None
     for inst in graph.instances:
+        if inst.name not in maybe and inst.name not in claims:
+            continue
         links = [l for l in graph.links if l.target.ref.instance == inst.name
                  and l.target.type in REAL and l.source in real_slots]
-        if not links or (inst.name not in maybe and inst.name not in claims):
+        if not links:
             continue
         outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in REAL]
         response = ProbedResponse(inst.name, [l.target.ref.variable for l in links], outputs, 2)

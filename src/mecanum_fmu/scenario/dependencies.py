@@ -21,6 +21,7 @@ from fmpy.model_description import ModelDescription
 from ..errors import did_you_mean
 from ..values import show
 
+
 def with_dependencies(model: ModelDescription, pairs: tuple, place: str,
                       bad: Callable[[str, str], None]) -> ModelDescription:
     """The model description with `pairs` ((output, (input, ...)), the component's
