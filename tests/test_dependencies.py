@@ -155,3 +155,11 @@ def test_an_fmi3_output_gets_its_dependencies_from_the_scenario_too(tmp_path, ba
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
     assert master.estimate_error(graph, results)["error_estimate_method"].startswith(
         "the embedded pair")
+
+
+def test_info_says_a_scenario_may_declare_what_the_fmu_does_not(bare, capsys):
+    code, out, _ = run_main(capsys, "info", bare["xtest_gain_bare"])
+    assert code == 0 and "u  depends on: (not declared: all inputs)" in out
+    assert "a scenario may declare what the FMU does not: `dependencies:" in out
+    code, out, _ = run_main(capsys, "info", bare["xtest_gain"])
+    assert code == 0 and "u  depends on: r, y" in out and "dependencies:" not in out

@@ -330,6 +330,9 @@ def cmd_info(args) -> int:
             extra = "  depends on: " + ("(not declared: all inputs)" if d is None
                                          else ", ".join(x.name for x in d) or "nothing (no feedthrough)")
         print(f"  {var.causality:>9} {var.type:<7} {var.name}{unit}{start}{extra}")
+    if any(d is None for d in deps.values()):
+        print("  (a scenario may declare what the FMU does not: `dependencies: {OUTPUT: "
+              "[INPUTS]}` in its component; docs/masters.md)")
     return 0
 
 
