@@ -163,3 +163,50 @@ def test_info_says_a_scenario_may_declare_what_the_fmu_does_not(bare, capsys):
     assert "a scenario may declare what the FMU does not: `dependencies:" in out
     code, out, _ = run_main(capsys, "info", bare["xtest_gain"])
     assert code == 0 and "u  depends on: r, y" in out and "dependencies:" not in out
+
+
+def _lag_alone(folder, fmu, master_name, extra=""):
+    """cos t into the lag x' = -2 x + u (the FMU `fmu`, its component `extra`)."""
+    return write_scenario(folder, "alone", f"""\
+name: alone
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmu["xtest_wave"]}}}
+  it: {{fmu: {fmu["it"]}, parameters: {{k: 2.0}}{extra}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]
+""")
+
+
+def _advised(path):
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    t = results.time        # x' = -2 x + cos t, x(0) = 0
+    error = np.abs(results["it.x"] - (2 * np.cos(t) + np.sin(t) - 2 * np.exp(-2 * t)) / 5)
+    return master.estimate_error(graph, results).get("error_estimate_advice", []), error.max()
+
+
+def test_a_state_the_fmu_does_not_declare_gets_advice_that_pays(tmp_path, bare, capsys):
+    # the lag as pythonfmu writes it: its input held at its end value, first order; the
+    # probes find x without a direct part, and the advice's dependencies: hold it at its
+    # step mean: an error 28x smaller at 0.1 s against the closed form, and no advice
+    fmus = dict(bare, it=bare["xtest_lag_bare"])
+    said, before = _advised(_lag_alone(tmp_path, fmus, "quadratic"))
+    assert len(said) == 1 and "`it: {fmu: ..., dependencies: {x: []}}`" in said[0], said
+    code, out, _ = run_main(capsys, "run", _lag_alone(tmp_path, fmus, "quadratic"),
+                            "--no-plots", "--out", tmp_path / "out")
+    assert code == 0 and "\nadvice: 'it' declares no output dependencies" in out
+    said, after = _advised(_lag_alone(tmp_path, fmus, "quadratic", ", dependencies: {x: []}"))
+    assert said == [] and after < before / 10, (before, after)
+
+
+@pytest.mark.parametrize("fmu,master_name", [("xtest_lag_bare", "gauss-seidel"),
+                                              ("xtest_through_bare", "quadratic")],
+                         ids=["a master that holds the newest value", "a direct part"])
+def test_no_advice_where_declaring_would_not_change_the_hold(tmp_path, bare, fmu, master_name):
+    # gauss-seidel holds a state's inputs at their newest value too; y = x + u reads u
+    fmus = dict(bare, xtest_through_bare=rewrite_description(
+        bare["xtest_through"], lambda xml: re.sub(r' dependencies="[^"]*"', "", xml),
+        tmp_path / "through_bare.fmu"))
+    said, _ = _advised(_lag_alone(tmp_path, dict(fmus, it=fmus[fmu]), master_name))
+    assert said == []

@@ -100,7 +100,7 @@ def error_estimate_lines(summary: dict) -> list[str]:
         lines.append(f"  {name}: max and end {e['max']}" if isinstance(e["max"], str)
                      and e["max"] == e["end"] else
                      f"  {name}: max {_show(e['max'])}, end {_show(e['end'])}")
-    return lines
+    return lines + [f"advice: {said}" for said in summary.get("error_estimate_advice", ())]
 
 
 def _show(value) -> str:

@@ -129,8 +129,19 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
         pair = pair.get("found")
     else:
         pair, stepped = _pair_afresh(graph, results, simulate)
-    if isinstance(pair, dict) and pair["failed"] is None:
-        return _pair_estimate(graph, results, names, pair)
+    found = _pair_estimate(graph, results, names, pair) \
+        if isinstance(pair, dict) and pair["failed"] is None else \
+        _coarse_estimate(graph, results, names, pair, stepped, simulate)
+    if isinstance(pair, dict) and pair.get("advice"):   # memory.advice: the run's holds
+        found["error_estimate_advice"] = pair["advice"]
+    return found
+
+
+def _coarse_estimate(graph: Graph, results: Results, names: list[str], pair, stepped: dict,
+                     simulate) -> dict:
+    """Richardson's estimate where the pair does not apply (`pair`: why; `stepped`: the
+    coarser runs master.simulate made)."""
+    exp = graph.scenario.experiment
     marks = graph_breaks(graph).times()
     factors = coarse_plan(graph, exp, marks)
     if isinstance(factors, str):

@@ -13,6 +13,11 @@ A scenario's `dependencies:` (scenario/dependencies.py) that says an output depe
 input (a state's) is the user's word, and the step order rests on it. The same probe checks
 it: an output that the move changes within the first step and that keeps no trace after the
 second is made from the inputs, not from a state; the pair does not apply, and says why.
+
+After the run, an FMU whose outputs all declare nothing and whose probes (probe.ProbedModel)
+found each made from its state alone (no direct part) gets advice: its inputs were held at
+their end values, as a direct input's must be (first order on a lag), and said in the
+scenario (`dependencies: {x: []}`) they would be held at their step mean (second order).
 """
 from __future__ import annotations
 
@@ -21,7 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .plan import state_undeclared
-from .probe import REAL, ProbedResponse, Target, probeable
+from .probe import REAL, ProbedModel, ProbedResponse, Target, probeable
+
+NO_DIRECT = 1e-6    # a direct part under this share of the state's part is round-off
 
 
 @dataclass(frozen=True)
@@ -86,3 +93,25 @@ def _refuted(response: ProbedResponse, claimed: list[str], t0: float) -> str | N
                     "no state holds it; give the dependencies: to the output of the FMU that "
                     "holds the state instead")
     return None
+
+
+def advice(plan) -> list[str]:
+    """What to say in the scenario (module doc) for the FMUs of the pair's plan, under a
+    master that blends a state's inputs (trapezoidal, quadratic)."""
+    if plan.hold not in ("trapezoidal", "quadratic"):
+        return []
+    said = []
+    for g in plan.groups:
+        m = g.model
+        if not isinstance(m, ProbedModel) or not m.undeclared or m.failed or not m.found:
+            continue
+        _, _, g0, g1, _, _, direct = m.found[-1]
+        if (g1 != 0).any(axis=1).all() and (np.abs(direct) <= NO_DIRECT * np.abs(g0)).all():
+            outputs = ", ".join(f"{o}: []" for o in m.outputs)
+            said.append(f"'{m.name}' declares no output dependencies, so the {plan.hold} "
+                        "master held its inputs at their end values, as an input its outputs "
+                        "may read must be (first order); its probes found "
+                        f"{', '.join(m.outputs)} made from its state alone: say so in the "
+                        f"scenario, `{m.name}: {{fmu: ..., dependencies: {{{outputs}}}}}`, "
+                        "and its inputs are held at their mean over the step (second order)")
+    return said

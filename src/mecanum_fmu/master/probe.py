@@ -65,7 +65,10 @@ def probed_model(inst, inputs: list[str]) -> "ProbedModel | None":
     direct = np.array([[u.dependencies is None or n in {d.name for d in u.dependencies}
                         for n in inputs] for u in real], dtype=bool).reshape(len(real),
                                                                             len(inputs))
-    return ProbedModel(inst.name, inputs, [u.variable.name for u in real], direct)
+    model = ProbedModel(inst.name, inputs, [u.variable.name for u in real], direct)
+    model.undeclared = len(real) == len(inst.model.outputs) and all(
+        u.dependencies is None for u in real)       # memory.advice: a scenario may say them
+    return model
 
 
 class ProbedModel:
@@ -87,6 +90,7 @@ class ProbedModel:
             else direct
         self.found: list[tuple] = []
         self.failed: str | None = None
+        self.undeclared = False     # every output Real, its dependencies not declared
         self.k = 0                  # the next step steps() works out
         self.s = np.zeros((len(outputs), len(inputs)))      # run - true, past steps' share
 
