@@ -210,3 +210,17 @@ def test_no_advice_where_declaring_would_not_change_the_hold(tmp_path, bare, fmu
         tmp_path / "through_bare.fmu"))
     said, _ = _advised(_lag_alone(tmp_path, dict(fmus, it=fmus[fmu]), master_name))
     assert said == []
+
+
+def test_a_probe_before_the_run_that_fails_keeps_the_t0_row(tmp_path, bare, capsys):
+    # the lag that declares no dependencies and whose fmi2GetFMUstate returns Fatal: the
+    # probe at t0 stops the run with one message, and results.csv holds the t0 row
+    nostate = rewrite_description(bare["xtest_nostate"], lambda xml: re.sub(
+        r' dependencies="[^"]*"', "", xml), tmp_path / "nostate_bare.fmu")
+    path = _lag_alone(tmp_path, dict(bare, it=nostate), "quadratic")
+    out = tmp_path / "out"
+    code, _, err = run_main(capsys, "run", path, "--no-plots", "--out", out)
+    assert code == 1 and "Traceback" not in err, err
+    assert "component 'it'" in err and "fmi2GetFMUstate returned Fatal" in err, err
+    rows = (out / "results.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[1].split(",")[0] == "0.0", rows

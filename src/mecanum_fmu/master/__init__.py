@@ -188,6 +188,8 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
         needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
         start = _start(graph, exp, running, buffers, stack) if needs_t0 else None
     except StepFailure as err:      # a probe's or a state save's call: Error or worse
+        recorder.tap = recorder.probe = None
+        recorder.record()           # the t0 row: every FMU was initialised
         raise _failure(err.running, err.function, err.status, exp.start_time,
                        recorder) from None
     if isinstance(pair, PairRows):
