@@ -520,15 +520,7 @@ def test_an_output_the_input_reaches_directly_is_estimated_too(tmp_path, fmus, m
     # x' = -2 x + cos t with y = x + u: y's state part is x's error, its direct part errs by
     # the held value against the input's end value (none where the newest value is held;
     # Jacobi's value of t_k, a step late)
-    graph = runner.prepare(write_scenario(tmp_path, "through", f"""\
-name: through
-experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}}}
-  it: {{fmu: {fmus["xtest_through"]}, parameters: {{k: {K}}}}}
-connections: [[wave.u, it.u]]
-outputs: [it.x, it.y]
-"""))
+    graph = runner.prepare(_through(tmp_path, fmus, master_name))
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
     summary = master.estimate_error(graph, results)
     assert "its response measured" in summary["error_estimate_method"]
@@ -537,6 +529,36 @@ outputs: [it.x, it.y]
         error = np.abs(results[name] - truth)
         assert error.max() > 1e-6
         _within_3x(summary["error_estimate"][name], error)
+
+
+def _through(folder, fmus, master_name):
+    """cos t into x' = -2 x + u with y = x + u (declared: x reads no input, y reads u)."""
+    return write_scenario(folder, "through", f"""\
+name: through
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  it: {{fmu: {fmus["xtest_through"]}, parameters: {{k: {K}}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x, it.y]
+""")
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal"])
+def test_a_feedthrough_into_a_third_party_state_is_second_order(tmp_path, fmus, master_name):
+    # u reaches y directly, so it was held at its end value during doStep, and x integrated
+    # u_k+1 over the step: first order (0.1 s -> 0.05 s: 1.99x less). Now it is held at the
+    # step's mean during doStep and set to its end value before y is read (plan.holds_through)
+    graph = runner.prepare(_through(tmp_path, fmus, master_name))
+    errors = []
+    for h in (0.1, 0.05):
+        fine, exp = with_experiment(graph, step_size=h, estimate="none")
+        results = master.simulate(fine, exp)
+        x = _truth(results.time)
+        errors.append([np.abs(results["it.x"] - x).max(),
+                       np.abs(results["it.y"] - x - np.cos(results.time)).max()])
+    ratio = np.array(errors[0]) / np.array(errors[1])
+    assert (ratio > 3.5).all(), errors
 
 
 @pytest.mark.parametrize("estimate", ["auto", "richardson"])

@@ -14,10 +14,11 @@ input (a state's) is the user's word, and the step order rests on it. The same p
 it: an output that the move changes within the first step and that keeps no trace after the
 second is made from the inputs, not from a state; the pair does not apply, and says why.
 
-After the run, an FMU whose outputs all declare nothing and whose probes (probe.ProbedModel)
-found each made from its state alone (no direct part) gets advice: its inputs were held at
-their end values, as a direct input's must be (first order on a lag), and said in the
-scenario (`dependencies: {x: []}`) they would be held at their step mean (second order).
+After the run, an FMU with a state whose outputs all declare nothing gets advice: its inputs
+were held at their end values, as a direct input's must be (first order on a lag); its probes
+(probe.ProbedModel) measured which linked inputs each output reads directly (its direct
+part), and said in the scenario (`dependencies: {x: [], y: [u]}`) they are held at their
+step mean while it steps (plan.holds_through; second order).
 """
 from __future__ import annotations
 
@@ -106,12 +107,15 @@ def advice(plan) -> list[str]:
         if not isinstance(m, ProbedModel) or not m.undeclared or m.failed or not m.found:
             continue
         _, _, g0, g1, _, _, direct = m.found[-1]
-        if (g1 != 0).any(axis=1).all() and (np.abs(direct) <= NO_DIRECT * np.abs(g0)).all():
-            outputs = ", ".join(f"{o}: []" for o in m.outputs)
-            said.append(f"'{m.name}' declares no output dependencies, so the {plan.hold} "
-                        "master held its inputs at their end values, as an input its outputs "
-                        "may read must be (first order); its probes found "
-                        f"{', '.join(m.outputs)} made from its state alone: say so in the "
-                        f"scenario, `{m.name}: {{fmu: ..., dependencies: {{{outputs}}}}}`, "
-                        "and its inputs are held at their mean over the step (second order)")
+        if not (g1 != 0).any():
+            continue
+        reads = np.abs(direct) > NO_DIRECT * np.abs(g0)     # (outputs, inputs)
+        deps = ", ".join(f"{o}: [{', '.join(i for i, r in zip(m.inputs, row) if r)}]"
+                         for o, row in zip(m.outputs, reads))
+        said.append(f"'{m.name}' declares no output dependencies, so the {plan.hold} master "
+                    "held its inputs at their end values, as inputs its outputs may read "
+                    "must be (first order); its probes measured which of its linked inputs "
+                    f"each output reads directly: say so in the scenario, `{m.name}: {{fmu: "
+                    f"..., dependencies: {{{deps}}}}}`, and its inputs are held at their mean "
+                    "over the step while it steps (second order)")
     return said

@@ -50,7 +50,7 @@ import numpy as np
 from ..masters import entry as master_entry
 from ..scenario.graph import Graph
 from .pair_parts import Group, Loop, Network, Node, PairPlan, Through
-from .plan import has_state, state_only_inputs
+from .plan import has_state, holds_through, state_only_inputs
 from .probe import PROBED, ProbedModel, probed_model, probed_response
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
@@ -375,7 +375,8 @@ def _group(how, inst, links: list, loop: set, col, model, measured: bool) -> Gro
         return f"{inst.name} has a state and an input that is not Real"
     names = [l.target.ref.variable for l in links]
     state_only = state_only_inputs(inst)
-    roles = np.array([_role(how.hold != "zoh" and n in state_only, id(l) in loop)
+    through = how.hold != "zoh" and holds_through(inst, measured)
+    roles = np.array([_role(how.hold != "zoh" and n in state_only, id(l) in loop, through)
                       for n, l in zip(names, links)])
     if model is not None:
         batch, words = model.batch(names, inst), inst.model_name
@@ -385,11 +386,13 @@ def _group(how, inst, links: list, loop: set, col, model, measured: bool) -> Gro
     return Group(inst.name, np.array([col(l.source) for l in links]), roles, 0, batch, words)
 
 
-def _role(blended: bool, ahead: bool) -> str:
-    """An input's role in the pair's rebuilt hold (Group.roles)."""
+def _role(blended: bool, ahead: bool, through: bool = False) -> str:
+    """An input's role in the pair's rebuilt hold (Group.roles); `through`: a direct input
+    whose source steps first is held as a state's, then set to its end value
+    (plan.holds_through)."""
     if blended:
         return "state_ahead" if ahead else "state"
-    return "fed_back" if ahead else "direct"
+    return "fed_back" if ahead else "through" if through else "direct"
 
 
 def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hold: str

@@ -11,7 +11,8 @@ import numpy as np
 @dataclass
 class Group:
     """One FMU's held Real inputs: their columns in the tapped rows, their roles ("state":
-    blended by the trapezoidal and quadratic holds; "direct": the newest value; with
+    blended by the trapezoidal and quadratic holds; "direct": the newest value; "through":
+    held as "state", its end value set for the outputs (plan.holds_through); with
     "_ahead" or "fed_back": the same, closing a loop, their value of t_k+1 unknown when the
     FMU steps), the lag of their values (Jacobi: steps late), and the FMU's error model
     (None: it must see none)."""

@@ -502,8 +502,8 @@ class PairRows(Stencils):
                 self._branched_group(i, g, ks, h, stencils, branch)
                 continue
             gathered = self._gathered(i, stencils)
-            held, error, change = self._group(g, ks, gathered)
-            error = self._forwarded_into(i, error)
+            held, own, change = self._group(g, ks, gathered)
+            error = self._forwarded_into(i, own)
             if g.model is None:
                 self._note_moved(i, error)
                 continue
@@ -511,7 +511,7 @@ class PairRows(Stencils):
                 holds[i] = (held, error, change)
                 continue
             self._kept(i, self._signed(i, g, ks, h, (held, error, change),
-                                       lead=gathered[2] - gathered[0]))
+                                       lead=_lead(g, gathered, own)))
         if self.net is not None:
             self._network(ks, h, holds)
         if self.lags:
@@ -552,7 +552,7 @@ class PairRows(Stencils):
             self._note_moved(i, error[:len(ks)])
             return
         signed = self._signed(i, g, ks, with_branch(h, branch), (held, error, change), branch,
-                              lead=gathered[2] - gathered[0])
+                              lead=_lead(g, gathered, error))
         self._kept(i, signed[:len(ks)])
         names, index = self.covers[i]
         self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))
@@ -661,3 +661,12 @@ class PairRows(Stencils):
         jump): the history the master's blends have behind them."""
         restarts = np.concatenate(([0], self.pieces.cut))
         return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
+
+
+def _lead(g: Group, gathered: list, own: np.ndarray) -> np.ndarray:
+    """Per step and input, what a measured model's direct part errs by less the hold's error
+    against the true mean (ProbedModel.steps: held - true end = error - lead): the true end
+    value less the mean; for a "through" input, whose end value the outputs see, the hold's
+    own error (only an error forwarded from upstream is left)."""
+    mean, _, end = gathered
+    return np.where(g.roles == "through", own, end - mean)

@@ -136,7 +136,8 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
     one np.take. Real inputs that a hold blends (see HOLDS) get a staging array filled from
     their history."""
     links = [l for l in graph.links if l.target.ref.instance == r.name and l not in held]
-    roles = _blend_roles(r, links, position, holds.through) if hold != "zoh" else {}
+    through = holds.through or holds_through(r.inst, r.name in graph.measured)
+    roles = _blend_roles(r, links, position, through) if hold != "zoh" else {}
     real = [l for l in links if l.target.type == "Real"]
     groups = (("Real", [l for l in real if l.target.ref.variable not in roles]),
               ("Blend", [l for l in real if l.target.ref.variable in roles]),
@@ -217,6 +218,16 @@ def has_state(inst: Instance) -> bool:
     return any(not u.dependencies for u in inst.model.outputs)
 
 
+def holds_through(inst: Instance, measured: bool) -> bool:
+    """Whether a fixed-step master that blends holds this FMU's direct-feedthrough inputs
+    "through" (_blend_roles): a third-party FMU (`measured`: Graph.measured) with a state
+    whose every output declares its dependencies, so that its outputs that read an input
+    are known to (FMI 2.0: an output that depends on an input follows it when it is set
+    after doStep). The bundled FMUs keep the end value (their runs unchanged)."""
+    return measured and has_state(inst) and all(u.dependencies is not None
+                                                for u in inst.model.outputs)
+
+
 def state_undeclared(inst: Instance) -> bool:
     """It may hold a state only because some output's dependencies are not declared (every
     declared list names an input): a probe may find that it holds none (memory.py)."""
@@ -247,6 +258,8 @@ HOLDS = {
                   "state_ahead": ((_AHEAD, False), (_TRAPEZOID, True)),
                   "fed_back": ((_FED_BACK, False), (_NOW, False))},
 }
+for _rules in HOLDS.values():      # held as a state's during doStep, then its end value
+    _rules["through"] = _rules["state"]
 
 
 class Holds:
@@ -266,7 +279,7 @@ class Holds:
             inst: Instance) -> "_Blend":
         """A blend of inputs `targets` of `inst` (from buffer[src]), by role (_blend_roles)."""
         self.blends.append(_Blend(self, buffer, src, [HOLDS[self.hold][r] for r in roles]))
-        self.ahead = self.ahead or any(role != "state" for role in roles)
+        self.ahead = self.ahead or any(role not in ("state", "through") for role in roles)
         return self.blends[-1]
 
     def prime(self) -> None:
