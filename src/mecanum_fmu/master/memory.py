@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .plan import state_undeclared
-from .probe import REAL, ProbedModel, ProbedResponse, Target, probeable
+from .probe import REAL, ProbedModel, ProbedResponse, Target, probeable, probed_response
 
 NO_DIRECT = 1e-6    # a direct part under this share of the state's part is round-off
 
@@ -69,12 +69,12 @@ def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0:
                  and l.target.type in REAL and l.source in real_slots]
         if not links:
             continue
-        outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in REAL]
-        response = ProbedResponse(inst.name, [l.target.ref.variable for l in links], outputs, 2)
-        Target(by_name[inst.name], response, response.inputs, outputs,
-               np.array([real_slots[l.source] for l in links], dtype=np.intp), 2
-               ).probe(0, t0, h, real)
-        calls += 2 * (1 + len(links))
+        # (it may hold a state, undeclared or said: stepped twice, probed_response's steps)
+        response = probed_response([l.target.ref.variable for l in links], inst)
+        Target(by_name[inst.name], response, response.inputs, response.outputs,
+               np.array([real_slots[l.source] for l in links], dtype=np.intp),
+               response.steps).probe(0, t0, h, real)
+        calls += response.steps * (1 + len(links))
         if inst.name in maybe and response.failed is None:
             found.add(inst.name)
         refuted = refuted or _refuted(response, claims.get(inst.name, ()), t0)
