@@ -90,40 +90,47 @@ class Pieces:
     lone: bool = False
 
 
-_RANK = {"kink": 0, "across kink": 1, "across jump": 2, "jump": 3}
+KINK, ACROSS_KINK, ACROSS_JUMP, JUMP = range(4)     # what starts a piece, weakest first
 
 
 def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     """The pieces of `breaks` (tables.Breaks) on a run of n steps of h from start: a kink on
     a node ends one piece there and starts the next; a jump (or what may be one: `others`)
     on a node starts the next piece there, the one before ending a node earlier; one inside
-    a step ends a piece at the step's start and starts the next at its end."""
-    bounds: dict[int, str] = {}       # the node a piece starts at -> the break before it
-    across: dict[int, tuple[float, bool]] = {}
-
-    def mark(j: int, kind: str) -> None:
-        if _RANK[kind] >= _RANK[bounds.get(j, "kink")]:
-            bounds[j] = kind
-    for times, kind in ((breaks.kinks, "kink"), (breaks.taken_as_jumps(), "jump")):
-        for b in np.asarray(times, dtype=float):
-            x = (b - start) / h
-            j = int(round(x))
-            if abs(x - j) < NEAR:
-                if 0 < j <= n:
-                    mark(j, kind)
-            elif 0 < x < n:
-                k = int(np.floor(x))
-                if k not in across or kind == "jump":
-                    across[k] = (x - k, kind == "jump")
-                mark(k + 1, f"across {kind}")
-    starts = [0] + sorted(bounds)
-    ends = [j if bounds[j] == "kink" else j - 1 for j in starts[1:]] + [n]
-    kinks = ("kink", "across kink")
-    kinked = [bounds.get(j) in kinks or bounds.get(nxt) in kinks
-              for j, nxt in zip(starts, starts[1:] + [None])]
+    a step ends a piece at the step's start and starts the next at its end. Where several
+    fall on one node, the strongest says how (a jump over one across a step over a kink)."""
+    kinks, jumps = np.asarray(breaks.kinks, dtype=float), breaks.taken_as_jumps()
+    x = (np.concatenate((kinks, jumps)) - start) / h
+    if not len(x):
+        return Pieces(np.zeros(1, dtype=np.int64), np.array([n]), np.zeros(0, dtype=np.int64),
+                      {}, False, n < 1)
+    jump = np.arange(len(x)) >= len(kinks)
+    j = np.rint(x)
+    on = np.abs(x - j) < NEAR
+    inside = ~on & (x > 0) & (x < n)
+    k = np.floor(x[inside]).astype(np.int64)
+    rank = np.full(n + 2, -1)           # per node, what starts a piece there (-1: nothing)
+    at = on & (j > 0) & (j <= n)
+    np.maximum.at(rank, j[at].astype(np.int64), np.where(jump[at], JUMP, KINK))
+    np.maximum.at(rank, k + 1, np.where(jump[inside], ACROSS_JUMP, ACROSS_KINK))
+    bounds = np.flatnonzero(rank >= 0)
+    starts = np.concatenate(([0], bounds))
+    ends = np.concatenate((np.where(rank[bounds] == KINK, bounds, bounds - 1), [n]))
+    after_kink = (rank[starts] >= KINK) & (rank[starts] <= ACROSS_KINK)
+    kinked = after_kink | np.append(after_kink[1:], False)      # a kink at either end
     # (a piece that starts on the last node holds no step: a table's row at the stop time)
-    short = any(k and e - j < 1 and j < n for j, e, k in zip(starts, ends, kinked))
-    cut = sorted(j for j, kind in bounds.items() if kind == "jump")
-    return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
-                  np.array(cut, dtype=np.int64), across, short,
-                  any(e - j < 1 and j < n for j, e in zip(starts, ends)))
+    lone = (ends - starts < 1) & (starts < n)
+    return Pieces(starts.astype(np.int64), ends.astype(np.int64),
+                  np.flatnonzero(rank == JUMP).astype(np.int64),
+                  _across(x[inside], k, jump[inside]), bool((lone & kinked).any()),
+                  bool(lone.any()))
+
+
+def _across(x: np.ndarray, k: np.ndarray, jump: np.ndarray) -> dict:
+    """Step index -> (the fraction of it before a breakpoint inside it, whether that may be
+    a jump): per step its first kink, or its last jump where it holds one."""
+    across = {}
+    for xi, ki, ji in zip(x.tolist(), k.tolist(), jump.tolist()):
+        if ki not in across or ji:
+            across[ki] = (xi - ki, ji)
+    return across
