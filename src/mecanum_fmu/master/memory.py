@@ -18,7 +18,10 @@ After the run, an FMU with a state whose outputs all declare nothing gets advice
 were held at their end values, as a direct input's must be (first order on a lag); its probes
 (probe.ProbedModel) measured which linked inputs each output reads directly (its direct
 part), and said in the scenario (`dependencies: {x: [], y: [u]}`) they are held at their
-step mean while it steps (plan.holds_through; second order).
+step mean while it steps (plan.holds_through; second order). Where an output that reads an
+input is worked out in doStep alone (probe.lazy: it does not follow the input set after the
+step), none is advised: it reads the value held during the step, the mean once declared, and
+only an output worked out when it is read gains.
 """
 from __future__ import annotations
 
@@ -112,10 +115,25 @@ def advice(plan) -> list[str]:
         reads = np.abs(direct) > NO_DIRECT * np.abs(g0)     # (outputs, inputs)
         deps = ", ".join(f"{o}: [{', '.join(i for i, r in zip(m.inputs, row) if r)}]"
                          for o, row in zip(m.outputs, reads))
-        said.append(f"'{m.name}' declares no output dependencies, so the {plan.hold} master "
-                    "held its inputs at their end values, as inputs its outputs may read "
-                    "must be (first order); its probes measured which of its linked inputs "
-                    f"each output reads directly: say so in the scenario, `{m.name}: {{fmu: "
-                    f"..., dependencies: {{{deps}}}}}`, and its inputs are held at their mean "
-                    "over the step while it steps (second order)")
+        lazy = [o for o, row in zip(m.outputs, m.lazy & reads) if row.any()]
+        said.append(_lazy_words(m.name, lazy, deps) if lazy else (
+            f"'{m.name}' declares no output dependencies, so the {plan.hold} master held its "
+            "inputs at their end values, as inputs its outputs may read must be (first "
+            "order); its probes measured which of its linked inputs each output reads "
+            f"directly: say so in the scenario, `{m.name}: {{fmu: ..., dependencies: "
+            f"{{{deps}}}}}`, and its inputs are held at their mean over the step while it "
+            "steps (second order)"))
     return said
+
+
+def _lazy_words(name: str, lazy: list[str], deps: str) -> str:
+    """The advice for an FMU some of whose outputs read an input directly but are worked out
+    in its doStep alone (probe.lazy): such an output reads the value the input was held at
+    during the step, so no hold makes both it and the state second order."""
+    return (f"'{name}' declares no output dependencies, and its {', '.join(lazy)} "
+            f"{'is' if len(lazy) == 1 else 'are'} worked out in its doStep alone (an input set "
+            "after the step does not move it, as FMI 2.0 asks of an output that reads an "
+            "input directly): no `dependencies:` makes both it and the state second order, "
+            "and none is advised; worked out when read (pythonfmu: a `getter=`), it would "
+            f"take `{name}: {{fmu: ..., dependencies: {{{deps}}}}}`, and its inputs would be "
+            "held at their mean over the step while it steps (second order)")

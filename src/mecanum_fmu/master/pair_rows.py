@@ -524,11 +524,11 @@ class PairRows(Stencils):
         self.window, self.lo = self.window[drop:], self.lo + drop
 
     def _signed(self, i: int, g: Group, ks: np.ndarray, h: np.ndarray, hold: tuple,
-                branch: int = 0, lead: np.ndarray | None = None) -> np.ndarray:
+                branch: int = 0, lead: tuple | None = None) -> np.ndarray:
         """Group i's signed errors after each step (with a `branch`, its rows after them):
         its model's (a branch only to a model that takes one: _branchable), or around the
-        loop it starts (_carried). `lead`: the true input's end value less its mean, per step,
-        for a measured model's direct part (ProbedModel: held - true end = error - lead)."""
+        loop it starts (_carried). `lead`: _lead's, for a measured model's direct part
+        (ProbedModel: held - true end = error - lead)."""
         if self.carry is not None and i == self.plan.loop.origin:
             return self._carried(g, ks, h, hold, branch)
         more = {"lead": lead} if lead is not None and isinstance(g.model, ProbedModel) else {}
@@ -663,10 +663,13 @@ class PairRows(Stencils):
         return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
 
 
-def _lead(g: Group, gathered: list, own: np.ndarray) -> np.ndarray:
+def _lead(g: Group, gathered: list, own: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per step and input, what a measured model's direct part errs by less the hold's error
     against the true mean (ProbedModel.steps: held - true end = error - lead): the true end
     value less the mean; for a "through" input, whose end value the outputs see, the hold's
-    own error (only an error forwarded from upstream is left)."""
+    own error (only an error forwarded from upstream is left). Then the true end less the
+    mean alone: a lazy output's (ProbedModel.lazy), which reads the value held during the
+    step, "through" or not."""
     mean, _, end = gathered
-    return np.where(g.roles == "through", own, end - mean)
+    late = end - mean
+    return np.where(g.roles == "through", own, late), late

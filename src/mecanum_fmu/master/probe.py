@@ -91,17 +91,25 @@ class ProbedModel:
         self.found: list[tuple] = []
         self.failed: str | None = None
         self.undeclared = False     # every output Real, its dependencies not declared
+        # (output, input): a direct part the output does not show for the input set after
+        # the step (worked out in doStep alone: lazy())
+        self.lazy = np.zeros((len(outputs), len(inputs)), dtype=bool)
         self.k = 0                  # the next step steps() works out
         self.s = np.zeros((len(outputs), len(inputs)))      # run - true, past steps' share
 
     def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
-              branch: int = 0, lead: np.ndarray | None = None) -> np.ndarray:
-        """The signed error of each output after each step. `lead`: the true input's end
-        value less its mean per step, so that the direct part errs by error - lead, the held
-        value against the true end value (None: half the change, which is that only to the
-        trapezoid's h^2 u'' / 12: a controller that reads its newest input exactly read
-        2.5e-3 at 0.1 s on cos t)."""
-        miss = error - (0.5 * change if lead is None else lead)
+              branch: int = 0, lead: tuple | None = None) -> np.ndarray:
+        """The signed error of each output after each step. `lead`: per step and input, what
+        the direct part errs by less error (pair_rows._leads): the true input's end value
+        less its mean, so that it errs by the held value against the true end value (for an
+        input held "through", the hold's own error), and that end less the mean alone, for
+        a `lazy` output (it reads the value held during the step); None: half the change,
+        which is that only to the trapezoid's h^2 u'' / 12 (a controller that reads its
+        newest input exactly read 2.5e-3 at 0.1 s on cos t)."""
+        lead, late = (0.5 * change,) * 2 if lead is None else lead
+        miss = error - lead
+        if self.lazy.any():     # the lazy parts' miss, after the others', same rows
+            miss = np.concatenate((miss, error - late), axis=1)
         n = len(h)
         if not self.found or not len(self.outputs):     # finish() says why (no probe)
             self.k += n - branch
@@ -131,7 +139,7 @@ class ProbedModel:
             _, size, g0, g1, r, m, d_part = self.found[probe]
             scale = float(h[part.start]) / size
             decay = np.where(r > 0, np.abs(r) ** scale, r)
-            out[part] += miss[part] @ d_part.T
+            out[part] += miss[part] @ self._split(d_part).T
             d = error[part][:, None, :] - m[None] * change[part][:, None, :]   # (steps, o, j)
             x = (g1 * scale)[None] * d
             for o, j in np.ndindex(s.shape):
@@ -140,6 +148,14 @@ class ProbedModel:
                 out[part, o] += shares[:-1] + g0[o, j] * scale * d[:, o, j]
                 s[o, j] = shares[-1]
         return out, s
+
+    def _split(self, d_part: np.ndarray) -> np.ndarray:
+        """The direct part D (outputs, inputs), and where some is lazy, its other parts then
+        its lazy parts side by side (outputs, 2 inputs), as steps() lays out the misses."""
+        if not self.lazy.any():
+            return d_part
+        return np.concatenate((np.where(self.lazy, 0.0, d_part),
+                               np.where(self.lazy, d_part, 0.0)), axis=1)
 
     def _segments(self, h: np.ndarray, k: int, branch: int = 0) -> list[tuple[slice, int]]:
         """The steps k .. k + len(h) - 1 (with a `branch`, the last that many rows the steps
@@ -263,6 +279,15 @@ def fitted(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None = None
         return (f"(output {o}, input {j}) is not of first order: one step on, the response "
                 f"{g1[o, j]:.3g}, {g2[o, j]:.3g}, {g3[o, j]:.3g} does not decay by one ratio")
     return g0, g1, r, moment(r), d_part
+
+
+def lazy(d_part: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Per (output, input): a direct part (fitted's D, within the step) that the output does
+    not show for the input moved after the step (`after`: its change over the move), not
+    even half of it: the output is worked out in doStep alone (pythonfmu's way, where a
+    getter does not work it out when read). Such an output reads what the input was held
+    at during the step, not the value set after it. `floor`: the round-off of each."""
+    return (np.abs(d_part) > floor) & (np.abs(after) < 0.5 * np.abs(d_part))
 
 
 def _lost(before: np.ndarray, now: np.ndarray) -> tuple[int, int] | None:
@@ -390,7 +415,8 @@ class Target:
             self.model.failed = f"{r.name}'s fmi2GetFMUstate returned discard while probing it"
             return
         try:
-            runs = [self._steps(u, t, h)]
+            after = np.zeros((len(self.y), len(u)))
+            runs = [self._steps(u, t, h, after=(after, eps))]
             for j in range(len(u)):
                 restore_states([r], t, [state])
                 nudged = u.copy()
@@ -403,11 +429,14 @@ class Target:
         restore_states([r], t, [state])
         r.c_free_state(comp, ctypes.byref(state))
         if self.model.failed is None:
-            self._fit(k, h, np.array(runs), eps)
+            self._fit(k, h, np.array(runs), eps, after)
 
-    def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray) -> None:
+    def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray, after: np.ndarray
+             ) -> None:
         """runs: (1 + inputs, steps, outputs), the first unmoved: a model's fit (fitted),
-        or a response's Jacobian (one step: its outputs' change over each input's move)."""
+        or a response's Jacobian (one step: its outputs' change over each input's move);
+        `after` (outputs, inputs): a model's outputs' change over each input's move set
+        after the first step (_after)."""
         if not np.isfinite(runs).all():
             self.model.failed = (f"{self.r.name}'s outputs were not finite numbers in the "
                                  f"probe at t = {k * h:g} s")
@@ -446,11 +475,14 @@ class Target:
                 "measure how it carries an error")
         else:
             self.model.found.append((k, h, *fit))
+            self.model.lazy |= lazy(fit[4], after / eps, floor.max(axis=0))
 
-    def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None
-               ) -> np.ndarray:
+    def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None,
+               after: tuple | None = None) -> np.ndarray:
         """The covered outputs after each of its steps (PROBE_STEPS; a response's: 1),
-        inputs `first` (default u) over the first and u over the others."""
+        inputs `first` (default u) over the first and u over the others; with `after` (a
+        model's (outputs x inputs array, eps)), each input's move set after the first step
+        and its outputs' change read into it (_after)."""
         out = np.empty((self.steps, len(self.y)))
         for i in range(self.steps):
             values = first if i == 0 and first is not None else u
@@ -460,7 +492,26 @@ class Target:
             self._call("fmi2DoStep", self.r.c_do_step, t + i * h, h, 0)
             self._call("fmi2GetReal", self.r.c_get["Real"], self.out_vrs, len(self.y), self.y)
             out[i] = self.y[:]
+            if i == 0 and after is not None and isinstance(self.model, ProbedModel):
+                self._after(u, out[0], *after)
         return out
+
+    def _after(self, u: np.ndarray, y: np.ndarray, into: np.ndarray, eps: np.ndarray
+               ) -> None:
+        """Per input j, set u_j + eps_j after the step (no doStep) and the outputs' change
+        read into `into`[:, j]: an output that reads u_j directly follows it (FMI 2.0), one
+        worked out in doStep alone does not (`lazy`). The inputs are u again after it (the
+        next step sets them too)."""
+        for j in range(len(u)):
+            nudged = u.copy()
+            nudged[j] += eps[j]
+            self._call("fmi2SetReal", self.r.c_set["Real"], self.in_vrs, len(u),
+                       _fill(self.u, nudged))
+            self._call("fmi2GetReal", self.r.c_get["Real"], self.out_vrs, len(self.y), self.y)
+            into[:, j] = np.array(self.y[:]) - y
+        if len(u):
+            self._call("fmi2SetReal", self.r.c_set["Real"], self.in_vrs, len(u),
+                       _fill(self.u, u))
 
     def _call(self, name: str, function, *args) -> None:
         st = function(self.r.component, *args)
