@@ -189,6 +189,28 @@ def test_a_tolerance_on_third_party_fmus_takes_no_more_than_1_5x_the_fixed_steps
     assert results.steps_taken <= 1.5 * needed, (results.steps_taken, needed)
 
 
+def test_a_tolerance_on_an_output_worked_out_in_dostep_alone_is_refused_with_the_fix(
+        tmp_path, fmus, capsys):
+    # y = x + u assigned in do_step (lazy = 1): held "through", it reads u's step mean, so its
+    # value hangs on each step's length and the run ended "the tolerance needs a step of
+    # 2.4e-14 s here ... loosen the tolerance". The probes at t0 find it: exit 2, the FMU, the
+    # output and the fixes named; with y worked out when read, or y not used, the run goes on
+    path = _through(tmp_path, fmus, "quadratic", lazy=True)
+    out = tmp_path / "out"
+    code, _, err = run_main(capsys, "run", str(path), "--tolerance", "1e-3", "--no-plots",
+                            "--out", str(out))
+    assert code == 2 and "Traceback" not in err, (code, err)
+    assert "experiment.master" in err and "inputs of 'it'" in err, err
+    assert "its y is worked out in its doStep alone" in err and "`getter=`" in err, err
+    eager = runner.prepare(_through(tmp_path, fmus, "quadratic"), tolerance=1e-3)
+    assert master.simulate(eager, eager.scenario.experiment).steps_taken > 0
+    unused = write_scenario(tmp_path, "unused", path.read_text().replace(
+        "outputs: [it.x, it.y]", "outputs: [it.x]"))
+    graph = runner.prepare(unused, tolerance=1e-3)
+    results = master.simulate(graph, graph.scenario.experiment)
+    assert np.abs(results["it.x"] - _truth(results.time)).max() <= 1e-3
+
+
 def test_the_relative_tolerance_loosens_the_bound_by_the_outputs_size(tmp_path, fmus):
     # |x| reaches 1/sqrt(k^2 + 1) = 0.45: with rtol = 10 atol the bound is up to 5.5x atol,
     # so fewer steps are needed; the error stays under atol + rtol max|x|

@@ -28,7 +28,7 @@ from .estimate import coarse_plan, error_estimate, pair_tap, wants_pair
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
-from .memory import AtStart, advice, probe_at_start
+from .memory import AtStart, advice, lazy_at_start, lazy_problems, probe_at_start
 from .probe import prober
 from .recorder import Recorder, step_count
 from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, before_stop,
@@ -63,14 +63,8 @@ def simulate(graph: Graph, experiment: Experiment,
         holds = plan_transfers(running, graph, buffers, how.hold, _adaptive_holds(how, graph),
                                how.holds_samples)
         stack.callback(lambda: [r.terminate() for r in running])
-        try:
-            initialise(running, graph, experiment.start_time, experiment.stop_time)
-            check_finite(buffers.real, experiment.start_time)
-        except FmuCallError as err:
-            raise _failure(err.running, err.function, err.status, experiment.start_time,
-                           recorder) from None
-        except NonFinite as err:
-            raise _not_finite(buffers, err.time, recorder) from None
+        _initialise(running, graph, experiment, buffers, recorder)
+        _refuse_lazy(how, graph, running, buffers, recorder)
         _ = graph.breaks    # cached; the stepping reads them: run set-up, not the estimate
         pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack,
                                        _rolls_back_loops(how, running, holds))
@@ -127,6 +121,40 @@ def _finish(pair, running: list[RunningInstance], graph: Graph, buffers: Buffers
             pair.settle_end(settled[pair.plan.slots])
         pair.seconds += _time.perf_counter() - tick
     return pair.finish()
+
+
+def _initialise(running: list[RunningInstance], graph: Graph, exp: Experiment,
+                buffers: Buffers, recorder: Recorder) -> None:
+    """stepping.initialise, and every value at t0 finite; else the run fails (SimulationError,
+    the rows so far kept)."""
+    try:
+        initialise(running, graph, exp.start_time, exp.stop_time)
+        check_finite(buffers.real, exp.start_time)
+    except FmuCallError as err:
+        raise _failure(err.running, err.function, err.status, exp.start_time,
+                       recorder) from None
+    except NonFinite as err:
+        raise _not_finite(buffers, err.time, recorder) from None
+
+
+def _refuse_lazy(how: Master, graph: Graph, running: list[RunningInstance], buffers: Buffers,
+                 recorder: Recorder) -> None:
+    """The adaptive master's refusal (ScenarioError) where the probes at t0 find third-party
+    outputs, recorded or read by another FMU, worked out in doStep alone
+    (memory.lazy_at_start): such an output reads its inputs' step mean, its value hangs on
+    each step's length, and no step meets the tolerance."""
+    if not (how.adaptive and graph.measured):
+        return
+    exp = recorder.experiment
+    try:
+        found = lazy_at_start(graph, running, buffers.real_slots, buffers.real,
+                              exp.start_time, exp.step_size)
+    except StepFailure as err:      # a probe's call: Error or worse
+        recorder.record()           # the t0 row: every FMU was initialised
+        raise _failure(err.running, err.function, err.status, exp.start_time,
+                       recorder) from None
+    if found:
+        raise ScenarioError(lazy_problems(graph.scenario.label, how.name, found))
 
 
 def _adaptive_holds(how: Master, graph: Graph) -> AdaptiveHolds | None:

@@ -29,8 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .plan import state_undeclared
-from .probe import REAL, ProbedModel, ProbedResponse, Target, probeable, probed_response
+from ..errors import Problem
+from .plan import has_state, state_only_inputs, state_undeclared
+from .probe import (REAL, ProbedModel, ProbedResponse, Target, probeable, probed_model,
+                    probed_response)
 
 NO_DIRECT = 1e-6    # a direct part under this share of the state's part is round-off
 
@@ -82,6 +84,49 @@ def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0:
             found.add(inst.name)
         refuted = refuted or _refuted(response, claims.get(inst.name, ()), t0)
     return AtStart(frozenset(found), calls, refuted)
+
+
+def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
+                  h: float) -> dict[str, list[str]]:
+    """Per third-party FMU with a state whose inputs an output may read directly (the
+    adaptive master holds them "through": their step mean while it steps, their end value
+    for the outputs after it), its outputs, recorded or read by another FMU, that are worked
+    out in its doStep alone (probe.lazy: they read the input within the step and do not
+    follow it set after the step), where there are some. Probed from t0 with step h
+    (ProbedModel's probe: 4 (1 + inputs) doStep calls). Raises stepping.StepFailure."""
+    by_name, found = {r.name: r for r in running}, {}
+    used = {str(p.ref) for p in graph.recorded} | {str(l.source.ref) for l in graph.links}
+    for inst in graph.instances:
+        if inst.name not in graph.measured or not has_state(inst) or not probeable(inst):
+            continue
+        own = state_only_inputs(inst)
+        links = [l for l in graph.links if l.target.ref.instance == inst.name and
+                 l.target.type in REAL and l.source in real_slots and
+                 l.target.ref.variable not in own]
+        model = probed_model(inst, [l.target.ref.variable for l in links]) if links else None
+        if model is None:
+            continue
+        Target(by_name[inst.name], model, model.inputs, model.outputs,
+               np.array([real_slots[l.source] for l in links], dtype=np.intp)
+               ).probe(0, t0, h, real)
+        lazy = [o for o, row in zip(model.outputs, model.lazy)
+                if row.any() and f"{inst.name}.{o}" in used]
+        if model.failed is None and lazy:
+            found[inst.name] = lazy
+    return found
+
+
+def lazy_problems(label: str, master_name: str, found: dict[str, list[str]]) -> list:
+    """The adaptive master's refusal of the outputs lazy_at_start found."""
+    return [Problem(label, "experiment.master", (
+        f"the {master_name} master holds the inputs of '{name}' at their mean over each "
+        f"step, and its {', '.join(outputs)} {'is' if len(outputs) == 1 else 'are'} worked "
+        "out in its doStep alone (an input set after the step does not move it, as FMI "
+        "2.0 asks of an output that reads an input directly): it reads that mean, its value "
+        "hangs on each step's length, and no step meets the tolerance; work it out when it "
+        "is read (pythonfmu: a `getter=`), or choose a fixed-step master (e.g. quadratic, "
+        "whose estimate says its error) and drop the tolerance"))
+        for name, outputs in found.items()]
 
 
 def _refuted(response: ProbedResponse, claimed: list[str], t0: float) -> str | None:
