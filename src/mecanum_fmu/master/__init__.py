@@ -150,11 +150,17 @@ def _refuse_lazy(how: Master, graph: Graph, running: list[RunningInstance], buff
         found = lazy_at_start(graph, running, buffers.real_slots, buffers.real,
                               exp.start_time, exp.step_size)
     except StepFailure as err:      # a probe's call: Error or worse
-        recorder.record()           # the t0 row: every FMU was initialised
-        raise _failure(err.running, err.function, err.status, exp.start_time,
-                       recorder) from None
+        raise _failed_at_t0(err, exp, recorder) from None
     if found:
         raise ScenarioError(lazy_problems(graph.scenario.label, how.name, found))
+
+
+def _failed_at_t0(err: StepFailure, exp: Experiment, recorder: Recorder) -> SimulationError:
+    """The run's failure where a probe's or a state save's call before the first step
+    returned Error or worse: the t0 row kept (every FMU was initialised), no estimate."""
+    recorder.tap = recorder.probe = None
+    recorder.record()
+    return _failure(err.running, err.function, err.status, exp.start_time, recorder)
 
 
 def _adaptive_holds(how: Master, graph: Graph) -> AdaptiveHolds | None:
@@ -216,10 +222,7 @@ def _estimate_start(graph: Graph, exp: Experiment, running: list[RunningInstance
         needs_t0 = not isinstance(pair, PairRows) or pair.may_fail
         start = _start(graph, exp, running, buffers, stack) if needs_t0 else None
     except StepFailure as err:      # a probe's or a state save's call: Error or worse
-        recorder.tap = recorder.probe = None
-        recorder.record()           # the t0 row: every FMU was initialised
-        raise _failure(err.running, err.function, err.status, exp.start_time,
-                       recorder) from None
+        raise _failed_at_t0(err, exp, recorder) from None
     if isinstance(pair, PairRows):
         pair.seconds += _time.perf_counter() - tick
     return pair, start

@@ -431,12 +431,12 @@ class Target:
         if self.model.failed is None:
             self._fit(k, h, np.array(runs), eps, after)
 
-    def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray, after: np.ndarray
-             ) -> None:
+    def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray,
+             after: np.ndarray | None = None) -> None:
         """runs: (1 + inputs, steps, outputs), the first unmoved: a model's fit (fitted),
         or a response's Jacobian (one step: its outputs' change over each input's move);
         `after` (outputs, inputs): a model's outputs' change over each input's move set
-        after the first step (_after)."""
+        after the first step (_after; None: not measured)."""
         if not np.isfinite(runs).all():
             self.model.failed = (f"{self.r.name}'s outputs were not finite numbers in the "
                                  f"probe at t = {k * h:g} s")
@@ -475,7 +475,8 @@ class Target:
                 "measure how it carries an error")
         else:
             self.model.found.append((k, h, *fit))
-            self.model.lazy |= lazy(fit[4], after / eps, floor.max(axis=0))
+            if after is not None:
+                self.model.lazy |= lazy(fit[4], after / eps, floor.max(axis=0))
 
     def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None,
                after: tuple | None = None) -> np.ndarray:
