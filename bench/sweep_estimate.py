@@ -1,7 +1,9 @@
 """A sweep's runs against the same runs by master.simulate alone, in one process: what the
 sweep worker adds per run (the error estimate above all, docs/masters.md) as a ratio of
 medians. The runs are the first N variants of scenarios/sweeps/wheel_tolerance.yaml, made by
-the worker's own run_batch; interleaved rounds, the first run of each kind not timed. Twice:
+the worker's own run_batch, one run at a time; each variant run both ways back to back, which
+goes first alternating, and the ratio the median of the runs' own ratios (a burst of load
+elsewhere falls on both of a pair); the first run of each kind not timed. Twice:
 with the default estimate (auto: the embedded pair) and with `experiment: {estimate: none}`.
 
 Run: .venv/bin/python bench/sweep_estimate.py [--runs N] [--rounds R] [--study SWEEP_FILE]
@@ -45,18 +47,24 @@ def compare(graph, batch, path_names, rounds: int, estimate: str) -> float:
     run_batch(graph, batch[:1], path_names)                    # warm: unpack, instantiate
     master.simulate(with_values(graph, batch[0][1]), exp)
     alone, sweep = [], []
-    for _ in range(rounds):
-        tick = time.perf_counter()
-        for _, values in batch:
-            master.simulate(with_values(graph, values), exp)
-        alone.append((time.perf_counter() - tick) / len(batch))
-        tick = time.perf_counter()
-        run_batch(graph, batch, path_names)
-        sweep.append((time.perf_counter() - tick) / len(batch))
+    for round_ in range(rounds):
+        for i, (index, values) in enumerate(batch):
+            taken = {}
+            for kind in ("alone", "sweep") if (round_ + i) % 2 == 0 else ("sweep", "alone"):
+                tick = time.perf_counter()
+                if kind == "alone":
+                    master.simulate(with_values(graph, values), exp)
+                else:
+                    run_batch(graph, [(index, values)], path_names)
+                taken[kind] = time.perf_counter() - tick
+            alone.append(taken["alone"])
+            sweep.append(taken["sweep"])
     a, s = statistics.median(alone), statistics.median(sweep)
+    paired = statistics.median(w / m for w, m in zip(sweep, alone))
     print(f"estimate {estimate}: {len(batch)} runs x {rounds} rounds: master.simulate alone "
-          f"{a * 1e3:.1f} ms a run, the sweep worker's run {s * 1e3:.1f} ms: ratio {s / a:.2f}")
-    return s / a
+          f"{a * 1e3:.1f} ms a run, the sweep worker's run {s * 1e3:.1f} ms: ratio {paired:.2f} "
+          f"(median of the {len(alone)} runs' own ratios; of the medians {s / a:.2f})")
+    return paired
 
 
 def study(runs: int, path: Path = STUDY):
