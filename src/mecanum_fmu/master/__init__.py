@@ -9,6 +9,7 @@ from __future__ import annotations
 import signal
 import time as _time
 from contextlib import ExitStack
+from types import MappingProxyType
 from typing import Callable
 
 import numpy as np
@@ -28,7 +29,7 @@ from .estimate import coarse_plan, error_estimate, pair_tap, wants_pair
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
-from .memory import AtStart, advice, lazy_at_start, lazy_problems, probe_at_start
+from .memory import AtStart, advice, lazy_at_start, probe_at_start
 from .probe import prober
 from .recorder import Recorder, step_count
 from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, before_stop,
@@ -64,7 +65,7 @@ def simulate(graph: Graph, experiment: Experiment,
                                how.holds_samples)
         stack.callback(lambda: [r.terminate() for r in running])
         _initialise(running, graph, experiment, buffers, recorder)
-        _refuse_lazy(how, graph, running, buffers, recorder)
+        holds = _held_at_end(how, graph, running, buffers, recorder, holds)
         _ = graph.breaks    # cached; the stepping reads them: run set-up, not the estimate
         pair, start = (_estimate_start(graph, experiment, running, buffers, recorder, stack,
                                        _rolls_back_loops(how, running, holds))
@@ -74,6 +75,8 @@ def simulate(graph: Graph, experiment: Experiment,
         stepper, counts = _stepper(how, running, recorder, ctrl_c, progress, holds)
         ended = _run_loop(recorder, ctrl_c, buffers, stepper)
         results = recorder.results(True)
+        if holds.held_at_end:
+            results.extra["held_at_end"] = dict(holds.held_at_end)
         if ended:
             results.extra["ended"] = ended
         elif with_estimate:
@@ -137,22 +140,28 @@ def _initialise(running: list[RunningInstance], graph: Graph, exp: Experiment,
         raise _not_finite(buffers, err.time, recorder) from None
 
 
-def _refuse_lazy(how: Master, graph: Graph, running: list[RunningInstance], buffers: Buffers,
-                 recorder: Recorder) -> None:
-    """The adaptive master's refusal (ScenarioError) where the probes at t0 find third-party
+def _held_at_end(how: Master, graph: Graph, running: list[RunningInstance], buffers: Buffers,
+                 recorder: Recorder, holds: Holds) -> Holds:
+    """The adaptive master's holds, planned again where the probes at t0 find third-party
     outputs, recorded or read by another FMU, worked out in doStep alone
-    (memory.lazy_at_start): such an output reads its inputs' step mean, its value hangs on
-    each step's length, and no step meets the tolerance."""
+    (memory.lazy_at_start): such an output reads the step mean a "through" hold sets, its
+    value hanging on each step's length; those FMUs' inputs are held at their end values
+    instead (first order: AdaptiveHolds.richardson; results.extra["held_at_end"])."""
     if not (how.adaptive and graph.measured):
-        return
+        return holds
     exp = recorder.experiment
     try:
         found = lazy_at_start(graph, running, buffers.real_slots, buffers.real,
                               exp.start_time, exp.step_size)
     except StepFailure as err:      # a probe's call: Error or worse
         raise _failed_at_t0(err, exp, recorder) from None
-    if found:
-        raise ScenarioError(lazy_problems(graph.scenario.label, how.name, found))
+    if not found:
+        return holds
+    for r in running:
+        r.reads, r.writes, r.resets, r.settles = [], [], [], []
+    holds = _adaptive_holds(how, graph)
+    holds.held_at_end = MappingProxyType(found)
+    return plan_transfers(running, graph, buffers, how.hold, holds, how.holds_samples)
 
 
 def _failed_at_t0(err: StepFailure, exp: Experiment, recorder: Recorder) -> SimulationError:

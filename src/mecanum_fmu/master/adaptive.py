@@ -96,6 +96,13 @@ class AdaptiveHolds(Holds):
         return sorted({b.owner for b in self.blends if len(rough_columns(
             b.sums[:2], b.sums[2], n, ADAPTIVE_ROUGH))})
 
+    @property
+    def richardson(self) -> float:
+        """2^p - 1, p the order of the error the halves keep: (whole - halves) over it is
+        theirs. 3 (the holds are second order); 1 where some FMU's inputs are held at their
+        end values (held_at_end: first order)."""
+        return 1.0 if self.held_at_end else 3.0
+
     def at_breakpoint(self, before_jump: bool) -> None:
         self.since, self.jump_next = 0, before_jump
 
@@ -103,7 +110,8 @@ class AdaptiveHolds(Holds):
         blend = _VarBlend(self, buffer, src, roles)
         blend.owner = inst.name
         self.blends.append(blend)
-        self.ahead = self.ahead or any(role not in ("state", "through") for role in roles)
+        self.ahead = self.ahead or any(role not in ("state", "through", "end")
+                                       for role in roles)
         model = self.models.get(inst.name)
         client = (model.stepwise(blend, [t.ref.variable for t in targets], inst) if model
                   else None)
@@ -140,6 +148,7 @@ class _VarBlend:
         self.older, self.old = self.history[2 * m:], self.history[m:3 * m]
         roles = np.array(roles)
         self.ahead, self.fed = roles == "state_ahead", roles == "fed_back"
+        self.end = roles == "end"       # held at the newest value, whole step and halves
         self.third = np.zeros(m)          # u''' over this step (limited in error())
         self.third_before = np.zeros(m)
         # the held polynomial's terms beyond the line through u_k, u_k+1 (fill): a s (s - h)
@@ -197,9 +206,10 @@ class _VarBlend:
             # heading: 2.5e-3 rad in one step after a row)
             slope = (u - u1) / g if hs.history >= 1 else 0.0
             self.staging[:] = np.where(self.ahead, u + slope * h / 2,
-                                       np.where(self.fed, u + slope * h, mean))
+                                       np.where(self.fed, u + slope * h,
+                                                np.where(self.end, now, mean)))
         else:
-            self.staging[:] = np.where(self.fed, now, mean)
+            self.staging[:] = np.where(self.fed | self.end, now, mean)
 
     @property
     def exact(self) -> bool:
@@ -218,7 +228,7 @@ class _VarBlend:
             s = (which + node) * h / 2
             mean += 0.5 * (u + (now - u) * s / h + self.a * s * (s - h)
                            + self.b * s * (s - h) * (s + g))
-        self.staging[:] = np.where(self.fed, self.buffer[self.src], mean)
+        self.staging[:] = np.where(self.fed | self.end, self.buffer[self.src], mean)
 
     def _second(self) -> np.ndarray:
         """u'', 2x the second divided difference over u_k-1, u_k, u_k+1."""
@@ -278,7 +288,7 @@ class OutputErrors:
     the held mean where the input changes within the step), and its signed sum over the
     accepted steps."""
 
-    def __init__(self, recorder: Recorder, clients: list, paired: bool):
+    def __init__(self, recorder: Recorder, clients: list, paired: bool, divisor: float = 3.0):
         real = [p for p in recorder.graph.recorded if p.type == "Real"]
         slot = {str(p.ref): recorder.buffers.slot(p) for p in real}
         covered = [[f"{c.name}.{o}" for o in c.outputs if f"{c.name}.{o}" in slot]
@@ -294,6 +304,7 @@ class OutputErrors:
             np.zeros(len(self.slots)) for _ in range(5))
         self.positions = slot_positions(self.slots)
         self.carried = None     # a WholeSteps: the accumulated error the dynamics carried
+        self.divisor = divisor  # (whole - halves) / it: AdaptiveHolds.richardson
 
     def upstream(self, slots) -> np.ndarray:
         """Per slot (an error model's inputs' sources), the signed accumulated error of that
@@ -311,7 +322,7 @@ class OutputErrors:
 
     def measure(self) -> None:
         np.subtract(self.whole, self.real[self.slots], out=self.step)
-        self.step /= 3.0
+        self.step /= self.divisor
 
     def ratios(self, atol: float, rtol: float) -> tuple[float, float, float]:
         """(this step's own error, the accumulated error with it, without it), each in the
@@ -420,14 +431,15 @@ class _Loop:
         self.first = first_step(tol[0], self.span)
         self.control = Controller(self.span, self.first, self.span)
         self.errors = OutputErrors(recorder, holds.clients,
-                                   bool(holds.paired) or not holds.clients)
+                                   bool(holds.paired) or not holds.clients, holds.richardson)
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
         self.rows = DenseRows(recorder, tol, near, self.names(),
                               len(self.names()) - len(self.errors.names), holds.check)
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
         self.whole = WholeSteps(running, self.program, holds.blends, self.real, self.ints,
-                                self.errors.slots) if len(self.errors.slots) else None
+                                self.errors.slots, holds.richardson) \
+            if len(self.errors.slots) else None
         if holds.check and not holds.ahead:     # third-party FMUs, no loop: see docs
             self.errors.carried = self.whole
         # where the graph holds FMUs the scenario layer knows nothing of: their jumps

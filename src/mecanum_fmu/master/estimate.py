@@ -22,7 +22,7 @@ from .breakpoints import graph_breaks
 from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
 from .pair_parts import PairPlan
 from .pair_rows import PairRows
-from .memory import undeclared
+from .memory import held_at_end_advice, undeclared
 from .richardson import FINER, coarse_experiment, coarse_factors, coarse_run, richardson
 
 ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
@@ -121,7 +121,9 @@ def error_estimate(graph: Graph, results: Results, simulate) -> dict:
                 "tolerance": exp.tolerance or DEFAULT_TOLERANCE,
                 "relative_tolerance": (DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance
                                        is None else exp.relative_tolerance),
-                "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected}
+                "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected,
+                **({"error_estimate_advice": held_at_end_advice(results.extra["held_at_end"])}
+                   if results.extra.get("held_at_end") else {})}
     if ended := results.extra.get("ended"):
         return _to_its_end(graph, results, ended, simulate)
     pair, stepped = results.extra.get("pair", {}), results.extra.get("coarse", {})

@@ -29,7 +29,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import Problem
 from .plan import has_state, state_only_inputs, state_undeclared
 from .probe import (REAL, ProbedModel, ProbedResponse, Target, probeable, probed_model,
                     probed_response)
@@ -116,17 +115,15 @@ def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: 
     return found
 
 
-def lazy_problems(label: str, master_name: str, found: dict[str, list[str]]) -> list:
-    """The adaptive master's refusal of the outputs lazy_at_start found."""
-    return [Problem(label, "experiment.master", (
-        f"the {master_name} master holds the inputs of '{name}' at their mean over each "
-        f"step, and its {', '.join(outputs)} {'is' if len(outputs) == 1 else 'are'} worked "
-        "out in its doStep alone (an input set after the step does not move it, as FMI "
-        "2.0 asks of an output that reads an input directly): it reads that mean, its value "
-        "hangs on each step's length, and no step meets the tolerance; work it out when it "
-        "is read (pythonfmu: a `getter=`), or choose a fixed-step master (e.g. quadratic, "
-        "whose estimate says its error) and drop the tolerance"))
-        for name, outputs in found.items()]
+def held_at_end_advice(found: dict[str, list[str]]) -> list[str]:
+    """The adaptive master's words for the FMUs whose inputs it held at their end values
+    (lazy_at_start found outputs worked out in their doStep alone)."""
+    return [f"'{name}' works out its {', '.join(outputs)} in its doStep alone (an input set "
+            "after the step does not move it, as FMI 2.0 asks of an output that reads an "
+            "input directly), so the adaptive master held its inputs at their end values: "
+            "first order, more steps; worked out when read (pythonfmu: a `getter=`), they "
+            "would be held at their step mean while it steps (second order)"
+            for name, outputs in found.items()]
 
 
 def _refuted(response: ProbedResponse, claimed: list[str], t0: float) -> str | None:

@@ -7,6 +7,8 @@ few NumPy copies: one batched get/set per FMU and type per step, nothing allocat
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Callable
 
 import numpy as np
@@ -137,7 +139,8 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
     their history."""
     links = [l for l in graph.links if l.target.ref.instance == r.name and l not in held]
     through = holds.through or holds_through(r.inst, r.name in graph.measured)
-    roles = _blend_roles(r, links, position, through) if hold != "zoh" else {}
+    roles = _blend_roles(r, links, position, through, r.name in holds.held_at_end) \
+        if hold != "zoh" else {}
     real = [l for l in links if l.target.type == "Real"]
     groups = (("Real", [l for l in real if l.target.ref.variable not in roles]),
               ("Blend", [l for l in real if l.target.ref.variable in roles]),
@@ -186,8 +189,8 @@ def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[
     return lambda: np.take(buffer, src, out=staging)
 
 
-def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool = False
-                 ) -> dict[str, str]:
+def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool = False,
+                 at_end: bool = False) -> dict[str, str]:
     """The Real inputs a hold blends, by role: "state" (no output of the FMU depends on it,
     its source stepped first: its value at t_k+1 is known), "state_ahead" (the same, but its
     source steps later: a loop closing into the FMU's state) and "fed_back" (an input with
@@ -195,7 +198,9 @@ def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool 
     holds), "through": an input with direct feedthrough into an FMU with a state (an output
     that depends on no input), its source stepped first: held at its mean during doStep (for
     the state, as "state"), set to its end value after it (for the outputs): otherwise the
-    state integrates the end value held over the step, an error of the first order."""
+    state integrates the end value held over the step, an error of the first order. With
+    `at_end` (Holds.held_at_end: an output worked out in doStep alone), "end" instead: held
+    at its end value, a first-order hold the adaptive master's pair measures."""
     state_only = state_only_inputs(r.inst)
     stateful = through and has_state(r.inst)
     roles = {}
@@ -206,7 +211,7 @@ def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool 
         elif later and l.target.type == "Real":
             roles[name] = "fed_back"
         elif stateful and l.target.type == "Real":
-            roles[name] = "through"
+            roles[name] = "end" if at_end else "through"
     return roles
 
 
@@ -267,6 +272,9 @@ class Holds:
     each blend (through the instances' writes), then commit() once the step is final."""
     PREDICT, CORRECT = 0, 1
     through = False     # no "through" role (_blend_roles): the fixed-step masters'
+    # the FMUs whose inputs an output reads are held at their end values ("end"), not
+    # "through", and those outputs (worked out in doStep alone: memory.lazy_at_start)
+    held_at_end: Mapping[str, list[str]] = MappingProxyType({})
 
     def __init__(self, hold: str):
         self.hold = hold

@@ -38,8 +38,9 @@ class WholeSteps:
     history per blend, and its difference from the kept run per recorded output."""
 
     def __init__(self, running: list, program: list, blends: list, real: np.ndarray,
-                 ints: np.ndarray, slots: np.ndarray):
+                 ints: np.ndarray, slots: np.ndarray, divisor: float = 3.0):
         self.running, self.program, self.blends = running, program, blends
+        self.divisor = divisor      # 2^p - 1 (AdaptiveHolds.richardson)
         self.real, self.ints, self.slots = real, ints, slots
         self.states: list | None = None         # None: at t0 it is the run's own state
         self.history = [b.history.copy() for b in blends]
@@ -74,8 +75,9 @@ class WholeSteps:
             self.states = None
 
     def now(self) -> np.ndarray:
-        """The kept run's signed error per recorded output: the difference over 3."""
-        return self.difference / 3.0
+        """The kept run's signed error per recorded output: the difference over 2^p - 1 (3:
+        second order)."""
+        return self.difference / self.divisor
 
     def error(self) -> np.ndarray:
         """|the kept run's error| per recorded output."""
