@@ -6,7 +6,10 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   the quadratic master's on unequal steps: the parabola through u_k-1, u_k, u_k+1, its second
   difference limited by the previous one (minmod: a kink or a jump in a table adds nothing);
   in a loop the step is predicted with the linear extrapolation, rolled back and corrected;
-  after a breakpoint no value from before it enters a hold (two trapezoids first);
+  after a breakpoint no value from before it enters a hold (two trapezoids first); an FMU
+  whose output reads an input but is worked out in doStep alone (memory.lazy_at_start) has
+  its inputs held at their end values ("end"), first order: the pair's difference then
+  counts whole (AdaptiveHolds.richardson);
 - the step's error, per recorded Real output, from an embedded pair: the step is taken once
   more (first) with each held input's mean corrected by the hold's signed next term (the
   cubic's 19/720 h^4 u4, the first two steps' trapezoids, a jump's own step), every FMU rolled
