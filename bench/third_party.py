@@ -192,7 +192,8 @@ def adaptive(folder: Path, fmus: dict) -> None:
             worst.append(max(e.max() for e in true_errors(
                 name, fixed, master.simulate(fixed, exp), outputs).values()))
         order = np.log2(worst[0] / worst[1])
-        for tol in (1e-2, 1e-3, 1e-4, 1e-6):
+        # (the lazy graph is first order: 1e-6 would take about 1.5e6 steps)
+        for tol in (1e-2, 1e-3, 1e-4) + (() if name == "lazy" else (1e-6,)):
             graph = prepare(path, tolerance=tol)
             results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
             found = master.estimate_error(graph, results)["error_estimate"]
