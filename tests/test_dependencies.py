@@ -165,7 +165,7 @@ def test_info_says_a_scenario_may_declare_what_the_fmu_does_not(bare, capsys):
     assert code == 0 and "u  depends on: r, y" in out and "dependencies:" not in out
 
 
-def _lag_alone(folder, fmu, master_name, extra="", parameters="k: 2.0"):
+def _lag_alone(folder, fmu, master_name, extra="", parameters="k: 2.0", outputs="[it.x]"):
     """cos t into the lag x' = -2 x + u (the FMU `fmu`, its component `extra`)."""
     return write_scenario(folder, "alone", f"""\
 name: alone
@@ -174,7 +174,7 @@ components:
   wave: {{fmu: {fmu["xtest_wave"]}}}
   it: {{fmu: {fmu["it"]}, parameters: {{{parameters}}}{extra}}}
 connections: [[wave.u, it.u]]
-outputs: [it.x]
+outputs: {outputs}
 """)
 
 
@@ -228,9 +228,14 @@ def test_no_advice_where_an_output_is_worked_out_in_dostep_alone(tmp_path, bare)
     # the way out (a getter) instead of a dependencies: that trades y for x
     fmus = dict(bare, it=rewrite_description(bare["xtest_through"], lambda xml: re.sub(
         r' dependencies="[^"]*"', "", xml), tmp_path / "through_bare.fmu"))
-    said, _ = _advised(_lag_alone(tmp_path, fmus, "quadratic", parameters="k: 2.0, lazy: 1"))
+    said, _ = _advised(_lag_alone(tmp_path, fmus, "quadratic", parameters="k: 2.0, lazy: 1",
+                                  outputs="[it.x, it.y]"))
     assert len(said) == 1 and "its y is worked out in its doStep alone" in said[0], said
     assert "none is advised" in said[0] and "`getter=`" in said[0], said
+    # y recorded by nothing and read by nothing: the declaration is a gain for x alone
+    said, _ = _advised(_lag_alone(tmp_path, fmus, "quadratic", parameters="k: 2.0, lazy: 1"))
+    assert len(said) == 1 and "`it: {fmu: ..., dependencies: {x: [], y: [u]}}`" in said[0], \
+        said
 
 
 def test_a_probe_before_the_run_that_fails_keeps_the_t0_row(tmp_path, bare, capsys):

@@ -29,7 +29,7 @@ from .estimate import coarse_plan, error_estimate, pair_tap, wants_pair
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
-from .memory import AtStart, advice, lazy_at_start, probe_at_start
+from .memory import AtStart, advice, lazy_at_start, probe_at_start, used_outputs
 from .probe import prober
 from .recorder import Recorder, step_count
 from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, before_stop,
@@ -100,7 +100,7 @@ def _estimate_end(results: Results, pair, start: Start | None,
     graph = recorder.graph
     found = _finish(pair, running, graph, recorder.buffers)
     if isinstance(pair, PairRows):
-        found["advice"] = advice(pair.plan)
+        found["advice"] = advice(pair.plan, used_outputs(graph))
     if recorder.probe is not None:      # its probes ran inside the stepping loop
         found["seconds"] += recorder.probe.seconds
         found["probe_seconds"] = recorder.probe.seconds

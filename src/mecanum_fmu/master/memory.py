@@ -93,8 +93,7 @@ def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: 
     out in its doStep alone (probe.lazy: they read the input within the step and do not
     follow it set after the step), where there are some. Probed from t0 with step h
     (ProbedModel's probe: 4 (1 + inputs) doStep calls). Raises stepping.StepFailure."""
-    by_name, found = {r.name: r for r in running}, {}
-    used = {str(p.ref) for p in graph.recorded} | {str(l.source.ref) for l in graph.links}
+    by_name, found, used = {r.name: r for r in running}, {}, used_outputs(graph)
     for inst in graph.instances:
         if inst.name not in graph.measured or not has_state(inst) or not probeable(inst):
             continue
@@ -113,6 +112,12 @@ def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: 
         if model.failed is None and lazy:
             found[inst.name] = lazy
     return found
+
+
+def used_outputs(graph) -> set[str]:
+    """The outputs ("instance.variable") the run records or another FMU reads: those whose
+    values matter (an output worked out in doStep alone that none uses changes nothing)."""
+    return {str(p.ref) for p in graph.recorded} | {str(l.source.ref) for l in graph.links}
 
 
 def held_at_end_advice(found: dict[str, list[str]]) -> list[str]:
@@ -141,9 +146,10 @@ def _refuted(response: ProbedResponse, claimed: list[str], t0: float) -> str | N
     return None
 
 
-def advice(plan) -> list[str]:
+def advice(plan, used: set[str]) -> list[str]:
     """What to say in the scenario (module doc) for the FMUs of the pair's plan, under a
-    master that blends a state's inputs (trapezoidal, quadratic)."""
+    master that blends a state's inputs (trapezoidal, quadratic); `used`: used_outputs (an
+    output worked out in doStep alone that none uses stands in the way of nothing)."""
     if plan.hold not in ("trapezoidal", "quadratic"):
         return []
     said = []
@@ -157,7 +163,8 @@ def advice(plan) -> list[str]:
         reads = np.abs(direct) > NO_DIRECT * np.abs(g0)     # (outputs, inputs)
         deps = ", ".join(f"{o}: [{', '.join(i for i, r in zip(m.inputs, row) if r)}]"
                          for o, row in zip(m.outputs, reads))
-        lazy = [o for o, row in zip(m.outputs, m.lazy & reads) if row.any()]
+        lazy = [o for o, row in zip(m.outputs, m.lazy & reads)
+                if row.any() and f"{m.name}.{o}" in used]
         said.append(_lazy_words(m.name, lazy, deps) if lazy else (
             f"'{m.name}' declares no output dependencies, so the {plan.hold} master held its "
             "inputs at their end values, as inputs its outputs may read must be (first "
