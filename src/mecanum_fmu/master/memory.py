@@ -94,13 +94,16 @@ def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: 
     follow it set after the step), where there are some. Probed from t0 with step h
     (ProbedModel's probe: 4 (1 + inputs) doStep calls). Raises stepping.StepFailure."""
     by_name, found, used = {r.name: r for r in running}, {}, used_outputs(graph)
+    position = {inst.name: i for i, inst in enumerate(graph.instances)}
     for inst in graph.instances:
         if inst.name not in graph.measured or not has_state(inst) or not probeable(inst):
             continue
         own = state_only_inputs(inst)
+        # (an input whose source steps later, a loop's, is not held "through")
         links = [l for l in graph.links if l.target.ref.instance == inst.name and
                  l.target.type in REAL and l.source in real_slots and
-                 l.target.ref.variable not in own]
+                 l.target.ref.variable not in own and
+                 position[l.source.ref.instance] < position[inst.name]]
         model = probed_model(inst, [l.target.ref.variable for l in links]) if links else None
         if model is None:
             continue
