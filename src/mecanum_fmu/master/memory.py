@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .plan import has_state, state_only_inputs, state_undeclared
-from .probe import (REAL, ProbedModel, ProbedResponse, Target, probeable, probed_model,
-                    probed_response)
+from .probe import (PROBE_STEPS, REAL, ProbedModel, ProbedResponse, Target, probeable,
+                    probed_model, probed_response)
 
 NO_DIRECT = 1e-6    # a direct part under this share of the state's part is round-off
 
@@ -69,15 +69,13 @@ def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0:
     for inst in graph.instances:
         if inst.name not in maybe and inst.name not in claims:
             continue
-        links = [l for l in graph.links if l.target.ref.instance == inst.name
-                 and l.target.type in REAL and l.source in real_slots]
+        links = _linked_reals(graph, inst, real_slots)
         if not links:
             continue
         # (it may hold a state, undeclared or said: stepped twice, probed_response's steps)
         response = probed_response([l.target.ref.variable for l in links], inst)
-        Target(by_name[inst.name], response, response.inputs, response.outputs,
-               np.array([real_slots[l.source] for l in links], dtype=np.intp),
-               response.steps).probe(0, t0, h, real)
+        _probe_now(by_name[inst.name], response, links, real_slots, (t0, h, real),
+                   response.steps)
         calls += response.steps * (1 + len(links))
         if inst.name in maybe and response.failed is None:
             found.add(inst.name)
@@ -100,21 +98,33 @@ def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: 
             continue
         own = state_only_inputs(inst)
         # (an input whose source steps later, a loop's, is not held "through")
-        links = [l for l in graph.links if l.target.ref.instance == inst.name and
-                 l.target.type in REAL and l.source in real_slots and
-                 l.target.ref.variable not in own and
-                 position[l.source.ref.instance] < position[inst.name]]
+        links = [l for l in _linked_reals(graph, inst, real_slots) if l.target.ref.variable
+                 not in own and position[l.source.ref.instance] < position[inst.name]]
         model = probed_model(inst, [l.target.ref.variable for l in links]) if links else None
         if model is None:
             continue
-        Target(by_name[inst.name], model, model.inputs, model.outputs,
-               np.array([real_slots[l.source] for l in links], dtype=np.intp)
-               ).probe(0, t0, h, real)
+        _probe_now(by_name[inst.name], model, links, real_slots, (t0, h, real))
         lazy = [o for o, row in zip(model.outputs, model.lazy)
                 if row.any() and f"{inst.name}.{o}" in used]
         if model.failed is None and lazy:
             found[inst.name] = lazy
     return found
+
+
+def _linked_reals(graph, inst, real_slots: dict) -> list:
+    """The links into `inst`'s Real inputs from Real outputs (buffer slots in real_slots)."""
+    return [l for l in graph.links if l.target.ref.instance == inst.name
+            and l.target.type in REAL and l.source in real_slots]
+
+
+def _probe_now(running, model, links: list, real_slots: dict, at: tuple,
+               steps: int = PROBE_STEPS) -> None:
+    """One probe of `model` (ProbedModel, ProbedResponse) on the FMU's state now, its held
+    inputs those of `links`; `at`: (t0, h, the run's Real buffer). Raises StepFailure."""
+    t0, h, real = at
+    Target(running, model, model.inputs, model.outputs,
+           np.array([real_slots[l.source] for l in links], dtype=np.intp), steps
+           ).probe(0, t0, h, real)
 
 
 def used_outputs(graph) -> set[str]:

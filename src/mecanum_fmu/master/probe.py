@@ -100,7 +100,7 @@ class ProbedModel:
     def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
               branch: int = 0, lead: tuple | None = None) -> np.ndarray:
         """The signed error of each output after each step. `lead`: per step and input, what
-        the direct part errs by less error (pair_rows._leads): the true input's end value
+        the direct part errs by less error (pair_rows._lead): the true input's end value
         less its mean, so that it errs by the held value against the true end value (for an
         input held "through", the hold's own error), and that end less the mean alone, for
         a `lazy` output (it reads the value held during the step); None: half the change,
@@ -414,14 +414,14 @@ class Target:
                 raise StepFailure(r, "fmi2GetFMUstate", status, t, t)
             self.model.failed = f"{r.name}'s fmi2GetFMUstate returned discard while probing it"
             return
+        # a model's outputs' change over each input's move set after the first step (_after)
+        after = np.zeros((len(self.y), len(u))) if isinstance(self.model, ProbedModel) \
+            else None
         try:
-            after = np.zeros((len(self.y), len(u)))
-            runs = [self._steps(u, t, h, after=(after, eps))]
+            runs = [self._steps(u, t, h, after=(after, eps) if after is not None else None)]
             for j in range(len(u)):
                 restore_states([r], t, [state])
-                nudged = u.copy()
-                nudged[j] += eps[j]
-                runs.append(self._steps(u, t, h, nudged))
+                runs.append(self._steps(u, t, h, _moved(u, j, eps)))
         except _Refused as why:
             if why.status > 2:
                 raise StepFailure(r, why.function, why.status, t, t + h) from None
@@ -493,7 +493,7 @@ class Target:
             self._call("fmi2DoStep", self.r.c_do_step, t + i * h, h, 0)
             self._call("fmi2GetReal", self.r.c_get["Real"], self.out_vrs, len(self.y), self.y)
             out[i] = self.y[:]
-            if i == 0 and after is not None and isinstance(self.model, ProbedModel):
+            if i == 0 and after is not None:
                 self._after(u, out[0], *after)
         return out
 
@@ -504,10 +504,8 @@ class Target:
         worked out in doStep alone does not (`lazy`). The inputs are u again after it (the
         next step sets them too)."""
         for j in range(len(u)):
-            nudged = u.copy()
-            nudged[j] += eps[j]
             self._call("fmi2SetReal", self.r.c_set["Real"], self.in_vrs, len(u),
-                       _fill(self.u, nudged))
+                       _fill(self.u, _moved(u, j, eps)))
             self._call("fmi2GetReal", self.r.c_get["Real"], self.out_vrs, len(self.y), self.y)
             into[:, j] = np.array(self.y[:]) - y
         if len(u):
@@ -526,6 +524,13 @@ class _Refused(Exception):
     def __init__(self, function: str, status: int):
         super().__init__(function, status)
         self.function, self.status = function, status
+
+
+def _moved(u: np.ndarray, j: int, eps: np.ndarray) -> np.ndarray:
+    """u with input j moved by eps_j (a copy)."""
+    nudged = u.copy()
+    nudged[j] += eps[j]
+    return nudged
 
 
 def _fill(array, values: np.ndarray):
