@@ -103,7 +103,7 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     x = (np.concatenate((kinks, jumps)) - start) / h
     if not len(x):
         return Pieces(np.zeros(1, dtype=np.int64), np.array([n]), np.zeros(0, dtype=np.int64),
-                      {}, False, n < 1)
+                      {}, False, False)
     jump = np.arange(len(x)) >= len(kinks)
     j = np.rint(x)
     on = np.abs(x - j) < NEAR
