@@ -174,7 +174,15 @@ def test_validate_refuses_a_tolerance_the_graph_cannot_meet(tmp_path, capsys, fm
                                                                  "{fmu: PoseNoState.fmu}"))
     code, out, err = run_main(capsys, "validate", str(no_state))
     assert code == 2 and "'pose' cannot do (canGetAndSetFMUstate is false)" in err
-    assert "experiment.master" in err and "Traceback" not in err
+    # the place is where the user chose the adaptive master: here the file's tolerance
+    assert f"{no_state}: experiment.tolerance (or --tolerance): " in err, err
+    assert "drop the tolerance" in err and "Traceback" not in err
+    named = write_scenario(tmp_path, "named", no_state.read_text().replace(
+        "  tolerance: 1e-4\n", "  master: adaptive\n"))
+    code, out, err = run_main(capsys, "validate", str(named))
+    assert code == 2 and f"{named}: experiment.master (or --master): " in err, err
+    assert "(canGetAndSetFMUstate is false); choose a fixed-step master (e.g. quadratic)\n" \
+        in err and "tolerance" not in err, err
     no_pose = write_scenario(tmp_path, "no_pose", "\n".join(   # the pose and its links gone
         line for line in text.splitlines() if "pose" not in line.split("#")[0]))
     code, out, err = run_main(capsys, "validate", str(no_pose))

@@ -134,6 +134,9 @@ def test_the_adaptive_master_refuses_fmus_that_sample(tmp_path, fmus):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2, proc.stderr
     assert "the adaptive master cannot step Encoder, Odometry" in proc.stderr
+    # the place is the option that chose the adaptive master, not a key the file lacks
+    assert f"{belief}: experiment.tolerance (or --tolerance): " in proc.stderr, proc.stderr
+    assert proc.stderr.rstrip().endswith("and drop the tolerance")
     assert "Traceback" not in proc.stderr
 
 

@@ -187,14 +187,14 @@ def _stepper(how: Master, running: list[RunningInstance], recorder: Recorder, ct
         return (lambda: step_all(running, recorder, ctrl_c, freeze, progress, holds,
                                  _rolls_back_loops(how, running, holds))), {}
     graph = recorder.graph
-    refused = rollback_problems(graph.scenario.label, how.name,
+    exp = recorder.experiment
+    refused = rollback_problems(graph.scenario.label, how.name, exp.tolerance,
                                 [r.name for r in running if not r.can_roll_back],
                                 "no fmi2Get/SetFMUstate or canGetAndSetFMUstate false") or \
-        adaptive_samples(graph, how.name)
+        adaptive_samples(graph, how.name, exp.tolerance)
     if refused:
         raise ScenarioError(refused)
     counts = {"steps_taken": 0, "steps_rejected": 0, "passes": 0}
-    exp = recorder.experiment
     tol = (exp.tolerance or DEFAULT_TOLERANCE,
            DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance is None
            else exp.relative_tolerance)

@@ -231,11 +231,20 @@ def _table(comp, values: dict[str, Scalar], model_name: str) -> Table | None:
 def _adaptive_problems(scenario: Scenario, order: list[Instance]) -> list[Problem]:
     """The adaptive master rejects and retakes steps with fmi2Get/SetFMUstate: an FMU that
     cannot save its state is named (master/adaptive.py)."""
-    return rollback_problems(scenario.label, scenario.experiment.master,
+    exp = scenario.experiment
+    return rollback_problems(scenario.label, exp.master, exp.tolerance,
                              [inst.name for inst in order if not inst.can_get_set_state])
 
 
-def rollback_problems(label: str, master_name: str, unable: list[str],
+def chosen_by(tolerance: float | None) -> tuple[str, str]:
+    """Where the user chose the adaptive master, and the end of the fix that undoes it: a
+    tolerance (the file's or --tolerance), else the master named (`master:` or --master)."""
+    if tolerance is not None:
+        return "experiment.tolerance (or --tolerance)", ", and drop the tolerance"
+    return "experiment.master (or --master)", ""
+
+
+def rollback_problems(label: str, master_name: str, tolerance: float | None, unable: list[str],
                       why: str = "canGetAndSetFMUstate is false") -> list[Problem]:
     """The refusal of a master that rejects and retakes steps (the adaptive one) on the FMUs
     in `unable`, which cannot save their state (`why`): at compile time here, from the
@@ -243,10 +252,11 @@ def rollback_problems(label: str, master_name: str, unable: list[str],
     how = master_entry(master_name)
     if not how.adaptive or not unable:
         return []
-    return [Problem(label, "experiment.master", f"the {how.name} master rejects and retakes "
-                    "steps with fmi2Get/SetFMUstate, which " + ", ".join(map(repr, unable))
-                    + f" cannot do ({why}); choose a fixed-step master (e.g. {DEFAULT}) and "
-                    "drop the tolerance")]
+    place, undo = chosen_by(tolerance)
+    return [Problem(label, place, f"the {how.name} master rejects and retakes steps with "
+                    "fmi2Get/SetFMUstate, which " + ", ".join(map(repr, unable))
+                    + f" cannot do ({why}); choose a fixed-step master (e.g. {DEFAULT})"
+                    + undo)]
 
 
 def _runnable(graph: Graph) -> Graph:
@@ -254,27 +264,29 @@ def _runnable(graph: Graph) -> Graph:
     FMUs that cannot save their state, or that sample): compiling and a changed experiment
     (with_scenario) refuse alike."""
     refused = _adaptive_problems(graph.scenario, list(graph.instances)) or \
-        adaptive_samples(graph)
+        adaptive_samples(graph, tolerance=graph.scenario.experiment.tolerance)
     if refused:
         raise ScenarioError(refused)
     return graph
 
 
-def adaptive_samples(graph: Graph, master_name: str | None = None) -> list[Problem]:
+def adaptive_samples(graph: Graph, master_name: str | None = None,
+                     tolerance: float | None = None) -> list[Problem]:
     """The adaptive master cannot step FMUs that sample at their own instants: each sample
     is a jump inside some step, which its step control shrinks the step to bracket, down to
     the smallest step, at the first sample (the fixed-step masters hold samples exactly:
     docs/masters.md, "Samples"). Checked at compile time and again by master.simulate (an
-    experiment changed after it: `master_name`, the master it runs under)."""
+    experiment changed after it: `master_name`, the master it runs under, `tolerance` its
+    tolerance)."""
     how = master_entry(master_name or graph.scenario.experiment.master)
     if not how.adaptive or not graph.sampled:
         return []
-    return [Problem(graph.scenario.label, "experiment.master", f"the {how.name} master cannot "
-                    f"step {', '.join(graph.sampled)}, which sample at their own instants: "
-                    "each sample is a jump its step control cannot bracket (the run would "
-                    "stop at the first one); choose a fixed-step master (e.g. "
-                    f"{DEFAULT}) with a step that divides the sample period, and drop the "
-                    "tolerance")]
+    place, undo = chosen_by(tolerance)
+    return [Problem(graph.scenario.label, place, f"the {how.name} master cannot step "
+                    f"{', '.join(graph.sampled)}, which sample at their own instants: each "
+                    "sample is a jump its step control cannot bracket (the run would stop at "
+                    f"the first one); choose a fixed-step master (e.g. {DEFAULT}) with a step "
+                    "that divides the sample period" + undo)]
 
 
 @dataclass(frozen=True)
