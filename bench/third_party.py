@@ -85,6 +85,11 @@ outputs: [it.x]""", lambda t, y: [-2 * y[0] + np.cos(t)]),
 connections: [[wave.u, ctrl.r], [plant.x, ctrl.y], [ctrl.u, plant.u]]
 outputs: [plant.x]""", lambda t, y: [-2 * y[0] + 3 * (np.cos(t) - y[0])]),
 }
+GRAPHS["spring"] = ("""\
+  wave: {{fmu: {xtest_wave}}}
+  it: {{fmu: {xtest_spring}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x, it.v]""", lambda t, y: [y[1], np.cos(t) - 4.0 * y[0] - 0.4 * y[1]])
 GRAPHS["bare_loop"] = (GRAPHS["loop"][0].replace("{xtest_gain}", "{xtest_gain_bare}"),
                        GRAPHS["loop"][1])
 GRAPHS["lazy"] = (GRAPHS["through"][0].replace("k: 2.0}", "k: 2.0, lazy: 1}"),

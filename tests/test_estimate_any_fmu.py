@@ -110,10 +110,10 @@ def test_the_probes_leave_the_run_as_it_was(tmp_path, fmus):
 
 
 @pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
-def test_a_response_of_second_order_hands_over_to_richardson_and_says_why(tmp_path, fmus,
-                                                                          master_name):
+def test_a_response_of_second_order_is_measured_with_two_poles(tmp_path, fmus, master_name):
     # x'' = u: its response to a held unit grows h^2/2, 3h^2/2, 5h^2/2, 7h^2/2 (no single
-    # decay ratio); the pair would carry a wrong pole, so Richardson estimates
+    # decay ratio): the first probe is made again over 6 steps, whose recurrence of two
+    # steps (a pole 1, twice) the pair carries (probe_fit)
     graph = runner.prepare(_fed(tmp_path, fmus, "xtest_double", "x", master_name))
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
     summary = master.estimate_error(graph, results)
@@ -121,8 +121,26 @@ def test_a_response_of_second_order_hands_over_to_richardson_and_says_why(tmp_pa
     error = np.abs(results["it.x"] - (1.0 - np.cos(2 * t)) / 4)   # x'' = cos 2t from rest
     assert error.max() > 1e-9
     _within_3x(summary["error_estimate"]["it.x"], error)
+    assert "its response measured by probes" in summary["error_estimate_method"]
+    # 60 steps: at step 0, 4 steps and 6 steps (unmoved, and the input moved); at step 32
+    # 6 steps
+    assert results.extra["pair"]["found"]["probe_calls"] == 2 * (4 + 6) + 2 * 6
+
+
+def test_a_response_of_third_order_hands_over_to_richardson_and_says_why(tmp_path, fmus):
+    # x''' = u: neither one pole nor two follow its response (two would grow, |z| 1.43); the
+    # pair would carry wrong ones, so Richardson estimates
+    graph = runner.prepare(_fed(tmp_path, fmus, "xtest_double", "x", "quadratic",
+                                ", parameters: {order: 3}"))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    t = results.time
+    error = np.abs(results["it.x"] - (t / 4 - np.sin(2 * t) / 8))   # x''' = cos 2t, rest
+    assert error.max() > 1e-9
+    _within_3x(summary["error_estimate"]["it.x"], error)
     method = summary["error_estimate_method"]
-    assert method.startswith("Richardson") and "is not of first order" in method, method
+    assert method.startswith("Richardson") and "is not of first or second order" in method, \
+        method
 
 
 @pytest.mark.parametrize("master_name,resolved", [("quadratic", True), ("gauss-seidel", False)])

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from mecanum_fmu.master.probe import (PROBE_EVERY, Prober, ProbedModel, fitted, moment)
+from mecanum_fmu.master.probe import PROBE_EVERY, Prober, ProbedModel
+from mecanum_fmu.master.probe_fit import fitted, moment
 
 
 @pytest.mark.parametrize("r", [0.05, 0.5, 0.9, 0.99999, 1.0, 1.3])
@@ -69,13 +70,13 @@ def test_the_model_is_the_sum_it_stands_for_in_any_batches():
 def test_the_loop_and_lfilter_carry_the_same_bits(monkeypatch):
     """Short batches are carried by a loop (no scipy.signal import, 1.6 s), long ones by
     lfilter: the same recursion, the same floating-point operations, so the same bits."""
-    from mecanum_fmu.master import probe
+    from mecanum_fmu.master import probe_fit
     rng = np.random.default_rng(3)
     found = [_probe(0, [0.09, 0.02], [0.08, 0.03], [0.9, -0.4]),
              _probe(30, [0.1, 0.01], [0.07, 0.01], [1.02, 0.0])]
     h, error, change = np.full(80, 0.1), rng.normal(size=(80, 2)), rng.normal(size=(80, 2))
     looped = _model(found).steps(h, None, error, change)
-    monkeypatch.setattr(probe, "LOOP_MAX", 0)
+    monkeypatch.setattr(probe_fit, "LOOP_MAX", 0)
     filtered = _model(found).steps(h, None, error, change)
     assert np.array_equal(looped, filtered) and np.abs(looped).max() > 0.1
 
@@ -94,10 +95,11 @@ class _Target:
 
     def __init__(self, finds):
         self.model, self.finds, self.probed = ProbedModel("f", ["u"], ["y"]), finds, []
-        self.steps = 4          # doStep calls per probe and input
+        self.steps, self.calls = 4, 0       # doStep calls per probe and input, in all
 
-    def probe(self, k, t, h, real):
+    def probe(self, k, t, h, real, room):
         self.probed.append(k)
+        self.calls += self.steps * 2
         self.model.found.append(_one(k, self.finds(k)))
 
 

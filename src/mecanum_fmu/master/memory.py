@@ -170,7 +170,7 @@ def advice(plan, used: set[str]) -> list[str]:
         m = g.model
         if not isinstance(m, ProbedModel) or not m.undeclared or m.failed or not m.found:
             continue
-        _, _, g0, g1, _, _, direct = m.found[-1]
+        _, _, g0, g1, _, _, direct = m.found[-1][:7]
         if not (g1 != 0).any():
             continue
         reads = np.abs(direct) > NO_DIRECT * np.abs(g0)     # (outputs, inputs)

@@ -10,14 +10,18 @@ three: g0, g1, g2, g3 (where j reaches o directly, g0's state part is g1 / r and
 direct part: ProbedModel). The model is one pole and a direct part, which fits g0,
 g1 and g2 exactly: g_n = g1 r^(n-1) for n >= 1, r = g2 / g1 (a first-order FMU, x' = a x + b u,
 has g1 = r g0, r = e^(a h)). g3 checks it: a response of higher order (two integrators in a
-row) does not decay geometrically, and the pair hands over to Richardson rather than carry a
-wrong pole over the run. Per step the pair's errors are carried as
+row, a mass on a spring) does not decay geometrically. The model's first probe is then made
+again over ORDER2_STEPS steps, and up to two poles per output and input fit g1 .. g5
+(probe_fit.py; its later probes take as many steps); where neither fits (three integrators),
+the pair hands over to Richardson rather than carry a wrong pole over the run. Per step the
+pair's errors are carried as
     d_k = error_k - m change_k,    y_k = s_k + g0 d_k,    s_k+1 = r s_k + g1 d_k,
 summed over the inputs: error, the held value against the true mean; change, the true input's
 change over the step, whose weight within the step a mean does not see (m: moment(), about
 -a h / 12, exact for the first-order part).
 
-A probe costs (1 + m) PROBE_STEPS doStep calls of that FMU and 1 + m state sets. The first is
+A probe costs (1 + m) PROBE_STEPS doStep calls of that FMU (ORDER2_STEPS for two poles, and
+once the 4 that found one does not fit) and 1 + m state sets. The first is
 made at the first step; the next PROBE_EVERY steps later, and each time a probe finds what the
 one before it found (within AGREE), the gap grows GROWTH-fold: a linear FMU is probed about
 log4(n / 32) + 2 times, a nonlinear one as often as its response changes. The Jacobian of an
@@ -27,23 +31,20 @@ step per input.
 from __future__ import annotations
 
 import ctypes
-import math
 import time as _time
-from itertools import accumulate
 
 import numpy as np
 
 from .pair_stencils import with_branch
 from .plan import has_state
+from .probe_fit import (ORDER2_STEPS, PROBE_STEPS, Higher, carried, first_order, fitted,
+                        lazy)
 from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
-PROBE_STEPS = 4
 RELATIVE_EPS = 1e-6
 AGREE = 0.05            # relative: two probes that agree this well widen the gap
 GROWTH = 4              # by this factor (a linear FMU: log4 of the run's length probes)
-LOOP_MAX = 20_000       # steps x (output, input) pairs a call carries by a loop (_carried)
-FIT = 0.1               # relative: g3 against the model's g2 r (x'' = u is 16% off)
 PROBED = ", its response measured by probes"
 _EPS = float(np.finfo(float).eps)
 REAL = ("Real", "Float64")      # FMI 2, FMI 3
@@ -75,7 +76,8 @@ class ProbedModel:
     """The batch error model (the pair's interface: `outputs`, steps(h, held, error,
     change) -> the signed accumulated error of each output after each step) of one FMU
     whose response a Target measures while the run steps. Per probe, in `found`: (its step,
-    its step size, g0, g1, r, m, D), each (outputs x inputs). Where a held input reaches an
+    its step size, g0, g1, r, m, D), each (outputs x inputs), and with two poles their
+    modes (probe_fit.fitted; carried by _modal). Where a held input reaches an
     output directly (`direct`, its declared dependencies), the output's response within the
     step is its state's, g1 / r, and the rest, D = g0 - g1 / r, its direct part, which errs
     by the held value against the input's true end value: D (error - change / 2) on that
@@ -136,15 +138,19 @@ class ProbedModel:
         out = np.zeros((len(h), len(self.outputs)))
         s = s.copy()
         for part, probe in self._segments(h, k) if len(h) else ():
-            _, size, g0, g1, r, m, d_part = self.found[probe]
+            _, size, g0, g1, r, m, d_part, *modes = self.found[probe]
             scale = float(h[part.start]) / size
-            decay = np.where(r > 0, np.abs(r) ** scale, r)
             out[part] += miss[part] @ self._split(d_part).T
+            if modes:
+                s = _modal(modes[0], scale, error[part], change[part], out[part], s,
+                           len(h) * s.size)
+                continue
+            decay = np.where(r > 0, np.abs(r) ** scale, r)
             d = error[part][:, None, :] - m[None] * change[part][:, None, :]   # (steps, o, j)
             x = (g1 * scale)[None] * d
             for o, j in np.ndindex(s.shape):
-                shares = _carried(float(decay[o, j]), float(s[o, j]), x[:, o, j],
-                                  len(h) * s.size)
+                shares = carried(float(decay[o, j]), float(s[o, j]), x[:, o, j],
+                                 len(h) * s.size)
                 out[part, o] += shares[:-1] + g0[o, j] * scale * d[:, o, j]
                 s[o, j] = shares[-1]
         return out, s
@@ -188,8 +194,8 @@ class ProbedModel:
             self.k += n - branch
             return a, b, made
         for part, probe in self._segments(h, self.k, branch):
-            _, size, g0, g1, r, m, d_part = self.found[probe]
-            rate = _first_order(g0, g1, r) if not d_part.any() else None
+            _, size, g0, g1, r, m, d_part, *modes = self.found[probe]
+            rate = first_order(g0, g1, r) if not (d_part.any() or modes) else None
             if rate is None:
                 self.failed = (f"{self.name}'s measured response is not of first order in "
                                "every input, or an input reaches an output directly, and the "
@@ -205,32 +211,25 @@ class ProbedModel:
         return a, b, made
 
 
-def _carried(decay: float, s: float, x: np.ndarray, work: int) -> np.ndarray:
-    """s_k+1 = decay s_k + x_k from s_0 = s: s_0 .. s_n, the same bits either way. Up to
-    LOOP_MAX steps x pairs of a call (`work`) a loop (0.2 us a step: at most 4 ms a call);
-    beyond, scipy.signal.lfilter (0.01 us a step), whose import costs a process 1.6 s, more
-    than most runs."""
-    if work <= LOOP_MAX:
-        return np.fromiter(accumulate(x.tolist(), lambda a, b: decay * a + b, initial=s),
-                           dtype=float, count=len(x) + 1)
-    from scipy.signal import lfilter
-    after, _ = lfilter([1.0], [1.0, -decay], x, zi=[decay * s])
-    return np.concatenate(([s], after))
-
-
-def _first_order(g0: np.ndarray, g1: np.ndarray, r: np.ndarray) -> np.ndarray | None:
-    """Per output its one decay ratio, where g1 = r g0 for every input (within FIT, or
-    where the input does not reach it), else None."""
-    reached = g0 != 0.0
-    if (np.abs(g1 - r * g0) > FIT * np.abs(g1) + 1e-300)[reached].any():
-        return None
-    rate = np.zeros(len(g0))
-    for o in range(len(g0)):
-        seen = r[o][reached[o]]
-        if len(seen) and np.ptp(seen) > FIT * np.abs(seen).max():
-            return None
-        rate[o] = seen.mean() if len(seen) else 0.0
-    return rate
+def _modal(modes: tuple, scale: float, error: np.ndarray, change: np.ndarray,
+           out: np.ndarray, s: np.ndarray, work: int) -> np.ndarray:
+    """ProbedModel._run's steps of a probe with two poles (probe_fit, `modes`: z, c, m, each
+    (2, outputs, inputs)): per mode, d = error - m change, its past share carried on by z^scale
+    with c d added, its within-step response c / z d; their real parts added into `out`
+    (steps, outputs). `s`: the modes' past shares (2, outputs, inputs), complex (zeros where
+    the model has had one pole so far). Returns the shares after the last step."""
+    z, c, m = modes
+    s = s.astype(complex) if s.shape == z.shape else np.zeros_like(z)
+    within = np.where(z != 0, c / np.where(z != 0, z, 1.0), 0.0) * scale
+    for i, o, j in np.ndindex(z.shape):
+        if c[i, o, j] == 0:
+            continue
+        d = error[:, j] - m[i, o, j] * change[:, j]
+        shares = carried(complex(z[i, o, j]) ** scale, complex(s[i, o, j]),
+                         c[i, o, j] * scale * d, work)
+        out[:, o] += (shares[:-1] + within[i, o, j] * d).real
+        s[i, o, j] = shares[-1]
+    return s
 
 
 def _segments(which: np.ndarray, h: np.ndarray) -> list[tuple[slice, int]]:
@@ -238,56 +237,6 @@ def _segments(which: np.ndarray, h: np.ndarray) -> list[tuple[slice, int]]:
     cuts = np.flatnonzero((np.diff(which) != 0) | (np.diff(h) != 0)) + 1
     bounds = [0, *cuts.tolist(), len(h)]
     return [(slice(a, b), int(which[a])) for a, b in zip(bounds, bounds[1:])]
-
-
-def moment(r: np.ndarray) -> np.ndarray:
-    """m(z), z = ln r = a h: x' = a x + b u's weight of the input's (s/h - 1/2) over a step,
-    over its weight of the input's mean: int_0^1 e^(z t) (1/2 - t) dt / int_0^1 e^(z t) dt
-    (about -z/12); 0 where r is not positive (no first-order response decays so)."""
-    return np.array([_moment(x) for x in r.flat]).reshape(r.shape)
-
-
-def _moment(r: float) -> float:
-    if r <= 0.0:
-        return 0.0
-    z = math.log(r)
-    if abs(z) < 1e-4:
-        return -z / 12
-    mean = math.expm1(z) / z
-    return (0.5 * mean - math.exp(z) / z + math.expm1(z) / (z * z)) / mean
-
-
-def fitted(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None = None
-           ) -> tuple | str:
-    """(g0, g1, r, m, D) from the responses g (PROBE_STEPS, outputs, inputs) and the
-    round-off floor of each (outputs, inputs), or why the model does not fit (g3 off its
-    prediction); where `direct` (the input reaches the output directly), g0 is the state's
-    part, g1 / r, and D the rest (ProbedModel)."""
-    g = g * (np.abs(g) > floor)
-    g0, g1, g2, g3 = g
-    seen = g1 != 0.0
-    r = g2 / (g1 + ~seen) * seen
-    if direct is not None and direct.any():
-        state = np.where(r != 0.0, g1 / np.where(r != 0.0, r, 1.0), 0.0)
-        d_part = np.where(direct, g0 - state, 0.0)
-        g0 = np.where(direct, state, g0)
-    else:
-        d_part = np.zeros_like(g0)
-    off = np.abs(g3 - g2 * r) > FIT * np.abs(g3) + 2 * floor
-    if off.any():
-        o, j = np.argwhere(off)[0]
-        return (f"(output {o}, input {j}) is not of first order: one step on, the response "
-                f"{g1[o, j]:.3g}, {g2[o, j]:.3g}, {g3[o, j]:.3g} does not decay by one ratio")
-    return g0, g1, r, moment(r), d_part
-
-
-def lazy(d_part: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
-    """Per (output, input): a direct part (fitted's D, within the step) that the output does
-    not show for the input moved after the step (`after`: its change over the move), not
-    even half of it: the output is worked out in doStep alone (pythonfmu's way, where a
-    getter does not work it out when read). Such an output reads what the input was held
-    at during the step, not the value set after it. `floor`: the round-off of each."""
-    return (np.abs(d_part) > floor) & (np.abs(after) < 0.5 * np.abs(d_part))
 
 
 def _lost(before: np.ndarray, now: np.ndarray) -> tuple[int, int] | None:
@@ -300,9 +249,10 @@ def _lost(before: np.ndarray, now: np.ndarray) -> tuple[int, int] | None:
 
 
 def _agree(a: tuple, b: tuple) -> bool:
-    """Whether two probes found the same (g0, g1 and r; a response's Jacobian) within
-    AGREE."""
-    x, y = (np.concatenate([v.ravel() for v in p[2:5]]) for p in (a, b))
+    """Whether two probes found the same (g0, g1 and r, and two poles' z and c; a response's
+    Jacobian) within AGREE."""
+    x, y = (np.concatenate([np.ravel(v) for v in p[2:5] + (p[7][:2] if len(p) > 7 else ())])
+            for p in (a, b))
     return bool((np.abs(x - y) <= AGREE * np.abs(y) + 1e-300).all())
 
 
@@ -324,8 +274,11 @@ class Prober:
         for target in self.targets:
             if target.model.failed is None:
                 before = target.model.found[-1] if target.model.found else None
-                target.probe(k, t, h, self.real)
-                self.calls += target.steps * (1 + len(target.model.inputs))
+                if k + target.steps > self.last + PROBE_STEPS:
+                    continue        # (a probe of two poles' steps would run past the end)
+                calls = target.calls
+                target.probe(k, t, h, self.real, self.last + PROBE_STEPS - k)
+                self.calls += target.calls - calls
                 now = target.model.found[-1] if target.model.found else None
                 same = same and before is not None and now is not before and _agree(now, before)
         self.gap = GROWTH * self.gap if same else PROBE_EVERY
@@ -398,12 +351,16 @@ class Target:
         self.out_vrs = (ctypes.c_uint * len(outputs))(*(vrs[n] for n in outputs))
         self.u = (ctypes.c_double * len(inputs))()
         self.y = (ctypes.c_double * len(outputs))()
+        self.calls = 0      # the doStep calls of its probes
 
-    def probe(self, k: int, t: float, h: float, real: np.ndarray) -> None:
+    def probe(self, k: int, t: float, h: float, real: np.ndarray, room: int = 0) -> None:
         """One probe from the FMU's state now (t_k), the state set back after it. A call
         that returns Discard, or a response the model does not fit, marks the model failed
         (the pair hands over to Richardson); Error or worse, or a state that cannot be set
-        back, fails the run (StepFailure: FMI allows nothing more of such an instance)."""
+        back, fails the run (StepFailure: FMI allows nothing more of such an instance).
+        A model's first probe whose response one pole does not fit is made again with
+        ORDER2_STEPS steps, where `room` (the steps after t_k the run still takes) has
+        them: two poles may fit it (probe_fit), and its later probes take as many."""
         r, comp = self.r, self.r.component
         u = real[self.slots].astype(float)
         eps = RELATIVE_EPS * np.maximum(1.0, np.abs(u))
@@ -428,15 +385,19 @@ class Target:
             self.model.failed = f"{r.name}'s {why.function} returned discard while probing it"
         restore_states([r], t, [state])
         r.c_free_state(comp, ctypes.byref(state))
-        if self.model.failed is None:
-            self._fit(k, h, np.array(runs), eps, after)
+        if self.model.failed is None and self._fit(k, h, np.array(runs), eps, after) \
+                and room >= ORDER2_STEPS:
+            self.model.failed, self.steps = None, ORDER2_STEPS
+            self.probe(k, t, h, real)
 
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray,
-             after: np.ndarray | None = None) -> None:
+             after: np.ndarray | None = None) -> bool:
         """runs: (1 + inputs, steps, outputs), the first unmoved: a model's fit (fitted),
         or a response's Jacobian (one step: its outputs' change over each input's move);
         `after` (outputs, inputs): a model's outputs' change over each input's move set
-        after the first step (_after; None: not measured)."""
+        after the first step (_after; None: not measured). True where the model's first
+        probe does not fit one pole (probe_fit.Higher): the model is then not marked failed,
+        and probe() may make it again with more steps (else it marks it)."""
         if not np.isfinite(runs).all():
             self.model.failed = (f"{self.r.name}'s outputs were not finite numbers in the "
                                  f"probe at t = {k * h:g} s")
@@ -465,6 +426,9 @@ class Target:
             self.model.found = [found]        # only the last is used
             return
         fit = fitted(g, floor.max(axis=0), self.model.direct)
+        if isinstance(fit, Higher) and not self.model.found and self.steps < ORDER2_STEPS:
+            self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
+            return True
         if isinstance(fit, str):
             self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
         elif self.model.found and (lost := _lost(self.model.found[-1][3], fit[1])):
@@ -480,7 +444,8 @@ class Target:
 
     def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None,
                after: tuple | None = None) -> np.ndarray:
-        """The covered outputs after each of its steps (PROBE_STEPS; a response's: 1),
+        """The covered outputs after each of its steps (self.steps: PROBE_STEPS, or
+        ORDER2_STEPS; a response's: 1),
         inputs `first` (default u) over the first and u over the others; with `after` (a
         model's (outputs x inputs array, eps)), each input's move set after the first step
         and its outputs' change read into it (_after)."""
@@ -490,6 +455,7 @@ class Target:
             if i < 2:
                 self._call("fmi2SetReal", self.r.c_set["Real"], self.in_vrs, len(values),
                            _fill(self.u, values))
+            self.calls += 1
             self._call("fmi2DoStep", self.r.c_do_step, t + i * h, h, 0)
             self._call("fmi2GetReal", self.r.c_get["Real"], self.out_vrs, len(self.y), self.y)
             out[i] = self.y[:]

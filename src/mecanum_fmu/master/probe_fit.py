@@ -1,0 +1,189 @@
+"""The measured response's arithmetic (probe.py measures it): the fit of a probe's responses,
+one pole and a direct part from 4 steps, or, where one pole does not fit, up to two per
+(output, input) from 6 steps; the moment of a pole; the running sum that carries a past
+error on.
+
+Two poles (`modes`): a second-order FMU (a mass on a spring, a motor with its inductance, two
+lags in a row) answers a unit held over one step with g_n = c1 z1^(n-1) + c2 z2^(n-1) for
+n >= 1: the recurrence g_n = a1 g_n-1 + a2 g_n-2 for n >= 3, a1 and a2 from g1 .. g4, checked
+on g5 (FIT). z1 and z2, the roots of z^2 - a1 z - a2, are the poles of one step (a complex
+pair where it oscillates), c1 and c2 their shares. Each mode is a first-order part of its own:
+its within-step response w = c / z, its moment m(z) (complex for a complex pole), its past
+share carried on by z each step; the outputs are their sums' real parts.
+"""
+from __future__ import annotations
+
+import cmath
+import math
+from itertools import accumulate
+
+import numpy as np
+
+PROBE_STEPS = 4         # a probe's steps: g0 .. g3
+ORDER2_STEPS = 6        # where one pole does not fit: g0 .. g5
+LOOP_MAX = 20_000       # steps x (output, input) pairs a call carries by a loop (carried)
+FIT = 0.1               # relative: g3 against the model's g2 r (x'' = u is 16% off)
+FIT2 = 1e-3             # relative: g5 against two poles' recurrence (x''' = u is 2.3% off)
+ILL = 1e-4              # relative: g2^2 - g1 g3 below this, two poles are not posed
+# two poles closer than this (relative) are split to it: a repeated pole z's response n z^n
+# is then (z1^n - z2^n) / (z1 - z2), off by about (n SPLIT)^2 / 6 relative at step n, its
+# shares c about 1 / SPLIT of the response (6 of 16 digits lost to their cancellation)
+SPLIT = 1e-6
+
+
+class Higher(str):
+    """Why one pole does not fit 4 steps of a response: 6 steps may fit two (fitted)."""
+
+
+def carried(decay, s, x: np.ndarray, work: int) -> np.ndarray:
+    """s_k+1 = decay s_k + x_k from s_0 = s: s_0 .. s_n, the same bits either way (complex
+    where x is). Up to LOOP_MAX steps x pairs of a call (`work`) a loop (0.2 us a step: at
+    most 4 ms a call); beyond, scipy.signal.lfilter (0.01 us a step), whose import costs a
+    process 1.6 s, more than most runs."""
+    if work <= LOOP_MAX:
+        return np.fromiter(accumulate(x.tolist(), lambda a, b: decay * a + b, initial=s),
+                           dtype=x.dtype, count=len(x) + 1)
+    from scipy.signal import lfilter
+    after, _ = lfilter([1.0], [1.0, -decay], x, zi=[decay * s])
+    return np.concatenate(([s], after))
+
+
+def first_order(g0: np.ndarray, g1: np.ndarray, r: np.ndarray) -> np.ndarray | None:
+    """Per output its one decay ratio, where g1 = r g0 for every input (within FIT, or
+    where the input does not reach it), else None."""
+    reached = g0 != 0.0
+    if (np.abs(g1 - r * g0) > FIT * np.abs(g1) + 1e-300)[reached].any():
+        return None
+    rate = np.zeros(len(g0))
+    for o in range(len(g0)):
+        seen = r[o][reached[o]]
+        if len(seen) and np.ptp(seen) > FIT * np.abs(seen).max():
+            return None
+        rate[o] = seen.mean() if len(seen) else 0.0
+    return rate
+
+
+def moment(r: np.ndarray) -> np.ndarray:
+    """m(z), z = ln r = a h: x' = a x + b u's weight of the input's (s/h - 1/2) over a step,
+    over its weight of the input's mean: int_0^1 e^(z t) (1/2 - t) dt / int_0^1 e^(z t) dt
+    (about -z/12); 0 where r is not positive (no first-order response decays so). A complex
+    r (a mode of an oscillating pair) takes the same integrals in complex numbers."""
+    if np.iscomplexobj(r):
+        return np.array([_moment_complex(complex(x)) for x in r.flat]).reshape(r.shape)
+    return np.array([_moment(x) for x in r.flat]).reshape(r.shape)
+
+
+def _moment(r: float) -> float:
+    if r <= 0.0:
+        return 0.0
+    z = math.log(r)
+    if abs(z) < 1e-4:
+        return -z / 12
+    mean = math.expm1(z) / z
+    return (0.5 * mean - math.exp(z) / z + math.expm1(z) / (z * z)) / mean
+
+
+def _moment_complex(r: complex) -> complex:
+    if r.imag == 0.0:
+        return complex(_moment(r.real))
+    z = cmath.log(r)
+    if abs(z) < 1e-4:
+        return -z / 12
+    grown = cmath.exp(z)
+    mean = (grown - 1.0) / z
+    return (0.5 * mean - grown / z + (grown - 1.0) / (z * z)) / mean
+
+
+def fitted(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None = None
+           ) -> tuple | str:
+    """(g0, g1, r, m, D) from the responses g (PROBE_STEPS, outputs, inputs) and the
+    round-off floor of each (outputs, inputs), or why the model does not fit (g3 off its
+    prediction: Higher); where `direct` (the input reaches the output directly), g0 is the
+    state's part, g1 / r, and D the rest (ProbedModel). From ORDER2_STEPS responses, the
+    same with up to two poles each (_two_poles): (g0, g1, r, m, D, modes)."""
+    if len(g) >= ORDER2_STEPS:
+        return _modes(g, floor, direct)
+    g = g * (np.abs(g) > floor)
+    g0, g1, g2, g3 = g
+    seen = g1 != 0.0
+    r = g2 / (g1 + ~seen) * seen
+    if direct is not None and direct.any():
+        state = np.where(r != 0.0, g1 / np.where(r != 0.0, r, 1.0), 0.0)
+        d_part = np.where(direct, g0 - state, 0.0)
+        g0 = np.where(direct, state, g0)
+    else:
+        d_part = np.zeros_like(g0)
+    off = np.abs(g3 - g2 * r) > FIT * np.abs(g3) + 2 * floor
+    if off.any():
+        o, j = np.argwhere(off)[0]
+        return Higher(f"(output {o}, input {j}) is not of first order: one step on, the "
+                      f"response {g1[o, j]:.3g}, {g2[o, j]:.3g}, {g3[o, j]:.3g} does not decay "
+                      "by one ratio")
+    return g0, g1, r, moment(r), d_part
+
+
+def _modes(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None) -> tuple | str:
+    """fitted's from ORDER2_STEPS responses: per (output, input) up to two poles z and their
+    shares c, g_n = sum c z^(n-1) for n >= 1 (the module doc); modes (z, c, m(z)), each
+    (2, outputs, inputs). g0's state part is sum c / z; r the larger |z| (what two probes
+    compare: probe._agree); m 0 (the modes carry their own)."""
+    g = g * (np.abs(g) > floor)
+    z = np.zeros((2, *g.shape[1:]), dtype=complex)
+    c = np.zeros_like(z)
+    for o, j in np.ndindex(g.shape[1:]):
+        fit = _two_poles(g[1:, o, j], 2 * floor[o, j])
+        if isinstance(fit, str):
+            return f"(output {o}, input {j}) {fit}"
+        z[:, o, j], c[:, o, j] = fit
+    state = np.where(z != 0, c / np.where(z != 0, z, 1.0), 0.0).sum(axis=0).real
+    g0 = g[0]
+    if direct is not None and direct.any():
+        d_part = np.where(direct, g0 - state, 0.0)
+        g0 = np.where(direct, state, g0)
+    else:
+        d_part = np.zeros_like(g0)
+    return g0, g[1], np.abs(z).max(axis=0), np.zeros_like(g0), d_part, (z, c, moment(z))
+
+
+def _two_poles(g: np.ndarray, tol: float) -> tuple | str:
+    """((z1, z2), (c1, c2)) of the responses g1 .. g5 of one (output, input): one pole where
+    it misses g3 .. g5 within FIT and by no more than 10x what the recurrence of two through
+    g1 .. g4 misses g5 by (or by round-off, or where that recurrence is ill-conditioned: a
+    geometric response's), c2 = 0; else those two poles, where they miss g5 within FIT2; or
+    why neither fits. (A second-order response looks geometric within FIT over a few short
+    steps: the mass's speed at 0.05 s, 4% off, whose pole the first-order check alone took
+    for 0.96, and its estimate read half its error. Three integrators' response misses two
+    poles' recurrence by 2.3% and would take growing poles, |z| 1.43.)"""
+    g1, g2, g3, g4, g5 = (float(v) for v in g)
+    if not g.any():
+        return (0.0, 0.0), (0.0, 0.0)
+    r = g2 / g1 if g1 != 0.0 else math.nan
+    misses = [abs(b - r * a) for a, b in zip(g[1:], g[2:])]     # g3 .. g5
+    det = g2 * g2 - g1 * g3
+    posed = abs(det) > ILL * max(g2 * g2, abs(g1 * g3))
+    a1 = (g3 * g2 - g1 * g4) / det if posed else math.nan
+    a2 = (g2 * g4 - g3 * g3) / det if posed else math.nan
+    two = abs(g5 - a1 * g4 - a2 * g3)
+    if all(m <= FIT * abs(b) + tol for m, b in zip(misses, g[2:])) and (
+            max(misses) <= 10 * two or max(misses) <= tol or not posed):
+        return (r, 0.0), (g1, 0.0)
+    if not two <= FIT2 * abs(g5) + tol:
+        return (f"is not of first or second order: the response {g1:.3g}, {g2:.3g}, "
+                f"{g3:.3g}, {g4:.3g}, {g5:.3g} does not follow one recurrence of two steps")
+    root = cmath.sqrt(a1 * a1 + 4 * a2)
+    if abs(root) < SPLIT * abs(a1):     # a repeated pole (two integrators, two equal lags)
+        root = SPLIT * a1
+    z1, z2 = (a1 + root) / 2, (a1 - root) / 2
+    if z1 == z2:
+        return "has a repeated pole at 0"
+    c1 = (g2 - z2 * g1) / (z1 - z2)
+    return (z1, z2), (c1, g1 - c1)
+
+
+def lazy(d_part: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Per (output, input): a direct part (fitted's D, within the step) that the output does
+    not show for the input moved after the step (`after`: its change over the move), not
+    even half of it: the output is worked out in doStep alone (pythonfmu's way, where a
+    getter does not work it out when read). Such an output reads what the input was held
+    at during the step, not the value set after it. `floor`: the round-off of each."""
+    return (np.abs(d_part) > floor) & (np.abs(after) < 0.5 * np.abs(d_part))
