@@ -2,7 +2,7 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Seven graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Nine graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
 x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
@@ -13,7 +13,9 @@ description's dependencies taken out, as pythonfmu and pythonfmu3 write it (an F
 outputs declare none may hold a state: plan.has_state); and "bare_loop", the loop with the
 controller's dependencies taken out (a probe at t0 finds it without a state:
 master/memory.py); and "lazy", the lag with y = x + u worked out in its doStep alone (it
-does not follow u set after the step: probe.lazy). The truths of the linear ones: their ODEs by
+does not follow u set after the step: probe.lazy); and "spring", cos t into a mass on a
+spring with a damper, x'' + 0.4 x' + 4 x = u, its x and v (a response of second order: two
+poles, master/probe_fit.py). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
 for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
 the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
