@@ -2,7 +2,7 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Nine graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Ten graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
 x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
@@ -15,7 +15,8 @@ controller's dependencies taken out (a probe at t0 finds it without a state:
 master/memory.py); and "lazy", the lag with y = x + u worked out in its doStep alone (it
 does not follow u set after the step: probe.lazy); and "spring", cos t into a mass on a
 spring with a damper, x'' + 0.4 x' + 4 x = u, its x and v (a response of second order: two
-poles, master/probe_fit.py). The truths of the linear ones: their ODEs by
+poles, master/probe_fit.py), and "spring_loop", the spring under the P controller (its error
+carried around the loop by the modes' shares). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
 for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
 the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
@@ -92,6 +93,12 @@ GRAPHS["spring"] = ("""\
   it: {{fmu: {xtest_spring}}}
 connections: [[wave.u, it.u]]
 outputs: [it.x, it.v]""", lambda t, y: [y[1], np.cos(t) - 4.0 * y[0] - 0.4 * y[1]])
+GRAPHS["spring_loop"] = ("""\
+  wave: {{fmu: {xtest_wave}}}
+  ctrl: {{fmu: {xtest_gain}, parameters: {{kp: 3.0}}}}
+  it: {{fmu: {xtest_spring}}}
+connections: [[wave.u, ctrl.r], [it.x, ctrl.y], [ctrl.u, it.u]]
+outputs: [it.x, it.v]""", lambda t, y: [y[1], 3 * (np.cos(t) - y[0]) - 4.0 * y[0] - 0.4 * y[1]])
 GRAPHS["bare_loop"] = (GRAPHS["loop"][0].replace("{xtest_gain}", "{xtest_gain_bare}"),
                        GRAPHS["loop"][1])
 GRAPHS["lazy"] = (GRAPHS["through"][0].replace("k: 2.0}", "k: 2.0, lazy: 1}"),

@@ -37,7 +37,8 @@ class LoopCarry:
 
     def __init__(self, loop: Loop, group: Group, frozen: bool):
         self.loop, self.n, self.frozen = loop, len(group.model.outputs), frozen
-        self.error = np.zeros(self.n)       # the model's outputs' error at the last node
+        self.error = np.zeros(self.n)       # the model's outputs' (or state's) error at the
+        # last node: its state's where its linear form has one (two poles, E = H X)
         self.end_weight = np.array([_END_WEIGHT.get(r, 0.0) for r in group.roles])
         self.depth = {c: 0 for c, _ in loop.starts}
         for t in loop.chain:
@@ -135,7 +136,11 @@ class LoopCarry:
         c0, c1 = self.sens[at, self.held], self.sens[at + 1, self.held]     # (steps, in, n)
         if self.times is not None:      # Jacobi: the true input less the time's part too
             error = error + 0.5 * (self.times[at, self.held] + self.times[at + 1, self.held])
-        a, b, made = g.model.linear(h, held, error, change, branch)
+        a, b, made, *hidden = g.model.linear(h, held, error, change, branch)
+        if hidden:      # the model's state X, its outputs' error E = H X (two poles)
+            c0, c1 = c0 @ hidden[0], c1 @ hidden[0]
+            if len(self.error) != b.shape[1]:
+                self.error = np.zeros(b.shape[1])
         if predicted is not None:       # the predicted end values the corrector held
             delta = np.einsum("kni,ki->kn", b, predicted - held)
             extra = self.end_weight * np.einsum("kin,kn->ki", c1, delta)
@@ -144,18 +149,23 @@ class LoopCarry:
         p = a + 0.5 * bc0 + 0.5 * bc1 @ (a + bc0)
         q = made + 0.5 * np.einsum("kmn,kn->km", bc1, made)
         self.nodes, kept = int(ks[0]), len(ks) - branch
-        total = _recurrence(p[:kept], q[:kept], self.error)
-        self.at_nodes = np.concatenate((self.error[None], total))
+        out = hidden[0].T if hidden else None       # X -> E, rows
+        states = np.concatenate((self.error[None], _recurrence(p[:kept], q[:kept], self.error)))
+        self.at_nodes = states @ out if out is not None else states
         if branch:
-            self._branch(p[kept:], q[kept:], self.at_nodes[kept - branch], int(ks[kept]))
-        self.error = total[-1]
+            self._branch(p[kept:], q[kept:], states[kept - branch], int(ks[kept]), out)
+        self.error = states[-1]
         self.table = self._table(np.arange(self.nodes, self.nodes + kept + 1), self.at_nodes)
+        total = self.at_nodes[1:]
         return np.concatenate((total, self.branch_at[1:])) if branch else total
 
-    def _branch(self, p: np.ndarray, q: np.ndarray, start: np.ndarray, node: int) -> None:
-        """The branch's errors from `start`, the error at its first step's start `node`: at
-        its nodes (branch_at) and carried (branch_table, branch_nodes)."""
-        self.branch_at = np.concatenate((start[None], _recurrence(p, q, start)))
+    def _branch(self, p: np.ndarray, q: np.ndarray, start: np.ndarray, node: int,
+                out: np.ndarray | None) -> None:
+        """The branch's errors from `start`, the error (the model's state: X, `out` its
+        outputs' map) at its first step's start `node`: at its nodes (branch_at) and carried
+        (branch_table, branch_nodes)."""
+        states = np.concatenate((start[None], _recurrence(p, q, start)))
+        self.branch_at = states @ out if out is not None else states
         self.branch_nodes = node
         self.branch_table = self._table(np.arange(node, node + len(p) + 1), self.branch_at)
 

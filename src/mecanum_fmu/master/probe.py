@@ -38,7 +38,7 @@ import numpy as np
 from .pair_stencils import with_branch
 from .plan import has_state
 from .probe_fit import (ORDER2_STEPS, PROBE_STEPS, Higher, carried, first_order, fitted,
-                        lazy)
+                        lazy, modal_linear, modal_outputs)
 from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
@@ -186,13 +186,16 @@ class ProbedModel:
         """The steps in the form a loop carries (pair_loop.py; PoseBatch.linear's): E_k+1 =
         A_k E_k + made_k + B_k (the held inputs' further error), E the outputs' error. Only
         a response of first order has it (g1 = r g0, one r per output for every input):
-        then A = r, B = g0, made = g0 (error - m change); else the model is marked failed
-        (the pair hands over) and the terms are zeros. With a `branch`, as steps()."""
+        then A = r, B = g0, made = g0 (error - m change); with two poles, E = H X, X their
+        shares (_modal_linear: H the fourth term); else the model is marked failed (the pair
+        hands over) and the terms are zeros. With a `branch`, as steps()."""
         n, o, i = len(h), len(self.outputs), len(self.inputs)
         a, b, made = np.zeros((n, o, o)), np.zeros((n, o, i)), np.zeros((n, o))
         if not self.found:
             self.k += n - branch
             return a, b, made
+        if len(self.found[0]) > 7:      # two poles: their shares, and the outputs' map
+            return self._modal_linear(h, error, change, branch)
         for part, probe in self._segments(h, self.k, branch):
             _, size, g0, g1, r, m, d_part, *modes = self.found[probe]
             rate = first_order(g0, g1, r) if not (d_part.any() or modes) else None
@@ -209,6 +212,27 @@ class ProbedModel:
         self.k += n - branch
         self._forget()
         return a, b, made
+
+    def _modal_linear(self, h: np.ndarray, error: np.ndarray, change: np.ndarray,
+                      branch: int) -> tuple:
+        """linear()'s with two poles (probe_fit.modal_linear): X the modes' shares, E = H X;
+        (A, B, made, H). A direct part marks the model failed, as for one pole."""
+        shape = self.found[0][7][0].shape
+        size = 2 * int(np.prod(shape))
+        a, b = np.zeros((len(h), size, size)), np.zeros((len(h), size, len(self.inputs)))
+        made = np.zeros((len(h), size))
+        for part, probe in self._segments(h, self.k, branch):
+            found = self.found[probe]
+            if found[6].any():
+                self.failed = (f"{self.name}'s measured response reaches an output directly, "
+                               "and the pair carries an error around a loop only through a "
+                               "state")
+                break
+            a[part], b[part], made[part] = modal_linear(found[7], float(h[part.start]) /
+                                                        found[1], error[part], change[part])
+        self.k += len(h) - branch
+        self._forget()
+        return a, b, made, modal_outputs(shape)
 
 
 def _modal(modes: tuple, scale: float, error: np.ndarray, change: np.ndarray,

@@ -187,3 +187,35 @@ def lazy(d_part: np.ndarray, after: np.ndarray, floor: np.ndarray) -> np.ndarray
     getter does not work it out when read). Such an output reads what the input was held
     at during the step, not the value set after it. `floor`: the round-off of each."""
     return (np.abs(d_part) > floor) & (np.abs(after) < 0.5 * np.abs(d_part))
+
+
+def modal_linear(modes: tuple, scale: float, error: np.ndarray, change: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One run of steps of a probe with two poles (`modes`: z, c, m, each (2, outputs,
+    inputs)) in the form a loop carries (pair_loop.py): X_k+1 = A X_k + made_k + B (the held
+    inputs' further error), X the modes' shares after each step, c / z d summed on (their
+    real parts, then their imaginary parts, each mode in z's flat order; modal_outputs sums
+    them into the outputs): A turns each by z^scale, B its within-step response c / z, made
+    that times d = error - m change. Returns (A, B, made) per step."""
+    z, c, m = (v.ravel() for v in modes)
+    inputs = np.broadcast_to(np.arange(modes[0].shape[2]), modes[0].shape).ravel()
+    turn = z if scale == 1.0 else z ** scale
+    within = np.where(z != 0, c / np.where(z != 0, z, 1.0), 0.0) * scale
+    k, steps = len(z), len(error)
+    a = np.zeros((2 * k, 2 * k))
+    a[:k, :k] = a[k:, k:] = np.diag(turn.real)
+    a[:k, k:], a[k:, :k] = -np.diag(turn.imag), np.diag(turn.imag)
+    b = np.zeros((2 * k, error.shape[1]))
+    b[np.arange(k), inputs], b[k + np.arange(k), inputs] = within.real, within.imag
+    made = within[None] * (error[:, inputs] - m[None] * change[:, inputs])
+    return (np.broadcast_to(a, (steps, *a.shape)), np.broadcast_to(b, (steps, *b.shape)),
+            np.concatenate((made.real, made.imag), axis=1))
+
+
+def modal_outputs(shape: tuple) -> np.ndarray:
+    """The outputs' errors from modal_linear's X (outputs x X): each output the sum of its
+    modes' real parts."""
+    outputs = np.broadcast_to(np.arange(shape[1])[:, None], shape[1:])
+    out = np.zeros((shape[1], 2 * int(np.prod(shape))))
+    out[np.broadcast_to(outputs, shape).ravel(), np.arange(int(np.prod(shape)))] = 1.0
+    return out
