@@ -272,26 +272,29 @@ def _carried_on(graph: Graph, into: dict, carried: dict, skip: set, stateful: se
     """In step order, each FMU but those in `skip` that reads a value in `carried` (its name
     -> its column): one without a state whose response covers its linked inputs carries it
     on (its Through, at its lag under Jacobi; its outputs join `carried`), any other reads
-    it as it is. (FMU name -> its Through, in step order; value -> the FMUs that read it as
-    it is, to be checked)."""
+    it as it is, wherever it steps (one that steps before the value's FMU reads it around a
+    loop: two lags in a row closed through a controller into the first). (FMU name -> its
+    Through, in step order; value -> the FMUs that read it as it is, to be checked)."""
     responses = dict(graph.responses)
-    throughs, checked = {}, {}
+    throughs = {}
     for inst in graph.instances:
         links = [l for l in into[inst.name] if l.target.type == "Real"]
-        hot = [str(l.source.ref) for l in links if str(l.source.ref) in carried]
-        if not hot or inst.name in skip:
+        if inst.name in skip or not any(str(l.source.ref) in carried for l in links):
             continue
         factory = responses.get(inst.name, probed_response if inst.name in graph.measured
                                 else None)
         through = None if inst.name in stateful or factory is None else \
             _through(inst, links, factory, col, ports, lag.get(inst.name, 0))
-        if through is None:
-            for name in hot:
-                checked.setdefault(name, set()).add(inst.name)
-            continue
-        throughs[inst.name] = through
-        carried.update({f"{inst.name}.{n}": c for n, c in zip(through.response.outputs,
-                                                                through.outs)})
+        if through is not None:
+            throughs[inst.name] = through
+            carried.update({f"{inst.name}.{n}": c for n, c in zip(through.response.outputs,
+                                                                    through.outs)})
+    checked: dict[str, set] = {}
+    for inst in graph.instances:
+        if inst.name not in skip and inst.name not in throughs:
+            for l in into[inst.name]:
+                if l.target.type == "Real" and str(l.source.ref) in carried:
+                    checked.setdefault(str(l.source.ref), set()).add(inst.name)
     return throughs, checked
 
 
