@@ -151,3 +151,54 @@ outputs: [it.x, it.v]
             estimate = summary["error_estimate"][output][which]
             assert value / within <= estimate <= within * value, (output, which, estimate,
                                                                   value)
+
+
+def _spring_loop(folder, fmus):
+    return write_scenario(folder, "spring_loop", f"""\
+name: spring_loop
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0}}}}
+  it: {{fmu: {fmus["xtest_spring"]}}}
+connections: [[wave.u, ctrl.r], [it.x, ctrl.y], [ctrl.u, it.u]]
+outputs: [it.x, it.v]
+""")
+
+
+def test_a_tolerance_the_loop_outgrows_is_said_with_the_tolerance_that_holds_it(tmp_path,
+                                                                               fmus):
+    # around the loop the adaptive master holds the sum of the steps' own errors under the
+    # tolerance; the spring's dynamics carry them on and v's error grows to about 2.7x the
+    # tolerance, which its estimate says: the advice names v and a tolerance that holds it
+    graph = runner.prepare(_spring_loop(tmp_path, fmus), tolerance=1e-4)
+    results = master.simulate(graph, graph.scenario.experiment)
+    summary = master.estimate_error(graph, results)
+    truth = _loop_truth(results.time)
+    assert np.abs(results["it.v"] - truth[1]).max() > 1.5e-4       # the tolerance is not met
+    advice = " ".join(summary.get("error_estimate_advice", []))
+    assert "the estimated error exceeds the tolerance on it.v (" in advice, advice
+    assert "it.x" not in advice, advice       # x within it
+    suggested = float(advice.split("--tolerance ")[1].split()[0])
+    assert suggested < 1e-4
+    graph = runner.prepare(_spring_loop(tmp_path, fmus), tolerance=suggested)
+    results = master.simulate(graph, graph.scenario.experiment)
+    truth = _loop_truth(results.time)
+    for output, want in zip(("it.x", "it.v"), truth):
+        assert np.abs(results[output] - want).max() <= 1.1e-4, output
+
+
+def test_no_such_advice_where_the_tolerance_is_met(tmp_path, fmus):
+    graph = runner.prepare(_spring(tmp_path, fmus, "quadratic"), master_name="adaptive",
+                           tolerance=1e-3)
+    results = master.simulate(graph, graph.scenario.experiment)
+    summary = master.estimate_error(graph, results)
+    for output, want in zip(("it.x", "it.v"), _truth(results.time)):
+        assert np.abs(results[output] - want).max() < 1e-3
+    assert "exceeds the tolerance" not in " ".join(summary.get("error_estimate_advice", []))
+
+
+def _loop_truth(t: np.ndarray) -> np.ndarray:
+    return solve_ivp(lambda s, y: [y[1], (3.0 * (np.cos(s) - y[0]) - K * y[0] - C * y[1]) / M],
+                     (0.0, t[-1]), [0.0, 0.0], t_eval=t, rtol=1e-12, atol=1e-14,
+                     method="DOP853").y
