@@ -333,13 +333,16 @@ def prober(plan, running: list, real: np.ndarray, n_steps: int) -> Prober | None
 def probed_response(inputs: list[str], inst) -> "ProbedResponse | None":
     """The response (models/responses.Response's interface: outputs, divides, jacobian) of a
     third-party FMU without a state, measured by probes, its linked inputs `inputs`; None
-    where it cannot be probed (probeable). One that may hold a state (its dependencies not
-    declared, and the probes before the run found none: memory.py) is checked for one at
-    each probe."""
+    where it cannot be probed (probeable). Each probe checks it for a state (steps 2): one
+    that may hold one (its dependencies not declared, and the probes before the run found
+    none: memory.py), and one whose every output declares inputs only, which FMI 2.0 does
+    not make free of a state (a PI controller, u = kp e + i, declares u: [r, y])."""
     if not probeable(inst):
         return None
     outputs = [u.variable.name for u in inst.model.outputs if u.variable.type in REAL]
-    return ProbedResponse(inst.name, inputs, outputs, 2 if has_state(inst) else 1)
+    response = ProbedResponse(inst.name, inputs, outputs, 2)
+    response.declared = not has_state(inst)
+    return response
 
 
 class ProbedResponse:
@@ -353,6 +356,7 @@ class ProbedResponse:
     def __init__(self, name: str, inputs: list[str], outputs: list[str], steps: int = 1):
         self.name, self.inputs, self.outputs, self.steps = name, inputs, outputs, steps
         self.moved = self.trace = np.zeros(len(outputs), dtype=bool)    # steps 2: per output
+        self.declared = False   # every output declares its dependencies (probed_response)
         self.divides: dict = {}
         self.found: list[tuple] = []
         self.failed: str | None = None
@@ -437,8 +441,10 @@ class Target:
             if self.steps > 1 and self.model.trace.any():
                 self.model.failed = (
                     f"{self.r.name}'s outputs kept a trace of an input's move one step later "
-                    f"(probed at t = {k * h:g} s): it holds a state, and its outputs declare "
-                    "no dependencies")
+                    f"(probed at t = {k * h:g} s): it holds a state, " + (
+                        "which its outputs' dependencies, on inputs only, do not say (FMI 2.0 "
+                        "does not ask a co-simulation FMU to)" if self.model.declared else
+                        "and its outputs declare no dependencies"))
                 return
             found = (k, h, g0)
             if self.model.found and not _agree(found, self.model.found[-1]):
