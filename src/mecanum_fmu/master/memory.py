@@ -51,6 +51,16 @@ def undeclared(graph) -> frozenset[str]:
                      if i.name in graph.measured and state_undeclared(i) and probeable(i))
 
 
+def declared_free(graph) -> frozenset[str]:
+    """The third-party FMUs taken to hold no state because every output declares inputs only
+    (plan.has_state), and can be probed: FMI 2.0 does not make a co-simulation FMU's output
+    free of a state it does not declare (a PI controller, u = kp e + i, declares u: [r, y]),
+    so the probe checks them; one that holds a state refutes the pair, which would read its
+    outputs as exact."""
+    return frozenset(i.name for i in graph.instances
+                     if i.name in graph.measured and not has_state(i) and probeable(i))
+
+
 def _claimed(graph) -> dict[str, list[str]]:
     """Per third-party FMU that can be probed, the outputs its component's `dependencies:`
     says depend on no input."""
@@ -62,12 +72,13 @@ def _claimed(graph) -> dict[str, list[str]]:
 
 def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
                    h: float) -> AtStart:
-    """Probe the FMUs of undeclared() and _claimed() at t0, with step h. Raises
-    stepping.StepFailure (a probe's call returned Error or worse)."""
+    """Probe the FMUs of undeclared(), _claimed() and declared_free() at t0, with step h.
+    Raises stepping.StepFailure (a probe's call returned Error or worse)."""
     by_name, maybe, claims = {r.name: r for r in running}, undeclared(graph), _claimed(graph)
+    free = declared_free(graph)
     found, calls, refuted = set(), 0, None
     for inst in graph.instances:
-        if inst.name not in maybe and inst.name not in claims:
+        if inst.name not in maybe and inst.name not in claims and inst.name not in free:
             continue
         links = _linked_reals(graph, inst, real_slots)
         if not links:
@@ -79,6 +90,8 @@ def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0:
         calls += response.steps * (1 + len(links))
         if inst.name in maybe and response.failed is None:
             found.add(inst.name)
+        if inst.name in free and response.trace.any():
+            refuted = refuted or response.failed
         refuted = refuted or _refuted(response, claims.get(inst.name, ()), t0)
     return AtStart(frozenset(found), calls, refuted)
 

@@ -1,0 +1,80 @@
+"""Third-party graphs whose errors the pair would read wrongly, and hands over to Richardson
+with the reason (against truths solved here by scipy): a loop that closes through an FMU
+without a state into another FMU with a state than the one whose error it carries
+(master/pair.py, _carried_on: two lags in a row, the second's x2 into a P controller u =
+3 (cos t - x2) that feeds the first; the first lag, stepped before the controller, read the
+error the pair dropped, and its end came out 3.7x to 133x off); and a PI controller whose
+output declares inputs only (master/memory.py, declared_free: the pair read it as exact)."""
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from helpers import state_fmus, write_scenario
+from mecanum_fmu import master, runner
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    return state_fmus(tmp_path_factory.mktemp("state_fmus"))
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
+def test_a_loop_back_into_an_earlier_lag_hands_over_and_says_why(tmp_path, fmus, master_name):
+    path = write_scenario(tmp_path, "two_lags", f"""\
+name: two_lags
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0}}}}
+  one: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 1.0}}}}
+  two: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, ctrl.r], [two.x, ctrl.y], [ctrl.u, one.u], [one.x, two.u]]
+outputs: [one.x, two.x]
+""")
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    method = summary["error_estimate_method"]
+    assert method.startswith("Richardson") and "ctrl.u carries an error into one" in method, \
+        method
+    truth = solve_ivp(lambda t, y: [-y[0] + 3.0 * (np.cos(t) - y[1]), -2.0 * y[1] + y[0]],
+                      (0.0, 6.0), [0.0, 0.0], t_eval=results.time, rtol=1e-12, atol=1e-14,
+                      method="DOP853").y
+    for output, want in zip(("one.x", "two.x"), truth):
+        error = np.abs(results[output] - want)
+        for which, value in (("max", error.max()), ("end", error[-1])):
+            estimate = summary["error_estimate"][output][which]
+            assert value / 3 <= estimate <= 3 * value, (output, which, estimate, value)
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "jacobi"])
+def test_a_controller_that_declares_inputs_only_and_holds_a_state_refutes_the_pair(
+        tmp_path, fmus, master_name):
+    # cos t into a PI controller, u = 2 (r - 0) + i, i summing 1.0 e h over the steps (its
+    # u declared to read r and y only, as the P controller's), into a lag x' = -2 x + u. The
+    # pair read u as exact and x at 0.04x of its error; the probe at t0 finds the
+    # integral's trace and Richardson estimates, within 3x of the continuous PI's truth
+    path = write_scenario(tmp_path, "pi_open", f"""\
+name: pi_open
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  c: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 2.0, ki: 1.0}}}}
+  a: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, c.r], [c.u, a.u]]
+outputs: [a.x, c.u]
+""")
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    method = summary["error_estimate_method"]
+    assert method.startswith("Richardson") and "c's outputs kept a trace of an input's move" \
+        in method and "dependencies, on inputs only, do not say" in method, method
+    t = results.time
+    x = solve_ivp(lambda s, y: [-2.0 * y[0] + 2.0 * np.cos(s) + np.sin(s)], (0.0, 6.0), [0.0],
+                  t_eval=t, rtol=1e-12, atol=1e-14, method="DOP853").y[0]
+    for output, want in (("a.x", x), ("c.u", 2.0 * np.cos(t) + np.sin(t))):
+        error = np.abs(results[output] - want)
+        for which, value in (("max", error.max()), ("end", error[-1])):
+            estimate = summary["error_estimate"][output][which]
+            assert value / 3 <= estimate <= 3 * value, (output, which, estimate, value)
