@@ -305,3 +305,13 @@ def pose_without_state_save(fmu_dir: Path, folder: Path) -> Path:
                                     b'canGetAndSetFMUstate="false"')
             dst.writestr(info, data)
     return fmu
+
+
+def assert_estimated(summary: dict, output: str, error, factor: float = 3.0,
+                     end_factor: float | None = None) -> None:
+    """The summary's estimate of `output`, its largest and its end, within `factor` of the
+    true |error| per row (the end within `end_factor`, default the same)."""
+    for which, value, within in (("max", error.max(), factor),
+                                 ("end", error[-1], end_factor or factor)):
+        estimate = summary["error_estimate"][output][which]
+        assert value / within <= estimate <= within * value, (output, which, estimate, value)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from helpers import state_fmus, write_scenario
+from helpers import assert_estimated, state_fmus, write_scenario
 from mecanum_fmu import master, runner
 
 
@@ -42,9 +42,7 @@ outputs: [one.x, two.x]
                       method="DOP853").y
     for output, want in zip(("one.x", "two.x"), truth):
         error = np.abs(results[output] - want)
-        for which, value in (("max", error.max()), ("end", error[-1])):
-            estimate = summary["error_estimate"][output][which]
-            assert value / 3 <= estimate <= 3 * value, (output, which, estimate, value)
+        assert_estimated(summary, output, error)
 
 
 @pytest.mark.parametrize("master_name", ["quadratic", "jacobi"])
@@ -75,6 +73,4 @@ outputs: [a.x, c.u]
                   t_eval=t, rtol=1e-12, atol=1e-14, method="DOP853").y[0]
     for output, want in (("a.x", x), ("c.u", 2.0 * np.cos(t) + np.sin(t))):
         error = np.abs(results[output] - want)
-        for which, value in (("max", error.max()), ("end", error[-1])):
-            estimate = summary["error_estimate"][output][which]
-            assert value / 3 <= estimate <= 3 * value, (output, which, estimate, value)
+        assert_estimated(summary, output, error)
