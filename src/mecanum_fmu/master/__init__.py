@@ -29,7 +29,8 @@ from .estimate import coarse_plan, error_estimate, pair_tap, wants_pair
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
-from .memory import AtStart, advice, lazy_at_start, probe_at_start, used_outputs
+from .memory import (AtStart, advice, hidden_at_start, lazy_at_start, probe_at_start,
+                     used_outputs)
 from .probe import prober
 from .recorder import Recorder, step_count
 from .stepping import (EndRequested, NonFinite, StepFailure, asked_to_end, before_stop,
@@ -77,6 +78,8 @@ def simulate(graph: Graph, experiment: Experiment,
         results = recorder.results(True)
         if holds.held_at_end:
             results.extra["held_at_end"] = dict(holds.held_at_end)
+        if holds.hidden:
+            results.extra["hidden_state"] = sorted(holds.hidden)
         if ended:
             results.extra["ended"] = ended
         elif with_estimate:
@@ -146,21 +149,23 @@ def _held_at_end(how: Master, graph: Graph, running: list[RunningInstance], buff
     outputs, recorded or read by another FMU, worked out in doStep alone
     (memory.lazy_at_start): such an output reads the step mean a "through" hold sets, its
     value hanging on each step's length; those FMUs' inputs are held at their end values
-    instead (first order: AdaptiveHolds.richardson; results.extra["held_at_end"])."""
+    instead (first order: AdaptiveHolds.richardson; results.extra["held_at_end"]). Or
+    FMUs whose outputs declare inputs only holding a state (memory.hidden_at_start): their
+    inputs are held as a state's (results.extra["hidden_state"])."""
     if not (how.adaptive and graph.measured):
         return holds
     exp = recorder.experiment
+    at = (running, buffers.real_slots, buffers.real, exp.start_time, exp.step_size)
     try:
-        found = lazy_at_start(graph, running, buffers.real_slots, buffers.real,
-                              exp.start_time, exp.step_size)
+        found, hidden = lazy_at_start(graph, *at), hidden_at_start(graph, *at)
     except StepFailure as err:      # a probe's call: Error or worse
         raise _failed_at_t0(err, exp, recorder) from None
-    if not found:
+    if not (found or hidden):
         return holds
     for r in running:
         r.reads, r.writes, r.resets, r.settles = [], [], [], []
     holds = _adaptive_holds(how, graph)
-    holds.held_at_end = MappingProxyType(found)
+    holds.held_at_end, holds.hidden = MappingProxyType(found), hidden
     return plan_transfers(running, graph, buffers, how.hold, holds, how.holds_samples)
 
 

@@ -22,7 +22,7 @@ from .breakpoints import graph_breaks
 from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
 from .pair_parts import PairPlan
 from .pair_rows import PairRows
-from .memory import held_at_end_advice, undeclared
+from .memory import held_at_end_advice, hidden_advice, undeclared
 from .richardson import FINER, coarse_experiment, coarse_factors, coarse_run, richardson
 
 ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
@@ -142,6 +142,7 @@ def _adaptive_estimate(results: Results, exp) -> dict:
     estimate = results.extra["error_estimate"]
     advice = (held_at_end_advice(results.extra["held_at_end"])
               if results.extra.get("held_at_end") else []) + \
+        hidden_advice(results.extra.get("hidden_state", ())) + \
         _over_tolerance(results, estimate, tol, rtol)
     return {"error_estimate": estimate, "error_estimate_method": ADAPTIVE_METHOD,
             "tolerance": tol, "relative_tolerance": rtol,

@@ -96,6 +96,32 @@ def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0:
     return AtStart(frozenset(found), calls, refuted)
 
 
+def hidden_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
+                    h: float) -> frozenset[str]:
+    """The FMUs of declared_free() whose probe from t0 (step h; 2 (1 + inputs) doStep calls)
+    finds a state: an output keeps a trace of an input's move a step later. Raises
+    stepping.StepFailure."""
+    by_name, found = {r.name: r for r in running}, set()
+    for inst in graph.instances:
+        links = _linked_reals(graph, inst, real_slots) if inst.name in declared_free(graph) \
+            else []
+        if links:
+            response = probed_response([l.target.ref.variable for l in links], inst)
+            _probe_now(by_name[inst.name], response, links, real_slots, (t0, h, real),
+                       response.steps)
+            if response.trace.any():
+                found.add(inst.name)
+    return frozenset(found)
+
+
+def hidden_advice(names) -> list[str]:
+    """The adaptive master's words for the FMUs hidden_at_start found."""
+    return [f"'{name}' holds a state that its outputs' dependencies, on inputs only, do not "
+            "say (FMI 2.0 does not ask a co-simulation FMU to; its probe found it), so the "
+            "adaptive master held its inputs as a state's: their step mean while it steps, "
+            "their end value after" for name in names]
+
+
 def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
                   h: float) -> dict[str, list[str]]:
     """Per third-party FMU with a state whose inputs an output may read directly (the

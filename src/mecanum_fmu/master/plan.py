@@ -139,8 +139,8 @@ def _plan_writes(r: RunningInstance, graph: Graph, buffers: Buffers, position: d
     their history."""
     links = [l for l in graph.links if l.target.ref.instance == r.name and l not in held]
     through = holds.through or holds_through(r.inst, r.name in graph.measured)
-    roles = _blend_roles(r, links, position, through, r.name in holds.held_at_end) \
-        if hold != "zoh" else {}
+    roles = _blend_roles(r, links, position, through, r.name in holds.held_at_end,
+                         r.name in holds.hidden) if hold != "zoh" else {}
     real = [l for l in links if l.target.type == "Real"]
     groups = (("Real", [l for l in real if l.target.ref.variable not in roles]),
               ("Blend", [l for l in real if l.target.ref.variable in roles]),
@@ -190,7 +190,7 @@ def _take(buffer: np.ndarray, src: np.ndarray, staging: np.ndarray) -> Callable[
 
 
 def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool = False,
-                 at_end: bool = False) -> dict[str, str]:
+                 at_end: bool = False, hidden: bool = False) -> dict[str, str]:
     """The Real inputs a hold blends, by role: "state" (no output of the FMU depends on it,
     its source stepped first: its value at t_k+1 is known), "state_ahead" (the same, but its
     source steps later: a loop closing into the FMU's state) and "fed_back" (an input with
@@ -200,9 +200,10 @@ def _blend_roles(r: RunningInstance, links: list, position: dict, through: bool 
     the state, as "state"), set to its end value after it (for the outputs): otherwise the
     state integrates the end value held over the step, an error of the first order. With
     `at_end` (Holds.held_at_end: an output worked out in doStep alone), "end" instead: held
-    at its end value, a first-order hold the adaptive master's pair measures."""
+    at its end value, a first-order hold the adaptive master's pair measures. `hidden`: the
+    FMU holds a state its outputs' dependencies do not say (Holds.hidden), taken as it."""
     state_only = state_only_inputs(r.inst)
-    stateful = through and has_state(r.inst)
+    stateful = through and (has_state(r.inst) or hidden)
     roles = {}
     for l in links:
         name, later = l.target.ref.variable, position[l.source.ref.instance] > position[r.name]
@@ -275,6 +276,9 @@ class Holds:
     # the FMUs whose inputs an output reads are held at their end values ("end"), not
     # "through", and those outputs (worked out in doStep alone: memory.lazy_at_start)
     held_at_end: Mapping[str, list[str]] = MappingProxyType({})
+    # the FMUs whose outputs declare inputs only that the probes found holding a state
+    # (memory.hidden_at_start): their inputs are held as a state's (_blend_roles)
+    hidden: frozenset = frozenset()
 
     def __init__(self, hold: str):
         self.hold = hold
