@@ -9,6 +9,12 @@ input moved by a small eps over the first step only; its state is set back after
 after the second step holds no state the coupling can see: the pair takes it as an FMU
 without a state (pair.pair_plan's `memoryless`), and its later probes check it again.
 
+An FMU whose every output declares inputs only is taken to hold no state (plan.has_state),
+which FMI 2.0 does not promise of a co-simulation FMU (a PI controller, u = kp e + i, declares
+u: [r, y]). The same probe checks it (declared_free): a trace of the move refutes the pair,
+which would read its outputs as exact, and the adaptive master holds its inputs as a state's
+(hidden_at_start).
+
 A scenario's `dependencies:` (scenario/dependencies.py) that says an output depends on no
 input (a state's) is the user's word, and the step order rests on it. The same probe checks
 it: an output that the move changes within the first step and that keeps no trace after the
@@ -101,10 +107,9 @@ def hidden_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0
     """The FMUs of declared_free() whose probe from t0 (step h; 2 (1 + inputs) doStep calls)
     finds a state: an output keeps a trace of an input's move a step later. Raises
     stepping.StepFailure."""
-    by_name, found = {r.name: r for r in running}, set()
+    by_name, found, free = {r.name: r for r in running}, set(), declared_free(graph)
     for inst in graph.instances:
-        links = _linked_reals(graph, inst, real_slots) if inst.name in declared_free(graph) \
-            else []
+        links = _linked_reals(graph, inst, real_slots) if inst.name in free else []
         if links:
             response = probed_response([l.target.ref.variable for l in links], inst)
             _probe_now(by_name[inst.name], response, links, real_slots, (t0, h, real),
