@@ -156,8 +156,9 @@ def _held_at_end(how: Master, graph: Graph, running: list[RunningInstance], buff
         return holds
     exp = recorder.experiment
     at = (running, buffers.real_slots, buffers.real, exp.start_time, exp.step_size)
+    room = int((exp.stop_time - exp.start_time) / exp.step_size + 1e-9) - 1
     try:
-        found, hidden = lazy_at_start(graph, *at), hidden_at_start(graph, *at)
+        found, hidden = lazy_at_start(graph, *at, room), hidden_at_start(graph, *at)
     except StepFailure as err:      # a probe's call: Error or worse
         raise _failed_at_t0(err, exp, recorder) from None
     if not (found or hidden):

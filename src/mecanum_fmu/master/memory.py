@@ -128,13 +128,15 @@ def hidden_advice(names) -> list[str]:
 
 
 def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
-                  h: float) -> dict[str, list[str]]:
+                  h: float, room: int = 0) -> dict[str, list[str]]:
     """Per third-party FMU with a state whose inputs an output may read directly (the
     adaptive master holds them "through": their step mean while it steps, their end value
     for the outputs after it), its outputs, recorded or read by another FMU, that are worked
     out in its doStep alone (probe.lazy: they read the input within the step and do not
     follow it set after the step), where there are some. Probed from t0 with step h
-    (ProbedModel's probe: 4 (1 + inputs) doStep calls). Raises stepping.StepFailure."""
+    (ProbedModel's probe: 4 (1 + inputs) doStep calls; again over 6 where one pole does not
+    fit and `room`, the steps of h the run spans after t0, has them). Raises
+    stepping.StepFailure."""
     by_name, found, used = {r.name: r for r in running}, {}, used_outputs(graph)
     position = {inst.name: i for i, inst in enumerate(graph.instances)}
     for inst in graph.instances:
@@ -147,7 +149,7 @@ def lazy_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: 
         model = probed_model(inst, [l.target.ref.variable for l in links]) if links else None
         if model is None:
             continue
-        _probe_now(by_name[inst.name], model, links, real_slots, (t0, h, real))
+        _probe_now(by_name[inst.name], model, links, real_slots, (t0, h, real), room=room)
         lazy = [o for o, row in zip(model.outputs, model.lazy)
                 if row.any() and f"{inst.name}.{o}" in used]
         if model.failed is None and lazy:
@@ -162,13 +164,14 @@ def _linked_reals(graph, inst, real_slots: dict) -> list:
 
 
 def _probe_now(running, model, links: list, real_slots: dict, at: tuple,
-               steps: int = PROBE_STEPS) -> None:
+               steps: int = PROBE_STEPS, room: int = 0) -> None:
     """One probe of `model` (ProbedModel, ProbedResponse) on the FMU's state now, its held
-    inputs those of `links`; `at`: (t0, h, the run's Real buffer). Raises StepFailure."""
+    inputs those of `links`; `at`: (t0, h, the run's Real buffer); `room`: Target.probe's.
+    Raises StepFailure."""
     t0, h, real = at
     Target(running, model, model.inputs, model.outputs,
            np.array([real_slots[l.source] for l in links], dtype=np.intp), steps
-           ).probe(0, t0, h, real)
+           ).probe(0, t0, h, real, room)
 
 
 def used_outputs(graph) -> set[str]:
