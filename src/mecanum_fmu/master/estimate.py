@@ -140,8 +140,7 @@ def _adaptive_estimate(results: Results, exp) -> dict:
     rtol = DEFAULT_RELATIVE_TOLERANCE if exp.relative_tolerance is None \
         else exp.relative_tolerance
     estimate = results.extra["error_estimate"]
-    advice = (held_at_end_advice(results.extra["held_at_end"])
-              if results.extra.get("held_at_end") else []) + \
+    advice = held_at_end_advice(results.extra.get("held_at_end", {})) + \
         hidden_advice(results.extra.get("hidden_state", ())) + \
         _over_tolerance(results, estimate, tol, rtol)
     return {"error_estimate": estimate, "error_estimate_method": ADAPTIVE_METHOD,

@@ -86,14 +86,10 @@ def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0:
     for inst in graph.instances:
         if inst.name not in maybe and inst.name not in claims and inst.name not in free:
             continue
-        links = _linked_reals(graph, inst, real_slots)
-        if not links:
+        response = _response_at_start(graph, inst, by_name, real_slots, (t0, h, real))
+        if response is None:
             continue
-        # (it may hold a state, undeclared or said: stepped twice, probed_response's steps)
-        response = probed_response([l.target.ref.variable for l in links], inst)
-        _probe_now(by_name[inst.name], response, links, real_slots, (t0, h, real),
-                   response.steps)
-        calls += response.steps * (1 + len(links))
+        calls += response.steps * (1 + len(response.inputs))
         if inst.name in maybe and response.failed is None:
             found.add(inst.name)
         if inst.name in free and response.trace.any():
@@ -107,16 +103,23 @@ def hidden_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0
     """The FMUs of declared_free() whose probe from t0 (step h; 2 (1 + inputs) doStep calls)
     finds a state: an output keeps a trace of an input's move a step later. Raises
     stepping.StepFailure."""
-    by_name, found, free = {r.name: r for r in running}, set(), declared_free(graph)
-    for inst in graph.instances:
-        links = _linked_reals(graph, inst, real_slots) if inst.name in free else []
-        if links:
-            response = probed_response([l.target.ref.variable for l in links], inst)
-            _probe_now(by_name[inst.name], response, links, real_slots, (t0, h, real),
-                       response.steps)
-            if response.trace.any():
-                found.add(inst.name)
-    return frozenset(found)
+    by_name, free = {r.name: r for r in running}, declared_free(graph)
+    responses = (_response_at_start(graph, inst, by_name, real_slots, (t0, h, real))
+                 for inst in graph.instances if inst.name in free)
+    return frozenset(r.name for r in responses if r is not None and r.trace.any())
+
+
+def _response_at_start(graph, inst, by_name: dict, real_slots: dict, at: tuple
+                       ) -> ProbedResponse | None:
+    """`inst`'s ProbedResponse on its linked Real inputs, probed now (`at`: t0, h, the run's
+    Real buffer; stepped twice, probed_response's steps: a state keeps a trace), or None
+    where it has none linked. Raises StepFailure."""
+    links = _linked_reals(graph, inst, real_slots)
+    if not links:
+        return None
+    response = probed_response([l.target.ref.variable for l in links], inst)
+    _probe_now(by_name[inst.name], response, links, real_slots, at, response.steps)
+    return response
 
 
 def hidden_advice(names) -> list[str]:

@@ -38,7 +38,7 @@ import numpy as np
 from .pair_stencils import with_branch
 from .plan import has_state
 from .probe_fit import (ORDER2_STEPS, PROBE_STEPS, Higher, carried, first_order, fitted,
-                        lazy, modal_linear, modal_outputs)
+                        lazy, modal_linear, modal_outputs, within_step)
 from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
@@ -244,7 +244,7 @@ def _modal(modes: tuple, scale: float, error: np.ndarray, change: np.ndarray,
     the model has had one pole so far). Returns the shares after the last step."""
     z, c, m = modes
     s = s.astype(complex) if s.shape == z.shape else np.zeros_like(z)
-    within = np.where(z != 0, c / np.where(z != 0, z, 1.0), 0.0) * scale
+    within = within_step(z, c) * scale
     for i, o, j in np.ndindex(z.shape):
         if c[i, o, j] == 0:
             continue
@@ -298,10 +298,11 @@ class Prober:
         for target in self.targets:
             if target.model.failed is None:
                 before = target.model.found[-1] if target.model.found else None
-                if k + target.steps > self.last + PROBE_STEPS:
+                room = self.last + PROBE_STEPS - k     # the steps after t_k
+                if target.steps > room:
                     continue        # (a probe of two poles' steps would run past the end)
                 calls = target.calls
-                target.probe(k, t, h, self.real, self.last + PROBE_STEPS - k)
+                target.probe(k, t, h, self.real, room)
                 self.calls += target.calls - calls
                 now = target.model.found[-1] if target.model.found else None
                 same = same and before is not None and now is not before and _agree(now, before)
@@ -424,8 +425,8 @@ class Target:
         or a response's Jacobian (one step: its outputs' change over each input's move);
         `after` (outputs, inputs): a model's outputs' change over each input's move set
         after the first step (_after; None: not measured). True where the model's first
-        probe does not fit one pole (probe_fit.Higher): the model is then not marked failed,
-        and probe() may make it again with more steps (else it marks it)."""
+        probe does not fit one pole (probe_fit.Higher): probe() may make it again with more
+        steps, and clears the failure it marked."""
         if not np.isfinite(runs).all():
             self.model.failed = (f"{self.r.name}'s outputs were not finite numbers in the "
                                  f"probe at t = {k * h:g} s")
@@ -456,12 +457,11 @@ class Target:
             self.model.found = [found]        # only the last is used
             return
         fit = fitted(g, floor.max(axis=0), self.model.direct)
-        if isinstance(fit, Higher) and not self.model.found and self.steps < ORDER2_STEPS:
-            self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
-            return True
         if isinstance(fit, str):
             self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
-        elif self.model.found and (lost := _lost(self.model.found[-1][3], fit[1])):
+            return isinstance(fit, Higher) and not self.model.found and \
+                self.steps < ORDER2_STEPS
+        if self.model.found and (lost := _lost(self.model.found[-1][3], fit[1])):
             self.model.failed = (
                 f"{self.r.name}'s response of output {lost[0]} to input {lost[1]}, measured "
                 f"at t = {self.model.found[-1][0] * h:g} s, fell below the output's round-off "
@@ -475,8 +475,8 @@ class Target:
     def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None,
                after: tuple | None = None) -> np.ndarray:
         """The covered outputs after each of its steps (self.steps: PROBE_STEPS, or
-        ORDER2_STEPS; a response's: 1),
-        inputs `first` (default u) over the first and u over the others; with `after` (a
+        ORDER2_STEPS; a response's: 1 or 2), inputs `first` (default u) over the first and
+        u over the others; with `after` (a
         model's (outputs x inputs array, eps)), each input's move set after the first step
         and its outputs' change read into it (_after)."""
         out = np.empty((self.steps, len(self.y)))

@@ -135,7 +135,7 @@ def _modes(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None) -> tuple
         if isinstance(fit, str):
             return f"(output {o}, input {j}) {fit}"
         z[:, o, j], c[:, o, j] = fit
-    state = np.where(z != 0, c / np.where(z != 0, z, 1.0), 0.0).sum(axis=0).real
+    state = within_step(z, c).sum(axis=0).real
     g0 = g[0]
     if direct is not None and direct.any():
         d_part = np.where(direct, g0 - state, 0.0)
@@ -143,6 +143,11 @@ def _modes(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None) -> tuple
     else:
         d_part = np.zeros_like(g0)
     return g0, g[1], np.abs(z).max(axis=0), np.zeros_like(g0), d_part, (z, c, moment(z))
+
+
+def within_step(z: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Each mode's response within the step its input moved on, c / z (0 for a mode at 0)."""
+    return np.where(z != 0, c / np.where(z != 0, z, 1.0), 0.0)
 
 
 def _two_poles(g: np.ndarray, tol: float) -> tuple | str:
@@ -200,7 +205,7 @@ def modal_linear(modes: tuple, scale: float, error: np.ndarray, change: np.ndarr
     z, c, m = (v.ravel() for v in modes)
     inputs = np.broadcast_to(np.arange(modes[0].shape[2]), modes[0].shape).ravel()
     turn = z if scale == 1.0 else z ** scale
-    within = np.where(z != 0, c / np.where(z != 0, z, 1.0), 0.0) * scale
+    within = within_step(z, c) * scale
     k, steps = len(z), len(error)
     a = np.zeros((2 * k, 2 * k))
     a[:k, :k] = a[k:, k:] = np.diag(turn.real)

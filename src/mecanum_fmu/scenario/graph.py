@@ -264,7 +264,7 @@ def _runnable(graph: Graph) -> Graph:
     FMUs that cannot save their state, or that sample): compiling and a changed experiment
     (with_scenario) refuse alike."""
     refused = _adaptive_problems(graph.scenario, list(graph.instances)) or \
-        adaptive_samples(graph, tolerance=graph.scenario.experiment.tolerance)
+        adaptive_samples(graph)
     if refused:
         raise ScenarioError(refused)
     return graph
@@ -277,8 +277,11 @@ def adaptive_samples(graph: Graph, master_name: str | None = None,
     the smallest step, at the first sample (the fixed-step masters hold samples exactly:
     docs/masters.md, "Samples"). Checked at compile time and again by master.simulate (an
     experiment changed after it: `master_name`, the master it runs under, `tolerance` its
-    tolerance)."""
-    how = master_entry(master_name or graph.scenario.experiment.master)
+    tolerance; without them, the graph's own)."""
+    if master_name is None:
+        master_name, tolerance = (graph.scenario.experiment.master,
+                                  graph.scenario.experiment.tolerance)
+    how = master_entry(master_name)
     if not how.adaptive or not graph.sampled:
         return []
     place, undo = chosen_by(tolerance)
