@@ -218,3 +218,37 @@ outputs: [it.x, it.a]
         assert_estimated(summary, output, np.abs(results[output] - want))
     said = " ".join(summary.get("error_estimate_advice", []))
     assert ("'it' works out its a in its doStep alone" in said) == bool(lazy), said
+
+
+def _oscillator(folder, fmus, master_name: str, h: float, stop: float):
+    """cos t into a Van der Pol oscillator (xtest_spring with mu 1, c 0, k 1) from rest."""
+    return write_scenario(folder, "oscillator", f"""\
+name: oscillator
+experiment: {{start_time: 0.0, stop_time: {stop}, step_size: {h}, master: {master_name}}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  osc: {{fmu: {fmus["xtest_spring"]}, parameters: {{mu: 1.0, c: 0.0, k: 1.0}}}}
+connections:
+  - [wave.u, osc.u]
+outputs: [osc.x, osc.v]
+""")
+
+
+@pytest.mark.parametrize("master_name, stop", [("gauss-seidel", 6.0), ("trapezoidal", 0.75)])
+def test_two_poles_that_change_along_the_run_hand_over_to_richardson(tmp_path, fmus,
+                                                                     master_name, stop):
+    # a Van der Pol oscillator's poles change as it goes round (its damping changes sign):
+    # the modes' shares of one probe, carried on with another's poles, read 5x to 11x its
+    # error at 0.025 s; and a run of 30 steps had one probe alone (the next past the end:
+    # from x = 2 at 0.2 s, 0.07x to 0.47x). Now a second probe is made near the end where
+    # the first would be alone, and probes of two poles that disagree hand over
+    graph = runner.prepare(_oscillator(tmp_path, fmus, master_name, 0.025, stop))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    method = summary["error_estimate_method"]
+    assert method.startswith("Richardson") and "osc's response" in method, method
+    truth = solve_ivp(lambda s, y: [y[1], (1 - y[0] ** 2) * y[1] - y[0] + np.cos(s)],
+                      (0.0, stop), [0.0, 0.0], t_eval=results.time, rtol=1e-12, atol=1e-14,
+                      method="DOP853").y
+    for output, row in zip(("osc.x", "osc.v"), truth):
+        assert_estimated(summary, output, np.abs(results[output] - row), 1.5)
