@@ -70,7 +70,8 @@ test_fmus.__test__ = False   # not a test, despite the name
 
 def state_fmus(dest: Path) -> dict[str, Path]:
     """script stem -> FMU built into `dest` from tests/fmu_sources/with_state (third-party
-    style FMUs that can save their state: a wave source, a lag, two integrators, a drag),
+    style FMUs that can save their state: a wave source, a lag, two integrators, a drag, a
+    spring, a bouncing ball),
     the outputs of those with an input declared free of it (dependencies="", as a C
     exporter would declare a state), the P controller's declared to read its inputs
     directly (an FMU whose dependencies are not declared may hold a state: plan.has_state):

@@ -14,11 +14,14 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   more (first) with each held input's mean corrected by the hold's signed next term (the
   cubic's 19/720 h^4 u4, the first two steps' trapezoids, a jump's own step), every FMU rolled
   back (fmi2SetFMUstate), then with the hold itself; the difference of the recorded outputs
-  is the step's error, the FMUs' own dynamics included. An FMU whose held inputs an error
-  model of Graph.error_models takes (the PoseIntegrator's, models/pose_error.py) is left to
-  it: the model computes the same from the step's values, without the extra pass, and adds
-  what the pair cannot see (the frame turning within the step). No pass is added when every
-  held input has a model;
+  is the step's error, the FMUs' own dynamics included. Where a kink sits among a held
+  input's values (KINK: a third-party FMU's, which no breakpoint announces) the step is
+  taken once more whole without the hold's estimated error, and the outputs' difference is
+  added to the step's; the whole-step trajectory holds that error times its divisor, so that
+  its estimate carries it. An FMU whose held inputs an error model of Graph.error_models
+  takes (the PoseIntegrator's, models/pose_error.py) is left to it: the model computes the
+  same from the step's values, without the extra pass, and adds what the pair cannot see
+  (the frame turning within the step). No pass is added when every held input has a model;
 - the error is weighed per output as ODE solvers do: e_i / (atol + rtol |y_i|), the largest
   over the outputs (the max norm); atol is the tolerance, rtol the relative one;
 - the signed sum of the accepted steps' errors must stay under the line
@@ -58,6 +61,14 @@ from .pair_rough import ADAPTIVE_ROUGH, rough_columns
 from .step_control import Bracket, Controller, NoProgress, Stops, first_step, smallest_step
 
 _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))   # two-point Gauss, on [0, 1]
+# a kink among a held input's values (_VarBlend._kinked): its third difference JUMP times the
+# one before or more (a smooth input's change by O(h) of themselves; a bouncing ball's height,
+# a parabola between its bounces, by orders of magnitude), and its held mean's estimated error
+# KINK of its change over this step and the one before or more (the ball's 4e-3 to 1.2e-2; a
+# smooth input's cubic errs by about 0.013 h^3 u4 / u' of it): the hold's polynomial may be
+# far from the input, and the step is taken once more without that error (_Loop._attempt)
+KINK = 1e-3
+JUMP = 8.0
 
 
 def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -82,6 +93,11 @@ class AdaptiveHolds(Holds):
         self.clients: list = []     # the error models handed a blend
         self.paired: list["_VarBlend"] = []   # the blends no model takes: the embedded pair's
         self.half = None        # the pair's half steps: which half is being taken (0, 1)
+        # the share of each held mean's estimated error (_VarBlend.next) added to it: -1 in
+        # the pass that takes the step without it (_Loop._attempt), the divisor in the
+        # whole-step trajectory's (trajectory.py: its difference over the divisor then
+        # carries that error through the dynamics), else 0
+        self.kinks = 0.0
         self.since = None       # committed steps since the last breakpoint (None: none yet)
         # the next step ends on a jump (it started JUMP before it): until a step lands on a
         # stop (at_breakpoint), a rejected jump step cut in pieces ends on it in the last
@@ -105,6 +121,11 @@ class AdaptiveHolds(Holds):
         theirs. 3 (the holds are second order); 1 where some FMU's inputs are held at their
         end values (held_at_end: first order)."""
         return 1.0 if self.held_at_end else 3.0
+
+    def kinked(self) -> bool:
+        """Whether a held mean of the pair's blends may err by KINK of its step's change or
+        more (_VarBlend.next: a kink among its values)."""
+        return any(b.next.any() for b in self.paired)
 
     def at_breakpoint(self, before_jump: bool) -> None:
         self.since, self.jump_next = 0, before_jump
@@ -157,6 +178,10 @@ class _VarBlend:
         # the held polynomial's terms beyond the line through u_k, u_k+1 (fill): a s (s - h)
         # (the limited parabola's or the cubic's) and b s (s - h) (s + g) (the cubic's)
         self.a, self.b = np.zeros(m), np.zeros(m)
+        # the held mean's signed error (held - true) where it may be large against the
+        # step's change (KINK): the cubic's next term, or what the limited parabola dropped
+        # of the full one's correction; _Loop._attempt takes the step once more without it
+        self.next = np.zeros(m)
         self.shift = None   # added to the values now (the whole-step trajectory's, trajectory.py)
         self.owner = ""     # the FMU whose inputs these are
         # per input: sum h^4 |u4| (its fourth derivative), sum |the step's change|, the
@@ -188,7 +213,7 @@ class _VarBlend:
         mean = 0.5 * (now + u)
         # the held polynomial, u + (now - u) s/h + a s (s - h) + b s (s - h) (s + g) on the
         # step's s in [0, h]: its mean is the trapezoid minus a h^2/6 + b h^2 (h + 2 g)/12
-        self.a[:], self.b[:] = 0.0, 0.0
+        self.a[:], self.b[:], self.next[:] = 0.0, 0.0, 0.0
         if hs.history >= 2:
             # the parabola's correction to the trapezoid, its second difference limited
             second = self._second()
@@ -202,7 +227,9 @@ class _VarBlend:
                 correction = np.where(smooth, cubic, correction)
                 self.a[:] = np.where(smooth, second / 2, self.a)
                 self.b[:] = np.where(smooth, third / 6, 0.0)
-            mean = mean - correction
+                if hs.check:    # (the bundled FMUs announce their kinks: breakpoints)
+                    self._kinked(second - limited, third, smooth)
+            mean = mean - correction + hs.kinks * self.next
         if hs.mode == hs.PREDICT:
             # no slope from before a breakpoint: across a jump's own step (1e-7 s) it is the
             # jump over that step, and a loop's predictor fed it on (the recorded path's
@@ -213,6 +240,18 @@ class _VarBlend:
                                                 np.where(self.end, now, mean)))
         else:
             self.staging[:] = np.where(self.fed | self.end, now, mean)
+
+    def _kinked(self, dropped: np.ndarray, third: np.ndarray, smooth: np.ndarray) -> None:
+        """self.next: per input, the held mean's signed error where a kink sits among its
+        values: its third difference JUMP x the one before or more, and that error KINK of
+        the change over this step and the last or more; 0 elsewhere. The error: the cubic's
+        next term, 19/720 h^4 u4, or what the limited parabola dropped of the full one's
+        correction to the trapezoid (`dropped`: the second differences' difference)."""
+        hs, (now, u, u1, _) = self.holds, self.rows
+        error = np.where(smooth, self._cubic_next(third), dropped * hs.h * hs.h / 12)
+        kinked = (np.abs(third) >= JUMP * np.abs(self.third_before)) & (
+            np.abs(error) > KINK * (np.abs(now - u) + np.abs(u - u1)))
+        self.next[:] = np.where(kinked, error, 0.0)
 
     @property
     def exact(self) -> bool:
@@ -259,7 +298,6 @@ class _VarBlend:
         trapezoids' for the estimate; elsewhere (the limited parabola where a kink or a jump
         sits among the last four values, or u3 crosses zero) nothing."""
         hs = self.holds
-        h, f = hs.h, hs.f
         self.third[:] = self._third()
         if hs.jump_next:       # held - true = (new - old) / 2 on the mean: the jump's own
             now, u, _, _ = self.rows   # step, for both (a huge jump gets a shorter step)
@@ -267,9 +305,14 @@ class _VarBlend:
         if hs.history < 3:     # no history yet: the step is kept short instead (first_step)
             return np.zeros_like(self.third), self._start_up()
         smooth = self.third * self.third_before > 0
-        fourth = 2 * (self.third - self.third_before) / (h + f)
-        signed = np.where(smooth, 19 / 720 * h ** 4 * fourth, 0.0)
+        signed = np.where(smooth, self._cubic_next(self.third), 0.0)
         return signed, signed
+
+    def _cubic_next(self, third: np.ndarray) -> np.ndarray:
+        """The cubic's next term, 19/720 h^4 u4, u4 from this step's third difference and the
+        one before."""
+        h = self.holds.h
+        return 19 / 720 * h ** 4 * (2 * (third - self.third_before) / (h + self.holds.f))
 
     def _start_up(self) -> np.ndarray:
         """The signed error of the first two steps' held means, told at the second step (the
@@ -303,8 +346,8 @@ class OutputErrors:
         self.real = recorder.buffers.real
         # per error model, the slots of its recorded outputs: their size for rtol
         self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
-        self.whole, self.step, self.sum, self.scaled, self.weighted = (
-            np.zeros(len(self.slots)) for _ in range(5))
+        self.whole, self.step, self.sum, self.scaled, self.weighted, self.loose = (
+            np.zeros(len(self.slots)) for _ in range(6))
         self.positions = slot_positions(self.slots)
         self.carried = None     # a WholeSteps: the accumulated error the dynamics carried
         self.divisor = divisor  # (whole - halves) / it: AdaptiveHolds.richardson
@@ -323,9 +366,16 @@ class OutputErrors:
     def keep_whole(self) -> None:
         np.take(self.real, self.slots, out=self.whole)
 
+    def keep_loose(self) -> None:
+        """The step taken whole with the limited parabolas' dropped parts kept: the outputs'
+        difference from the whole step is the hold's error where an input is not smooth."""
+        np.subtract(self.whole, self.real[self.slots], out=self.loose)
+
     def measure(self) -> None:
         np.subtract(self.whole, self.real[self.slots], out=self.step)
         self.step /= self.divisor
+        self.step += self.loose
+        self.loose[:] = 0.0
 
     def ratios(self, atol: float, rtol: float) -> tuple[float, float, float]:
         """(this step's own error, the accumulated error with it, without it), each in the
@@ -541,6 +591,12 @@ class _Loop:
         self._pass(t, h)
         if holds.paired:
             self.errors.keep_whole()
+            if holds.kinked():
+                self._restore(t, self.predicted)
+                holds.kinks = -1.0
+                self._pass(t, h)
+                holds.kinks = 0.0
+                self.errors.keep_loose()
             self._restore(t, self.predicted)
             for half in (0, 1):
                 holds.half = half

@@ -56,7 +56,9 @@ class WholeSteps:
         values = (self.real.copy(), self.ints.copy())
         restore_states(self.running, t, self.states)
         fine = self._swap_in()
+        self._kinks(self.divisor)
         one_pass(self.program, t, h)
+        self._kinks(0.0)
         np.subtract(self.real[self.slots], values[0][self.slots], out=self.difference)
         self._swap_out(fine)
         if self.states is not None:
@@ -86,6 +88,13 @@ class WholeSteps:
     def signed(self, slots) -> np.ndarray:
         """The kept run's signed error at the given buffer slots now (0 where it has none)."""
         return values_at(self.positions, self.now(), slots)
+
+    def _kinks(self, share: float) -> None:
+        """Its held means take `share` x their estimated error where it is large against the
+        step's change (adaptive._VarBlend.next: a kink among an input's values), so that
+        the difference over the divisor carries the kept run's error there too."""
+        for b in self.blends:
+            b.holds.kinks = share
 
     def _swap_in(self) -> list:
         """The blends take this trajectory's history; the later sources' values are shifted
