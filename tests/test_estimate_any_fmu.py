@@ -712,13 +712,14 @@ outputs: [wave.u, it.x]
 
 def test_rows_that_cross_a_staircases_jumps_leave_the_adaptive_estimate_unresolved(
         tmp_path, fmus, monkeypatch):
-    """With the jumps not searched (as at a loose tolerance, where no rejection goes 1000x
-    down), the steps cross the staircase's jumps and its rows blend them: the rows' own
+    """With the jumps and kinks not searched (as at a loose tolerance, where no rejection goes
+    1000x down), the steps cross the staircase's jumps and its rows blend them: the rows' own
     points sum fourth differences far over their changes, and the estimate says the
     tolerance is not controlled, where it gave a number against rows off by more than
     the tolerance. A smooth source into the same lag keeps its numbers."""
     from mecanum_fmu.master import adaptive, dense, step_control
     monkeypatch.setattr(step_control.Bracket, "SHRINK", math.inf)
+    monkeypatch.setattr(adaptive, "KINK", math.inf)     # (a stair is a kink among the holds')
     monkeypatch.setattr(adaptive, "ADAPTIVE_ROUGH", math.inf)     # the held inputs' tally
     graph = _wave_lag(tmp_path, fmus, 0.2)
     results = master.simulate(graph, graph.scenario.experiment)
