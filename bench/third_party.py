@@ -2,7 +2,7 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Ten graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Twelve graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
 x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
@@ -16,7 +16,10 @@ master/memory.py); and "lazy", the lag with y = x + u worked out in its doStep a
 does not follow u set after the step: probe.lazy); and "spring", cos t into a mass on a
 spring with a damper, x'' + 0.4 x' + 4 x = u, its x and v (a response of second order: two
 poles, master/probe_fit.py), and "spring_loop", the spring under the P controller (its error
-carried around the loop by the modes' shares). The truths of the linear ones: their ODEs by
+carried around the loop by the modes' shares); and "vdp", the spring as a Van der Pol
+oscillator (mu 1, c 0, k 1: its two poles change along the run, and the pair hands over to
+Richardson), and "ball", a bouncing ball's height into the lag (a kink at each bounce,
+inside a step; the truth: the graph at 1/64 of the step). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
 for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
 the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
@@ -103,6 +106,16 @@ GRAPHS["bare_loop"] = (GRAPHS["loop"][0].replace("{xtest_gain}", "{xtest_gain_ba
                        GRAPHS["loop"][1])
 GRAPHS["lazy"] = (GRAPHS["through"][0].replace("k: 2.0}", "k: 2.0, lazy: 1}"),
                   GRAPHS["through"][1])
+GRAPHS["vdp"] = ("""\
+  wave: {{fmu: {xtest_wave}}}
+  it: {{fmu: {xtest_spring}, parameters: {{mu: 1.0, c: 0.0, k: 1.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x, it.v]""", lambda t, y: [y[1], (1 - y[0] ** 2) * y[1] - y[0] + np.cos(t)])
+GRAPHS["ball"] = ("""\
+  ball: {{fmu: {xtest_ball}}}
+  it: {{fmu: {xtest_lag}, parameters: {{k: 2.0}}}}
+connections: [[ball.h, it.u]]
+outputs: [it.x]""", None)
 
 
 def scenario(folder: Path, fmus: dict, name: str) -> Path:
@@ -117,8 +130,8 @@ components:
 
 
 def true_errors(name: str, graph, results, outputs: list[str]) -> dict:
-    """Per recorded output |run - truth|: the ODEs' solution, or (the drag) the same graph
-    at 1/REFINE of the step."""
+    """Per recorded output |run - truth|: the ODEs' solution, or (the drag, the ball) the
+    same graph at 1/REFINE of the step."""
     rates = GRAPHS[name][1]
     if rates is None:       # (the adaptive master's reference: the quadratic one's)
         exp = graph.scenario.experiment

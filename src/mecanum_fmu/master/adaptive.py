@@ -123,8 +123,8 @@ class AdaptiveHolds(Holds):
         return 1.0 if self.held_at_end else 3.0
 
     def kinked(self) -> bool:
-        """Whether a held mean of the pair's blends may err by KINK of its step's change or
-        more (_VarBlend.next: a kink among its values)."""
+        """Whether a kink sits among the values of one of the pair's blends this step
+        (_VarBlend._kinked)."""
         return any(b.next.any() for b in self.paired)
 
     def at_breakpoint(self, before_jump: bool) -> None:
@@ -178,9 +178,8 @@ class _VarBlend:
         # the held polynomial's terms beyond the line through u_k, u_k+1 (fill): a s (s - h)
         # (the limited parabola's or the cubic's) and b s (s - h) (s + g) (the cubic's)
         self.a, self.b = np.zeros(m), np.zeros(m)
-        # the held mean's signed error (held - true) where it may be large against the
-        # step's change (KINK): the cubic's next term, or what the limited parabola dropped
-        # of the full one's correction; _Loop._attempt takes the step once more without it
+        # the held mean's signed error (held - true) where a kink sits among its values
+        # (_kinked: against a V), else 0; _Loop._attempt takes the step once more without it
         self.next = np.zeros(m)
         self.shift = None   # added to the values now (the whole-step trajectory's, trajectory.py)
         self.owner = ""     # the FMU whose inputs these are
@@ -373,8 +372,8 @@ class OutputErrors:
         np.take(self.real, self.slots, out=self.whole)
 
     def keep_loose(self) -> None:
-        """The step taken whole with the limited parabolas' dropped parts kept: the outputs'
-        difference from the whole step is the hold's error where an input is not smooth."""
+        """The step taken whole without the held means' errors at a kink (_VarBlend.next):
+        the outputs' difference from the whole step is what those errors make of them."""
         np.subtract(self.whole, self.real[self.slots], out=self.loose)
 
     def measure(self) -> None:
