@@ -300,8 +300,9 @@ class _VarBlend:
         agree in sign), its next term 19/720 h^4 u4 (uniform steps' form: the cubic through
         four points, its mean over the last interval; u4 the change of the third difference)
         for both; on the first steps none for the controller (they are short) and the
-        trapezoids' for the estimate; elsewhere (the limited parabola where a kink or a jump
-        sits among the last four values, or u3 crosses zero) nothing."""
+        trapezoids' for the estimate; where a kink no breakpoint announces sits among them,
+        its error against a V (_kinked); elsewhere (the limited parabola where a kink or a
+        jump sits among the last four values, or u3 crosses zero) nothing."""
         hs = self.holds
         self.third[:] = self._third()
         if hs.jump_next:       # held - true = (new - old) / 2 on the mean: the jump's own
@@ -311,6 +312,7 @@ class _VarBlend:
             return np.zeros_like(self.third), self._start_up()
         smooth = self.third * self.third_before > 0
         signed = np.where(smooth, self._cubic_next(self.third), 0.0)
+        signed = np.where(self.next != 0.0, self.next, signed)     # a kink's (_kinked)
         return signed, signed
 
     def _cubic_next(self, third: np.ndarray) -> np.ndarray:
