@@ -228,7 +228,9 @@ class _VarBlend:
                 self.b[:] = np.where(smooth, third / 6, 0.0)
                 if hs.check:    # (the bundled FMUs announce their kinks: breakpoints)
                     self._kinked(second - limited, third, smooth, correction)
-            mean = mean - correction + hs.kinks * self.next
+            mean = mean - correction
+            if hs.kinks:        # (the kink passes alone: adaptive._Loop, trajectory.py)
+                mean = mean + hs.kinks * self.next
         if hs.mode == hs.PREDICT:
             # no slope from before a breakpoint: across a jump's own step (1e-7 s) it is the
             # jump over that step, and a loop's predictor fed it on (the recorded path's
@@ -312,7 +314,8 @@ class _VarBlend:
             return np.zeros_like(self.third), self._start_up()
         smooth = self.third * self.third_before > 0
         signed = np.where(smooth, self._cubic_next(self.third), 0.0)
-        signed = np.where(self.next != 0.0, self.next, signed)     # a kink's (_kinked)
+        if hs.check:    # a kink's (_kinked: searched on such graphs alone)
+            signed = np.where(self.next != 0.0, self.next, signed)
         return signed, signed
 
     def _cubic_next(self, third: np.ndarray) -> np.ndarray:
