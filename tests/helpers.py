@@ -68,17 +68,19 @@ def test_fmus(tmp_path_factory) -> dict[str, Path]:
 test_fmus.__test__ = False   # not a test, despite the name
 
 
-def state_fmus(dest: Path) -> dict[str, Path]:
+def state_fmus(dest: Path, only: tuple[str, ...] = ()) -> dict[str, Path]:
     """script stem -> FMU built into `dest` from tests/fmu_sources/with_state (third-party
     style FMUs that can save their state: a wave source, a lag, two integrators, a drag, a
     spring, a bouncing ball),
     the outputs of those with an input declared free of it (dependencies="", as a C
     exporter would declare a state), the P controller's declared to read its inputs
     directly (an FMU whose dependencies are not declared may hold a state: plan.has_state):
-    tests/test_estimate_any_fmu.py, bench/third_party.py."""
+    tests/test_estimate_any_fmu.py, bench/third_party.py. `only`: those stems alone."""
     from pythonfmu import FmuBuilder
     built = {}
     for script in sorted((FMU_SOURCES / "with_state").glob("xtest_*.py")):
+        if only and script.stem not in only:
+            continue
         built[script.stem] = Path(FmuBuilder.build_FMU(script, dest=dest,
                                                        canGetAndSetFMUstate=True))
         if script.stem != "xtest_wave":     # the P controller: u reads r and y directly
