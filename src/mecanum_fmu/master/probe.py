@@ -37,8 +37,8 @@ import numpy as np
 
 from .pair_stencils import with_branch
 from .plan import has_state
-from .probe_fit import (ORDER2_STEPS, PROBE_STEPS, SUBSTEPS, Higher, carried, fast_logs,
-                        first_order, fitted, lazy, modal_linear, modal_outputs, moment_of_log,
+from .probe_fit import (ORDER2_STEPS, PROBE_STEPS, SUBSTEPS, Higher, carried, fast_moments,
+                        fast_part, first_order, fitted, lazy, modal_linear, modal_outputs,
                         within_step)
 from .stepping import StepFailure, restore_states
 
@@ -147,12 +147,13 @@ class ProbedModel:
                            len(h) * s.size)
                 continue
             decay = np.where(r > 0, np.abs(r) ** scale, r)
-            d = error[part][:, None, :] - m[None] * change[part][:, None, :]   # (steps, o, j)
+            d, w = (error[part][:, None, :] - mi[None] * change[part][:, None, :]
+                    for mi in m)     # (steps, o, j): carried on, within the step
             x = (g1 * scale)[None] * d
             for o, j in np.ndindex(s.shape):
                 shares = carried(float(decay[o, j]), float(s[o, j]), x[:, o, j],
                                  len(h) * s.size)
-                out[part, o] += shares[:-1] + g0[o, j] * scale * d[:, o, j]
+                out[part, o] += shares[:-1] + g0[o, j] * scale * w[:, o, j]
                 s[o, j] = shares[-1]
         return out, s
 
@@ -209,7 +210,7 @@ class ProbedModel:
             a[part] = np.diag(np.where(rate > 0, np.abs(rate) ** scale, rate))
             b[part] = g0 * scale
             made[part] = np.einsum("oj,koj->ko", g0 * scale, error[part][:, None, :]
-                                   - m[None] * change[part][:, None, :])
+                                   - m[1][None] * change[part][:, None, :])
         self.k += n - branch
         self._forget()
         return a, b, made
@@ -452,22 +453,22 @@ class Target:
             self.probe(k, t, h, real)
 
     def _fast(self, k: int) -> np.ndarray:
-        """(outputs, inputs): where this step's probe found a response of first order whose
-        pole decays below round-off within the step (g0 moved, g1 did not: r 0, and its
-        moment 0 where it is nearly 1/2), an input not declared to reach the output directly.
-        A lag x' = -100 x + u at 0.2 s: its estimate read 0.02x of its error under the
-        quadratic master, 10x under Gauss-Seidel."""
+        """(outputs, inputs): the part of this step's first-order probe's g0 that its pole
+        does not carry on (probe_fit.fast_part: a faster mode's, whose moment that pole's
+        is not); zeros where there is none. A lag x' = -100 x + u at 0.2 s, g1 e^-20 g0,
+        below round-off: r read 0 and its moment 0 where it is 0.45, and the estimate read
+        0.04x its error under the quadratic master, 10x under Gauss-Seidel."""
         found = self.model.found[-1] if isinstance(self.model, ProbedModel) and \
             self.model.found else None
         if found is None or found[0] != k or len(found) > 7:
-            return np.zeros(0, dtype=bool)
-        return (found[2] != 0.0) & (found[4] == 0.0) & ~self.model.direct
+            return np.zeros(0)
+        return fast_part(found[2], found[3], found[4], self.model.direct)
 
     def _faster(self, fast: np.ndarray, t: float, h: float, u: np.ndarray, eps: np.ndarray,
                 state) -> None:
-        """The poles `fast` marks, measured over two steps of h / SUBSTEPS from the saved
-        `state` (probe_fit.fast_logs): the probe's r and m there replaced by theirs. A call
-        refused marks the model failed (Error or worse fails the run), as probe() does."""
+        """The probe's within-step moments where it has a `fast` part, from two steps of h /
+        SUBSTEPS from the saved `state` (probe_fit.fast_moments). A call refused marks the
+        model failed (Error or worse fails the run), as probe() does."""
         steps, self.steps = self.steps, 2
         try:
             runs = [self._steps(u, t, h / SUBSTEPS)]
@@ -483,17 +484,14 @@ class Target:
             self.steps = steps
             restore_states([self.r], t, [state])
         runs = np.array(runs)
-        g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
-        logs = fast_logs(g, ((64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps).max(0))
-        if np.isnan(logs[fast]).any():
-            self.model.failed = (f"{self.r.name}'s response decays within one step, and over "
-                                 f"1/{SUBSTEPS} of it not by one ratio")
-            return
-        k, size, g0, g1, r, m, d_part = self.model.found[-1]
-        r, m = r.copy(), m.copy()
-        r[fast] = np.exp(logs[fast])
-        m[fast] = [moment_of_log(z) for z in logs[fast]]
-        self.model.found[-1] = (k, size, g0, g1, r, m, d_part)
+        sub = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
+        floor = ((64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps).max(axis=0)
+        k, size, *found = self.model.found[-1]
+        fit = fast_moments(sub, floor, tuple(found), fast)
+        if isinstance(fit, str):
+            self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
+        else:
+            self.model.found[-1] = (k, size, *fit)
 
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray,
              after: np.ndarray | None = None) -> bool:
