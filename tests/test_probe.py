@@ -28,13 +28,16 @@ def _model(found):
     return model
 
 
-def _probe(k, g0, g1, r):
+def _probe(k, g0, g1, r, within=0.0):
+    """A first-order probe; its within-step moment that of r plus `within` (a faster mode's
+    part in g0: probe_fit.fast_moments)."""
     g0, g1, r = (np.array(v, dtype=float).reshape(1, 2) for v in (g0, g1, r))
-    return (k, 0.1, g0, g1, r, moment(r), np.zeros((1, 2)))
+    return (k, 0.1, g0, g1, r, np.stack((moment(r), moment(r) + within)), np.zeros((1, 2)))
 
 
 def _convolution(found, h, error, change):
-    """y_k = g0_k d_k + sum_(i<k) g1_i d_i r_(i+1) ... r_(k-1): an error made at step i
+    """y_k = g0_k w_k + sum_(i<k) g1_i d_i r_(i+1) ... r_(k-1), w and d the hold's error less
+    the within-step and the carried moment's share of the change: an error made at step i
     (d_i, with the probe in effect there) decays by the ratio of the probe in effect at each
     later step; a sum of products, one term at a time."""
     n = len(h)
@@ -42,9 +45,8 @@ def _convolution(found, h, error, change):
     y = np.zeros(n)
     for i in range(n):
         _, size, g0, g1, r, m, _ = at(i)
-        d = error[i] - m[0] * change[i]
-        y[i] += float(np.sum(g0[0] * d))
-        gain = g1[0] * d
+        y[i] += float(np.sum(g0[0] * (error[i] - m[1][0] * change[i])))
+        gain = g1[0] * (error[i] - m[0][0] * change[i])
         for k in range(i + 1, n):
             y[k] += float(np.sum(gain))
             gain = gain * at(k)[4][0]
@@ -54,7 +56,7 @@ def _convolution(found, h, error, change):
 def test_the_model_is_the_sum_it_stands_for_in_any_batches():
     rng = np.random.default_rng(7)
     found = [_probe(0, [0.09, 0.02], [0.08, 0.03], [0.9, 1.0]),
-             _probe(20, [0.1, 0.01], [0.07, 0.01], [0.8, 0.95])]
+             _probe(20, [0.1, 0.01], [0.07, 0.01], [0.8, 0.95], within=0.3)]
     n = 50
     h = np.full(n, 0.1)
     error, change = rng.normal(size=(n, 2)), rng.normal(size=(n, 2))
