@@ -40,24 +40,23 @@ def _truth(t: np.ndarray, k: float) -> np.ndarray:
     return (k * np.cos(t) + np.sin(t) - k * np.exp(-k * t)) / (k * k + 1)
 
 
-@pytest.mark.parametrize("master_name, k, end", [
-    ("quadratic", 100.0, 1.5), ("gauss-seidel", 100.0, 6.0), ("jacobi", 100.0, 1.5),
-    ("trapezoidal", 100.0, 1.5), ("quadratic", 1e5, 1.5)])
+@pytest.mark.parametrize("master_name, k", [
+    ("quadratic", 100.0), ("gauss-seidel", 100.0), ("jacobi", 100.0), ("trapezoidal", 100.0),
+    ("quadratic", 1e5)])
 def test_a_stiff_lag_is_estimated_with_its_pole_measured_over_substeps(tmp_path, fmus,
-                                                                       master_name, k, end):
+                                                                       master_name, k):
     # k h = 20: g1 = e^-20 g0 is below round-off, and r read 0, its moment 0 where it is
     # 0.45: the estimate read 0.04x the error under the quadratic master, 10x under
     # Gauss-Seidel. At k = 1e5 the substeps see no decay either (moment 1/2). Under
-    # Gauss-Seidel the end's error is the difference of two terms of the input's slope
-    # that nearly cancel, and the moment's second term, which the pair leaves out, is a
-    # good part of it there
+    # Gauss-Seidel the error is what is left of two terms of the input's slope that nearly
+    # cancel, and the end's read 0.21x before the moment's second term (probe_fit.bend)
     graph, exp = with_experiment(runner.prepare(_lag(tmp_path, fmus, k, master_name)))
     results = master.simulate(graph, exp, with_estimate=True)
     summary = master.estimate_error(graph, results)
     assert "measured by probes" in summary["error_estimate_method"]
     error = np.abs(results["it.x"] - _truth(results.time, k))
     assert error.max() > 1e-9
-    assert_estimated(summary, "it.x", error, 1.5, end)
+    assert_estimated(summary, "it.x", error, 1.5)
 
 
 @pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])

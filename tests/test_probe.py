@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import quad
 
 from mecanum_fmu.master.probe import PROBE_EVERY, Prober, ProbedModel
-from mecanum_fmu.master.probe_fit import fitted, moment
+from mecanum_fmu.master.probe_fit import Moments, bend, fitted, moment
 
 
 @pytest.mark.parametrize("r", [0.05, 0.5, 0.9, 0.99999, 1.0, 1.3])
@@ -16,6 +16,15 @@ def test_the_moment_is_the_first_order_weight_by_quadrature(r):
     ramp = quad(lambda t: weight(t) * (t - 0.5), 0, 1)[0]
     mean = quad(weight, 0, 1)[0]
     assert moment(np.array([[r]]))[0, 0] == pytest.approx(ramp / mean, rel=1e-6, abs=1e-12)
+
+
+@pytest.mark.parametrize("r", [0.05, 0.5, 0.99999, 1.0, 1.3, np.exp(-20.0)])
+def test_the_bend_is_the_first_order_weight_of_the_parabola_by_quadrature(r):
+    z = np.log(r)
+    weight = lambda t: np.exp(z * (1 - t))        # noqa: E731
+    square = quad(lambda t: weight(t) * ((t - 0.5) ** 2 - 1 / 12), 0, 1, points=[1.0])[0]
+    mean = quad(weight, 0, 1, points=[1.0])[0]
+    assert bend(np.array([[r]]))[0, 0] == pytest.approx(square / mean, rel=1e-6, abs=1e-12)
 
 
 def test_a_ratio_that_is_not_positive_has_no_moment():
@@ -29,15 +38,18 @@ def _model(found):
 
 
 def _probe(k, g0, g1, r, within=0.0):
-    """A first-order probe; its within-step moment that of r plus `within` (a faster mode's
-    part in g0: probe_fit.fast_moments)."""
+    """A first-order probe; `within` of its g0 a faster mode's part, gone within the step,
+    its moment that of r plus 0.4 (probe_fit.fast_moments)."""
     g0, g1, r = (np.array(v, dtype=float).reshape(1, 2) for v in (g0, g1, r))
-    return (k, 0.1, g0, g1, r, np.stack((moment(r), moment(r) + within)), np.zeros((1, 2)))
+    fast = np.full((1, 2), within)
+    return (k, 0.1, g0, g1, r, Moments(moment(r), bend(r), fast, moment(r) + 0.4,
+                                       np.full((1, 2), 0.15)), np.zeros((1, 2)))
 
 
-def _convolution(found, h, error, change):
-    """y_k = g0_k w_k + sum_(i<k) g1_i d_i r_(i+1) ... r_(k-1), w and d the hold's error less
-    the within-step and the carried moment's share of the change: an error made at step i
+def _convolution(found, h, error, change, bent):
+    """y_k = (g0_k - f_k) d_k + f_k q_k + sum_(i<k) g1_i d_i r_(i+1) ... r_(k-1), d and q the
+    hold's error less the pole's and the fast part f's moment's share of the change and
+    their bend's of `bent`: an error made at step i
     (d_i, with the probe in effect there) decays by the ratio of the probe in effect at each
     later step; a sum of products, one term at a time."""
     n = len(h)
@@ -45,8 +57,10 @@ def _convolution(found, h, error, change):
     y = np.zeros(n)
     for i in range(n):
         _, size, g0, g1, r, m, _ = at(i)
-        y[i] += float(np.sum(g0[0] * (error[i] - m[1][0] * change[i])))
-        gain = g1[0] * (error[i] - m[0][0] * change[i])
+        d = error[i] - m.carried[0] * change[i] - 6 * m.bent[0] * bent[i]
+        q = error[i] - m.quick[0] * change[i] - 6 * m.quick_bent[0] * bent[i]
+        y[i] += float(np.sum((g0[0] - m.fast[0]) * d + m.fast[0] * q))
+        gain = g1[0] * d
         for k in range(i + 1, n):
             y[k] += float(np.sum(gain))
             gain = gain * at(k)[4][0]
@@ -56,14 +70,16 @@ def _convolution(found, h, error, change):
 def test_the_model_is_the_sum_it_stands_for_in_any_batches():
     rng = np.random.default_rng(7)
     found = [_probe(0, [0.09, 0.02], [0.08, 0.03], [0.9, 1.0]),
-             _probe(20, [0.1, 0.01], [0.07, 0.01], [0.8, 0.95], within=0.3)]
+             _probe(20, [0.1, 0.01], [0.07, 0.01], [0.8, 0.95], within=0.03)]
     n = 50
     h = np.full(n, 0.1)
-    error, change = rng.normal(size=(n, 2)), rng.normal(size=(n, 2))
-    want = _convolution(found, h, error, change)
-    whole = _model(found).steps(h, None, error, change)[:, 0]
+    error, change, bent = (rng.normal(size=(n, 2)) for _ in range(3))
+    want = _convolution(found, h, error, change, bent)
+    lead = (0.5 * change, 0.5 * change, bent)       # (no direct part: the first two unread)
+    whole = _model(found).steps(h, None, error, change, lead=lead)[:, 0]
     model = _model(found)
-    parts = np.concatenate([model.steps(h[a:b], None, error[a:b], change[a:b])[:, 0]
+    parts = np.concatenate([model.steps(h[a:b], None, error[a:b], change[a:b],
+                                        lead=tuple(x[a:b] for x in lead))[:, 0]
                             for a, b in ((0, 7), (7, 33), (33, 50))])
     assert np.allclose(whole, want, rtol=1e-12, atol=1e-14)
     assert np.allclose(parts, want, rtol=1e-12, atol=1e-14)

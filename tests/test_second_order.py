@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 from helpers import assert_estimated, state_fmus, with_experiment, write_scenario
 from mecanum_fmu import master, runner
 from mecanum_fmu.master.probe import ProbedModel
-from mecanum_fmu.master.probe_fit import _two_poles, moment
+from mecanum_fmu.master.probe_fit import Moments, _two_poles, moment
 
 M, K, C = 1.0, 4.0, 0.4     # xtest_spring's defaults
 
@@ -97,18 +97,21 @@ def test_a_repeated_pole_is_split_and_still_sums_to_its_response():
 
 def test_the_carry_of_two_poles_is_the_sum_of_their_responses():
     # ProbedModel's steps against the sum worked out here: per mode, its within-step part
-    # c / z d_k and the past steps' c z^(k-l-1) d_l, d = error - m change
+    # c / z d_k and the past steps' c z^(k-l-1) d_l, d = error - m change; and a faster
+    # mode's part f (gone within the step: probe_fit.fast_part), f (error - q change)
     z = np.array([[[0.9 + 0.2j]], [[0.9 - 0.2j]]])
     c = np.array([[[0.05 + 0.01j]], [[0.05 - 0.01j]]])
     m = moment(z)
     model = ProbedModel("it", ["u"], ["x"])
-    model.found = [(0, 0.1, np.zeros((1, 1)), np.zeros((1, 1)), np.abs(z).max(axis=0),
-                    np.zeros((1, 1)), np.zeros((1, 1)), (z, c, m))]
+    zero = np.zeros((1, 1))
+    fast = Moments(zero, zero, np.full((1, 1), 0.02), np.full((1, 1), 0.45), zero)
+    model.found = [(0, 0.1, zero, zero, np.abs(z).max(axis=0), fast, zero,
+                    (z, c, m, np.zeros_like(z)))]
     rng = np.random.default_rng(5)
     error, change = rng.normal(size=(40, 1)), rng.normal(size=(40, 1))
     got = np.concatenate([model.steps(np.full(25, 0.1), None, error[:25], change[:25]),
                           model.steps(np.full(15, 0.1), None, error[25:], change[25:])])
-    want = np.zeros(40)
+    want = 0.02 * (error[:, 0] - 0.45 * change[:, 0])     # a faster mode's part, its own
     for i in range(2):
         d = error[:, 0] - m[i, 0, 0] * change[:, 0]
         for k in range(40):

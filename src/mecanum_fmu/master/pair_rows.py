@@ -663,13 +663,14 @@ class PairRows(Stencils):
         return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
 
 
-def _lead(g: Group, gathered: list, own: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _lead(g: Group, gathered: list, own: np.ndarray) -> tuple:
     """Per step and input, what a measured model's direct part errs by less the hold's error
     against the true mean (ProbedModel.steps: held - true end = error - lead): the true end
     value less the mean; for a "through" input, whose end value the outputs see, the hold's
     own error (only an error forwarded from upstream is left). Then the true end less the
     mean alone: a lazy output's (ProbedModel.lazy), which reads the value held during the
-    step, "through" or not."""
-    mean, _, end = gathered
+    step, "through" or not. Third, the true (start + end) / 2 - mean, which a measured
+    model's moments weigh past the change (probe_fit.bend)."""
+    mean, start, end = gathered
     late = end - mean
-    return np.where(g.roles == "through", own, late), late
+    return np.where(g.roles == "through", own, late), late, 0.5 * (start + end) - mean

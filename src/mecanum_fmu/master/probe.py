@@ -108,8 +108,10 @@ class ProbedModel:
         input held "through", the hold's own error), and that end less the mean alone, for
         a `lazy` output (it reads the value held during the step); None: half the change,
         which is that only to the trapezoid's h^2 u'' / 12 (a controller that reads its
-        newest input exactly read 2.5e-3 at 0.1 s on cos t)."""
-        lead, late = (0.5 * change,) * 2 if lead is None else lead
+        newest input exactly read 2.5e-3 at 0.1 s on cos t); third, the true input's (start +
+        end) / 2 - mean, which the moments' second terms weigh (probe_fit.bend)."""
+        lead, late, bent = (0.5 * change, 0.5 * change, 0.0 * change) if lead is None \
+            else lead
         miss = error - lead
         if self.lazy.any():     # the lazy parts' miss, after the others', same rows
             miss = np.concatenate((miss, error - late), axis=1)
@@ -119,41 +121,45 @@ class ProbedModel:
             return np.zeros((n, len(self.outputs)))
         if branch:      # the last rows another version of those before them: from before
             split = n - 2 * branch
-            bulk, these, other = ((h[at], error[at], change[at], miss[at]) for at in (
-                slice(0, split), slice(split, n - branch), slice(n - branch, n)))
-            out, s = self._run(*bulk, self.s, self.k)
-            these, kept = self._run(*these, s, self.k + split)
-            other, _ = self._run(*other, s, self.k + split)
+            bulk, these, other = ((h[at], error[at], change[at], miss[at], bent[at]) for at
+                                  in (slice(0, split), slice(split, n - branch),
+                                      slice(n - branch, n)))
+            out, s = self._run(*bulk, s=self.s, k=self.k)
+            these, kept = self._run(*these, s=s, k=self.k + split)
+            other, _ = self._run(*other, s=s, k=self.k + split)
             out, self.s = np.concatenate((out, these, other)), kept
         else:
-            out, self.s = self._run(h, error, change, miss, self.s, self.k)
+            out, self.s = self._run(h, error, change, miss, bent, s=self.s, k=self.k)
         self.k += n - branch
         self._forget()
         return out
 
     def _run(self, h: np.ndarray, error: np.ndarray, change: np.ndarray, miss: np.ndarray,
-             s: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+             bent: np.ndarray, s: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Steps k .. k + len(h) - 1 from the past steps' share s: (the signed error of each
         output after each, the share after the last); `miss`: the held value against the
-        true end value, which the direct part errs by."""
+        true end value, which the direct part errs by; `bent`: steps()'."""
         out = np.zeros((len(h), len(self.outputs)))
         s = s.copy()
         for part, probe in self._segments(h, k) if len(h) else ():
             _, size, g0, g1, r, m, d_part, *modes = self.found[probe]
             scale = float(h[part.start]) / size
             out[part] += miss[part] @ self._split(d_part).T
+            shape = (error[part], change[part], bent[part])
+            if m.fast.any():        # a faster mode's part, gone within the step
+                out[part] += np.einsum("oj,koj->ko", m.fast * scale,
+                                       _weighed(*shape, m.quick, m.quick_bent))
             if modes:
-                s = _modal(modes[0], scale, error[part], change[part], out[part], s,
-                           len(h) * s.size)
+                s = _modal(modes[0], scale, shape, out[part], s, len(h) * s.size)
                 continue
             decay = np.where(r > 0, np.abs(r) ** scale, r)
-            d, w = (error[part][:, None, :] - mi[None] * change[part][:, None, :]
-                    for mi in m)     # (steps, o, j): carried on, within the step
-            x = (g1 * scale)[None] * d
+            d = _weighed(*shape, m.carried, m.bent)
+            x = (g1 * scale)[None] * d      # (steps, o, j)
+            slow = g0 - m.fast
             for o, j in np.ndindex(s.shape):
                 shares = carried(float(decay[o, j]), float(s[o, j]), x[:, o, j],
                                  len(h) * s.size)
-                out[part, o] += shares[:-1] + g0[o, j] * scale * w[:, o, j]
+                out[part, o] += shares[:-1] + slow[o, j] * scale * d[:, o, j]
                 s[o, j] = shares[-1]
         return out, s
 
@@ -209,8 +215,9 @@ class ProbedModel:
             scale = float(h[part.start]) / size
             a[part] = np.diag(np.where(rate > 0, np.abs(rate) ** scale, rate))
             b[part] = g0 * scale
-            made[part] = np.einsum("oj,koj->ko", g0 * scale, error[part][:, None, :]
-                                   - m[1][None] * change[part][:, None, :])
+            made[part] = sum(np.einsum("oj,koj->ko", part_g0 * scale, error[part][:, None, :]
+                                       - mi[None] * change[part][:, None, :])
+                             for part_g0, mi in ((g0 - m.fast, m.carried), (m.fast, m.quick)))
         self.k += n - branch
         self._forget()
         return a, b, made
@@ -225,10 +232,10 @@ class ProbedModel:
         made = np.zeros((len(h), size))
         for part, probe in self._segments(h, self.k, branch):
             found = self.found[probe]
-            if found[6].any():
-                self.failed = (f"{self.name}'s measured response reaches an output directly, "
-                               "and the pair carries an error around a loop only through a "
-                               "state")
+            if found[6].any() or found[5].fast.any():
+                self.failed = (f"{self.name}'s measured response reaches an output directly "
+                               "or has a part gone within the step, and the pair carries an "
+                               "error around a loop only through a state")
                 break
             a[part], b[part], made[part] = modal_linear(found[7], float(h[part.start]) /
                                                         found[1], error[part], change[part])
@@ -237,20 +244,39 @@ class ProbedModel:
         return a, b, made, modal_outputs(shape)
 
 
-def _modal(modes: tuple, scale: float, error: np.ndarray, change: np.ndarray,
-           out: np.ndarray, s: np.ndarray, work: int) -> np.ndarray:
-    """ProbedModel._run's steps of a probe with two poles (probe_fit, `modes`: z, c, m, each
-    (2, outputs, inputs)): per mode, d = error - m change, its past share carried on by z^scale
-    with c d added, its within-step response c / z d; their real parts added into `out`
-    (steps, outputs). `s`: the modes' past shares (2, outputs, inputs), complex (zeros where
-    the model has had one pole so far). Returns the shares after the last step."""
-    z, c, m = modes
+def _slow(found: tuple) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A probe's poles with their parts of g0, (W, z) each: one pole, g1 / r (0 where r is
+    0); two, each mode's c / z."""
+    g1, r = found[3], found[4]
+    if len(found) > 7:
+        z, c = found[7][0], found[7][1]
+        return [(within_step(z[i], c[i]), z[i]) for i in range(2)]
+    return [(np.where(r != 0.0, g1 / np.where(r != 0.0, r, 1.0), 0.0), r)]
+
+
+def _weighed(error: np.ndarray, change: np.ndarray, bent: np.ndarray, m: np.ndarray,
+             b: np.ndarray) -> np.ndarray:
+    """(steps, outputs, inputs): the held value against the input's mean weighed as a pole of
+    moment m and bend b weighs it: error - m change - 6 b bent (probe_fit.bend)."""
+    return error[:, None, :] - m[None] * change[:, None, :] - (6 * b)[None] * bent[:, None, :]
+
+
+def _modal(modes: tuple, scale: float, shape: tuple, out: np.ndarray, s: np.ndarray,
+           work: int) -> np.ndarray:
+    """ProbedModel._run's steps of a probe with two poles (probe_fit, `modes`: z, c, m, b,
+    each (2, outputs, inputs)): per mode, d = error - m change - 6 b bent (`shape`: error,
+    change, bent), its past share carried on by z^scale with c d added, its within-step
+    response c / z d; their real parts added into `out` (steps, outputs). `s`: the modes'
+    past shares (2, outputs, inputs), complex (zeros where the model has had one pole so
+    far). Returns the shares after the last step."""
+    z, c, m, b = modes
+    error, change, bent = shape
     s = s.astype(complex) if s.shape == z.shape else np.zeros_like(z)
     within = within_step(z, c) * scale
     for i, o, j in np.ndindex(z.shape):
         if c[i, o, j] == 0:
             continue
-        d = error[:, j] - m[i, o, j] * change[:, j]
+        d = error[:, j] - m[i, o, j] * change[:, j] - 6 * b[i, o, j] * bent[:, j]
         shares = carried(complex(z[i, o, j]) ** scale, complex(s[i, o, j]),
                          c[i, o, j] * scale * d, work)
         out[:, o] += (shares[:-1] + within[i, o, j] * d).real
@@ -453,22 +479,22 @@ class Target:
             self.probe(k, t, h, real)
 
     def _fast(self, k: int) -> np.ndarray:
-        """(outputs, inputs): the part of this step's first-order probe's g0 that its pole
-        does not carry on (probe_fit.fast_part: a faster mode's, whose moment that pole's
-        is not); zeros where there is none. A lag x' = -100 x + u at 0.2 s, g1 e^-20 g0,
-        below round-off: r read 0 and its moment 0 where it is 0.45, and the estimate read
-        0.04x its error under the quadratic master, 10x under Gauss-Seidel."""
+        """(outputs, inputs): the part of this step's probe's g0 that its poles do not carry
+        on (probe_fit.fast_part: a faster mode's, whose moment theirs is not); zeros where
+        there is none. A lag x' = -100 x + u at 0.2 s, g1 e^-20 g0, below round-off: r read
+        0 and its moment 0 where it is 0.45, and the estimate read 0.04x its error under the
+        quadratic master, 10x under Gauss-Seidel; two poles dropped that part."""
         found = self.model.found[-1] if isinstance(self.model, ProbedModel) and \
             self.model.found else None
-        if found is None or found[0] != k or len(found) > 7:
+        if found is None or found[0] != k:
             return np.zeros(0)
-        return fast_part(found[2], found[3], found[4], self.model.direct)
+        return fast_part(found[2], sum(w for w, _ in _slow(found)).real, self.model.direct)
 
     def _faster(self, fast: np.ndarray, t: float, h: float, u: np.ndarray, eps: np.ndarray,
                 state) -> None:
-        """The probe's within-step moments where it has a `fast` part, from two steps of h /
-        SUBSTEPS from the saved `state` (probe_fit.fast_moments). A call refused marks the
-        model failed (Error or worse fails the run), as probe() does."""
+        """The probe's `fast` parts and their moments, from two steps of h / SUBSTEPS from
+        the saved `state` (probe_fit.fast_moments). A call refused marks the model failed
+        (Error or worse fails the run), as probe() does."""
         steps, self.steps = self.steps, 2
         try:
             runs = [self._steps(u, t, h / SUBSTEPS)]
@@ -486,12 +512,14 @@ class Target:
         runs = np.array(runs)
         sub = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
         floor = ((64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps).max(axis=0)
-        k, size, *found = self.model.found[-1]
-        fit = fast_moments(sub, floor, tuple(found), fast)
+        found = self.model.found[-1]
+        fit = fast_moments(sub, floor, _slow(found), fast, found[2])
         if isinstance(fit, str):
-            self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
+            self.model.failed = (f"{self.r.name}'s response {fit} (probed at t = "
+                                 f"{found[0] * h:g} s)")
         else:
-            self.model.found[-1] = (k, size, *fit)
+            m = found[5]._replace(fast=fit[0], quick=fit[1], quick_bent=fit[2])
+            self.model.found[-1] = (*found[:5], m, *found[6:])
 
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray,
              after: np.ndarray | None = None) -> bool:
