@@ -2,7 +2,7 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Twelve graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Fifteen graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
 x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
@@ -19,7 +19,12 @@ poles, master/probe_fit.py), and "spring_loop", the spring under the P controlle
 carried around the loop by the modes' shares); and "vdp", the spring as a Van der Pol
 oscillator (mu 1, c 0, k 1: its two poles change along the run, and the pair hands over to
 Richardson), and "ball", a bouncing ball's height into the lag (a kink at each bounce,
-inside a step; the truth: the graph at 1/64 of the step). The truths of the linear ones: their ODEs by
+inside a step; the truth: the graph at 1/64 of the step); and three with a response faster
+than the step: "stiff", the lag at k = 100 (gone within a step from 0.05 s up: its pole
+measured over substeps, probe.Target._faster), "overdamped", the spring at c = 101, k = 100
+(poles -1 and -100: the fast one's part of the speed), and "triple", three lags in a row
+(x1' = -x1 + cos t, x2' = x1 - 2 x2, x3' = x2 - 300 x3: at 0.01 s two poles fit x3's
+response only to 1e-3, and the pair hands over to Richardson). The truths of the linear ones: their ODEs by
 scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
 for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
 the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
@@ -116,6 +121,18 @@ GRAPHS["ball"] = ("""\
   it: {{fmu: {xtest_lag}, parameters: {{k: 2.0}}}}
 connections: [[ball.h, it.u]]
 outputs: [it.x]""", None)
+GRAPHS["stiff"] = (GRAPHS["lag"][0].replace("k: 2.0", "k: 100.0"),
+                   lambda t, y: [-100.0 * y[0] + np.cos(t)])
+GRAPHS["overdamped"] = ("""\
+  wave: {{fmu: {xtest_wave}}}
+  it: {{fmu: {xtest_spring}, parameters: {{c: 101.0, k: 100.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x, it.v]""", lambda t, y: [y[1], np.cos(t) - 100.0 * y[0] - 101.0 * y[1]])
+GRAPHS["triple"] = ("""\
+  wave: {{fmu: {xtest_wave}}}
+  it: {{fmu: {xtest_triple}, parameters: {{a: 1.0, b: 2.0, c: 300.0}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x1, it.x2, it.x3]""", lambda t, y: [np.cos(t) - y[0], y[0] - 2.0 * y[1], y[1] - 300.0 * y[2]])
 
 
 def scenario(folder: Path, fmus: dict, name: str) -> Path:

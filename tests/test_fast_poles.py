@@ -89,21 +89,23 @@ outputs: [it.x, it.v]
         assert_estimated(summary, output, error, 1.5)
 
 
-def _triple(folder, fmus, a: float, c: float, h: float, master_name: str):
-    """Three lags in a row fed cos t (xtest_triple, b = 1), and their solution by scipy."""
+def _triple(folder, fmus, abc: tuple, h: float, master_name: str):
+    """Three lags in a row fed cos t (xtest_triple, its a, b, c), and their solution by
+    scipy."""
+    a, b, c = abc
     path = write_scenario(folder, "triple", f"""\
 name: triple
 experiment: {{start_time: 0.0, stop_time: 6.0, step_size: {h}, master: {master_name}}}
 components:
   wave: {{fmu: {fmus["xtest_wave"]}}}
-  it: {{fmu: {fmus["xtest_triple"]}, parameters: {{a: {a}, b: 1.0, c: {c}}}}}
+  it: {{fmu: {fmus["xtest_triple"]}, parameters: {{a: {a}, b: {b}, c: {c}}}}}
 connections:
   - [wave.u, it.u]
 outputs: [it.x1, it.x2, it.x3]
 """)
     graph = runner.prepare(path)
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
-    truth = solve_ivp(lambda t, y: [np.cos(t) - a * y[0], y[0] - y[1], y[1] - c * y[2]],
+    truth = solve_ivp(lambda t, y: [np.cos(t) - a * y[0], y[0] - b * y[1], y[1] - c * y[2]],
                       (0.0, 6.0), [0.0] * 3, t_eval=results.time, rtol=1e-12, atol=1e-14,
                       method="DOP853").y
     return master.estimate_error(graph, results), {
@@ -114,7 +116,7 @@ def test_a_fast_lag_inside_a_model_of_two_poles_keeps_its_part_of_the_error(tmp_
     # x1' = -300 x1 + u at 0.1 s: x1's response is gone after the step, and the model of
     # two poles (x2 and x3 need them) dropped g0's part that its poles do not carry on:
     # x1's estimate read "below round-off" for an error of 1.6e-4
-    summary, errors = _triple(tmp_path, fmus, 300.0, 2.0, 0.1, "quadratic")
+    summary, errors = _triple(tmp_path, fmus, (300.0, 1.0, 2.0), 0.1, "quadratic")
     assert summary["error_estimate_method"].startswith("the embedded pair")
     for output, error in errors.items():
         assert error.max() > 1e-8
@@ -125,7 +127,7 @@ def test_three_poles_that_two_poles_fit_to_1e_3_hand_over_to_richardson(tmp_path
     # poles 0.99, 0.98 and 0.05 per step (c = 300 at 0.01 s): two poles fitted x3's response
     # to 8.6e-4 at g5, an oscillating pair whose miss grows to 0.19 at g20, and over 600
     # steps x3's estimate read 0.06x its error
-    summary, errors = _triple(tmp_path, fmus, 1.0, 300.0, 0.01, "gauss-seidel")
+    summary, errors = _triple(tmp_path, fmus, (1.0, 2.0, 300.0), 0.01, "gauss-seidel")
     assert summary["error_estimate_method"].startswith("Richardson"), \
         summary["error_estimate_method"]
     assert "is not of first or second order" in summary["error_estimate_method"]
