@@ -24,10 +24,10 @@ than the step: "stiff", the lag at k = 100 (gone within a step from 0.05 s up: i
 measured over substeps, probe.Target._faster), "overdamped", the spring at c = 101, k = 100
 (poles -1 and -100: the fast one's part of the speed), and "triple", three lags in a row
 (x1' = -x1 + cos t, x2' = x1 - 2 x2, x3' = x2 - 300 x3: at 0.01 s two poles fit x3's
-response only to 1e-3, and the pair hands over to Richardson). The truths of the linear ones: their ODEs by
-scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate over the true error
-for the largest value and the end (within 3x: [0.33, 3]), and the estimate's cost against
-the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
+response only to 1e-3, and the pair hands over to Richardson). The truths of the linear
+ones: their ODEs by scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate
+over the true error for the largest value and the end (within 3x: [0.33, 3]), and the
+estimate's cost against the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
 medians of 5 runs; "ms", the same in milliseconds, the pair's own), and the probes' doStep
 calls against the run's. The same with
 `--estimate richardson` for comparison.
@@ -132,7 +132,8 @@ GRAPHS["triple"] = ("""\
   wave: {{fmu: {xtest_wave}}}
   it: {{fmu: {xtest_triple}, parameters: {{a: 1.0, b: 2.0, c: 300.0}}}}
 connections: [[wave.u, it.u]]
-outputs: [it.x1, it.x2, it.x3]""", lambda t, y: [np.cos(t) - y[0], y[0] - 2.0 * y[1], y[1] - 300.0 * y[2]])
+outputs: [it.x1, it.x2, it.x3]""", lambda t, y: [np.cos(t) - y[0], y[0] - 2.0 * y[1],
+                                                 y[1] - 300.0 * y[2]])
 
 
 def scenario(folder: Path, fmus: dict, name: str) -> Path:

@@ -18,7 +18,9 @@ pair's errors are carried as
     d_k = error_k - m change_k,    y_k = s_k + g0 d_k,    s_k+1 = r s_k + g1 d_k,
 summed over the inputs: error, the held value against the true mean; change, the true input's
 change over the step, whose weight within the step a mean does not see (m: moment(), about
--a h / 12, exact for the first-order part).
+-a h / 12, exact for the first-order part; less 6 b bend, the parabola's part: probe_fit.bend).
+A part of g0 that no pole carries on (a mode gone within the step: a stiff lag, the fast pole
+of a spring with poles -1 and -100) is measured over two steps of h / SUBSTEPS (_faster).
 
 A probe costs (1 + m) PROBE_STEPS doStep calls of that FMU (ORDER2_STEPS for two poles, and
 once the 4 that found one does not fit) and 1 + m state sets. The first is
