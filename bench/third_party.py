@@ -27,10 +27,10 @@ measured over substeps, probe.Target._faster), "overdamped", the spring at c = 1
 response only to 1e-3, and the pair hands over to Richardson). The truths of the linear
 ones: their ODEs by scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate
 over the true error for the largest value and the end (within 3x: [0.33, 3]), and the
-estimate's cost against the run's stepping time (error_estimate_cost: the pair's NumPy work and the probes' time,
-medians of 5 runs; "ms", the same in milliseconds, the pair's own), and the probes' doStep
-calls against the run's. The same with
-`--estimate richardson` for comparison.
+estimate's cost against the run's stepping time (error_estimate_cost: the pair's NumPy work
+and the probes' time, medians of 5 runs; "ms", the same in milliseconds, the pair's own), and
+the probes' doStep calls against the run's. The same with `--estimate richardson` for
+comparison.
 
 With --adaptive: the adaptive master at tolerances 1e-2 to 1e-6 on the same graphs, its
 steps against the fixed quadratic master's that meet the tolerance, each output's true
