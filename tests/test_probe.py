@@ -121,9 +121,10 @@ class _Target:
         self.model.found.append(_one(k, self.finds(k)))
 
 
-def _one(k, gain):
+def _one(k, found):
+    gain, r = found if isinstance(found, tuple) else (found, 0.9)
     a = np.full((1, 1), gain)
-    return (k, 0.1, a, a, np.full((1, 1), 0.9), a, np.zeros((1, 1)))
+    return (k, 0.1, a, a, np.full((1, 1), r), a, np.zeros((1, 1)))
 
 
 def _schedule(finds, n):
@@ -140,8 +141,19 @@ def test_probes_that_agree_widen_their_gap_fourfold_and_others_keep_it():
     assert _schedule(lambda k: 1.0, 1000) == [0, 32, 160, 672]
     assert _schedule(lambda k: 1.0, 676) == [0, 32, 160]
     assert _schedule(lambda k: 1.0, 677) == [0, 32, 160, 672]
-    assert _schedule(lambda k: 1.0 + k / 100, 200) == list(range(0, 196, PROBE_EVERY))
+    # a response that changes: probed every 32 steps, and once more at the last step a
+    # probe fits (195), which the end's estimate reads
+    assert _schedule(lambda k: 1.0 + k / 100, 200) == [*range(0, 196, PROBE_EVERY), 195]
     assert _schedule(lambda k: 1.0, 4) == []
+
+
+def test_probes_compare_a_pole_by_its_rate():
+    # r 0.990 and 0.988 are 0.2% apart, their rates (ln r) 20%: the gap does not widen; a
+    # rate that moves by 1e-9 (an integrator's round-off, r = 1) is the same over any gap
+    changing = lambda k: (1.0, np.exp(-0.1 * (1 + k / 160)))      # noqa: E731
+    assert _schedule(changing, 200) == [*range(0, 196, PROBE_EVERY), 195]
+    still = lambda k: (1.0, 1.0 - 1e-9 * (k % 2))                   # noqa: E731
+    assert _schedule(still, 1000) == [0, 32, 160, 672]
 
 
 def test_a_probe_whose_outputs_are_not_finite_hands_over():
