@@ -165,12 +165,33 @@ def test_an_output_that_outgrows_its_response_hands_over_to_richardson(tmp_path,
         assert summary["error_estimate"]["it.x"]["max"].startswith("unresolved (the coarser")
     method = summary["error_estimate_method"]
     assert method.startswith("Richardson") and "fell below the output's round-off" in method
-    # without the check, the second probe's zero response silenced the error
+    # without the checks (the response lost, an input that moves nothing), the second
+    # probe's zero response silenced the error
     from mecanum_fmu.master import probe
     monkeypatch.setattr(probe, "_lost", lambda before, now: None)
+    monkeypatch.setattr(probe, "_deaf", lambda g, floor: None)
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
     assert master.estimate_error(graph, results)["error_estimate"]["it.x"]["max"] == \
         BELOW_ROUND_OFF
+
+
+def test_an_input_saturated_where_it_is_probed_hands_over_to_richardson(tmp_path, fmus):
+    # x' = -2 x + sat(cos 2t), sat at 0.5: the probes at t0 and 3.2 s find u saturated and
+    # x not moving with it at all; the model said so for the whole run, and the estimate
+    # read "below round-off" for an error of 1e-3 (the reference: the graph at 1/64 of the
+    # step)
+    graph = runner.prepare(_fed(tmp_path, fmus, "xtest_saturated", "x"))
+    fine, exp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
+    reference = master.simulate(fine, exp)["it.x"][::64]
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    summary = master.estimate_error(graph, results)
+    method = summary["error_estimate_method"]
+    assert method.startswith("Richardson") and "did not move with its input u" in method, \
+        method
+    error = np.abs(results["it.x"] - reference)
+    assert error.max() > 1e-4
+    # Richardson reads 3.2x: sat(u) kinks where u enters and leaves the limit, inside steps
+    assert error.max() / 3 <= summary["error_estimate"]["it.x"]["max"] <= 4 * error.max()
 
 
 @pytest.mark.parametrize("tolerance", [1e-4, 1e-6])

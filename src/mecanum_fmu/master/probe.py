@@ -302,6 +302,20 @@ def _lost(before: np.ndarray, now: np.ndarray) -> tuple[int, int] | None:
     return (int(gone[0][0]), int(gone[0][1])) if len(gone) else None
 
 
+_DEAF = ("{}'s outputs did not move with its input {} in the probe at t = {:g} s (an input "
+         "that saturates there, or that it does not read): the pair cannot tell how they "
+         "follow it where it moves")
+
+
+def _deaf(g: np.ndarray, floor: np.ndarray) -> int | None:
+    """The first input that moved no output above its round-off at any step of a probe (g:
+    (steps, outputs, inputs), floor the same), else None. A lag whose input saturates at
+    0.5, fed cos t, was probed at t0 and 3.2 s, saturated both times: its model said it does
+    not respond, and the estimate read "below round-off" for an error of 9.4e-4."""
+    moved = (np.abs(g) > floor).any(axis=(0, 1))
+    return int(np.argmin(moved)) if not moved.all() else None
+
+
 def _agree(a: tuple, b: tuple, horizon: int = 0) -> bool:
     """Whether two probes found the same (g0, g1 and r; with two poles, the responses g1 ..
     g5 their modes make, each within AGREE of its largest; a response's Jacobian) within
@@ -586,12 +600,15 @@ class Target:
             self.model.failed = f"{self.r.name}'s response {fit} (probed at t = {k * h:g} s)"
             return isinstance(fit, Higher) and not self.model.found and \
                 self.steps < ORDER2_STEPS
+        deaf = _deaf(g, floor)
         if self.model.found and (lost := _lost(self.model.found[-1][3], fit[1])):
             self.model.failed = (
                 f"{self.r.name}'s response of output {lost[0]} to input {lost[1]}, measured "
                 f"at t = {self.model.found[-1][0] * h:g} s, fell below the output's round-off "
-                f"by t = {k * h:g} s (an output that grows by itself): the probes no longer "
-                "measure how it carries an error")
+                f"by t = {k * h:g} s (an output that grows by itself, an input that "
+                "saturates): the probes no longer measure how it carries an error")
+        elif deaf is not None:
+            self.model.failed = _DEAF.format(self.r.name, self.model.inputs[deaf], k * h)
         elif self.model.found and len(fit) > 5 and not _agree((k, h, *fit),
                                                               self.model.found[-1]):
             self.model.failed = (
