@@ -39,9 +39,9 @@ import numpy as np
 
 from .pair_stencils import with_branch
 from .plan import has_state
-from .probe_fit import (ORDER2_STEPS, PROBE_STEPS, SUBSTEPS, Higher, carried, fast_moments,
-                        fast_part, first_order, fitted, lazy, modal_linear, modal_outputs,
-                        within_step)
+from .probe_fit import (ORDER2_STEPS, PROBE_STEPS, SUBSTEPS, Higher, carried, direct_fast,
+                        fast_moments, fast_part, first_order, fitted, lazy, modal_linear,
+                        modal_outputs, within_step)
 from .stepping import StepFailure, restore_states
 
 PROBE_EVERY = 32
@@ -157,7 +157,7 @@ class ProbedModel:
             decay = np.where(r > 0, np.abs(r) ** scale, r)
             d = _weighed(*shape, m.carried, m.bent)
             x = (g1 * scale)[None] * d      # (steps, o, j)
-            slow = g0 - m.fast
+            slow = g0 - np.where(self.direct, 0.0, m.fast)     # (direct: out of D)
             for o, j in np.ndindex(s.shape):
                 shares = carried(float(decay[o, j]), float(s[o, j]), x[:, o, j],
                                  len(h) * s.size)
@@ -525,7 +525,8 @@ class Target:
             self.model.found else None
         if found is None or found[0] != k:
             return np.zeros(0)
-        return fast_part(found[2], sum(w for w, _ in _slow(found)).real, self.model.direct)
+        return found[5].fast + fast_part(found[2], sum(w for w, _ in _slow(found)).real,
+                                         self.model.direct)     # (direct_fast's, the rest)
 
     def _faster(self, fast: np.ndarray, t: float, h: float, u: np.ndarray, eps: np.ndarray,
                 state) -> None:
@@ -549,8 +550,9 @@ class Target:
         runs = np.array(runs)
         sub = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
         floor = ((64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps).max(axis=0)
-        found = self.model.found[-1]
-        fit = fast_moments(sub, floor, _slow(found), fast, found[2])
+        found = self.model.found[-1]    # (a direct part moved the first substep's end)
+        fit = fast_moments(sub - np.stack((found[6], 0 * found[6])), floor, _slow(found), fast,
+                           found[2] + found[6])
         if isinstance(fit, str):
             self.model.failed = (f"{self.r.name}'s response {fit} (probed at t = "
                                  f"{found[0] * h:g} s)")
@@ -616,9 +618,17 @@ class Target:
                 f"t = {self.model.found[-1][0] * h:g} s and {k * h:g} s): the pair carries "
                 "two poles only where they stay, as a linear FMU's do")
         else:
-            self.model.found.append((k, h, *fit))
-            if after is not None:
-                self.model.lazy |= lazy(fit[4], after / eps, floor.max(axis=0))
+            self._keep((k, h, *fit), after, eps, floor.max(axis=0))
+
+    def _keep(self, found: tuple, after: np.ndarray | None, eps: np.ndarray,
+              floor: np.ndarray) -> None:
+        """A model's probe kept, with its outputs' change over each input's move set after
+        the first step (`after`; None: not measured): the outputs worked out in doStep alone
+        (lazy), and its direct part cut to what moves without a doStep (direct_fast)."""
+        if after is not None:
+            self.model.lazy |= lazy(found[6], after / eps, floor)
+            found = direct_fast(found, after / eps, self.model.direct)
+        self.model.found.append(found)
 
     def _steps(self, u: np.ndarray, t: float, h: float, first: np.ndarray | None = None,
                after: tuple | None = None) -> np.ndarray:

@@ -215,6 +215,24 @@ def fast_part(g0: np.ndarray, state: np.ndarray, direct: np.ndarray) -> np.ndarr
     return np.where(np.abs(part) > FAST * np.abs(g0), part, 0.0)
 
 
+def direct_fast(found: tuple, seen: np.ndarray, where: np.ndarray) -> tuple:
+    """A probe's `found` with the direct part D (`where`: declared direct) cut to `seen`,
+    what the output moved by for the input moved after the step (no doStep: the part that
+    is truly direct), and the rest, over FAST of D, a fast part (Moments.fast): a state
+    gone within the step, g1 below round-off, which D took for its own (y = x + u, x' =
+    -100 x + u at 0.1 s: y's estimate read 1e-6 of its error, D erring by the held value
+    against the end value, nothing where the master holds the newest), or an output worked
+    out in doStep alone (lazy: seen 0), whose substeps show no decay: moment 1/2 and bend
+    1/6, the held value against the end value, as its lazy part had it."""
+    d_part, m = found[6], found[5]
+    rest = np.where(where, d_part - seen, 0.0)
+    rest = np.where(np.abs(rest) > FAST * np.abs(d_part), rest, 0.0)
+    if not rest.any():
+        return found
+    return (*found[:5], m._replace(fast=np.where(rest != 0.0, rest, m.fast)), d_part - rest,
+            *found[7:])
+
+
 def fast_moments(sub: np.ndarray, floor: np.ndarray, slow: list, fast: np.ndarray,
                  g0: np.ndarray) -> tuple | str:
     """(the fast parts kept, their moments, their bends): those of each `fast` part of `g0`
