@@ -96,6 +96,19 @@ def test_a_fast_state_whose_dependencies_are_not_declared_is_not_read_as_exact(t
     assert_estimated(summary, "it.x", error, 1.5)
 
 
+def test_a_fast_state_in_an_fmu_that_cannot_step_shorter_hands_over(tmp_path, fmus):
+    # canHandleVariableCommunicationStepSize false: no substep is asked of it (one refused
+    # with Error would fail the run); Richardson estimates instead, and says why
+    fixed = rewrite_description(fmus["xtest_lag"], lambda xml: xml.replace(
+        'canHandleVariableCommunicationStepSize="true"',
+        'canHandleVariableCommunicationStepSize="false"'), tmp_path / "lag_fixed.fmu")
+    graph = runner.prepare(_lag(tmp_path, dict(fmus, fixed=fixed), 100.0, "quadratic",
+                                "fixed"))
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    method = master.estimate_error(graph, results)["error_estimate_method"]
+    assert method.startswith("Richardson") and "cannot step shorter" in method, method
+
+
 @pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
 def test_a_spring_with_a_fast_pole_is_estimated_with_that_part_measured_over_substeps(
         tmp_path, fmus, master_name):

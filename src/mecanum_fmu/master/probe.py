@@ -531,23 +531,10 @@ class Target:
     def _faster(self, fast: np.ndarray, t: float, h: float, u: np.ndarray, eps: np.ndarray,
                 state) -> None:
         """The probe's `fast` parts and their moments, from two steps of h / SUBSTEPS from
-        the saved `state` (probe_fit.fast_moments). A call refused marks the model failed
-        (Error or worse fails the run), as probe() does."""
-        steps, self.steps = self.steps, 2
-        try:
-            runs = [self._steps(u, t, h / SUBSTEPS)]
-            for j in range(len(u)):
-                restore_states([self.r], t, [state])
-                runs.append(self._steps(u, t, h / SUBSTEPS, _moved(u, j, eps)))
-        except _Refused as why:
-            if why.status > 2:
-                raise StepFailure(self.r, why.function, why.status, t, t + h) from None
-            self.model.failed = f"{self.r.name}'s {why.function} returned discard while probing it"
+        the saved `state` (probe_fit.fast_moments), where the FMU takes them (_substeps)."""
+        runs = self._substeps(t, h, u, eps, state)
+        if runs is None:
             return
-        finally:
-            self.steps = steps
-            restore_states([self.r], t, [state])
-        runs = np.array(runs)
         sub = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
         floor = ((64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps).max(axis=0)
         found = self.model.found[-1]    # (a direct part moved the first substep's end)
@@ -559,6 +546,36 @@ class Target:
         else:
             m = found[5]._replace(fast=fit[0], quick=fit[1], quick_bent=fit[2])
             self.model.found[-1] = (*found[:5], m, *found[6:])
+
+    def _substeps(self, t: float, h: float, u: np.ndarray, eps: np.ndarray, state
+                  ) -> np.ndarray | None:
+        """The outputs after two steps of h / SUBSTEPS from the saved `state`, unmoved and
+        each input moved over the first, (1 + inputs, 2, outputs); the state set back after.
+        None, the model marked failed, where the FMU says it cannot step shorter
+        (canHandleVariableCommunicationStepSize false) or a substep returns Discard or Error
+        (the probe's, not the run's: its state is set back; Fatal fails the run)."""
+        if not self.r.inst.can_vary_step:
+            self.model.failed = (f"{self.r.name}'s response has a part faster than the step, "
+                                 "and it cannot step shorter for the probes to measure it "
+                                 "(canHandleVariableCommunicationStepSize false)")
+            return None
+        steps, self.steps = self.steps, 2
+        try:
+            runs = [self._steps(u, t, h / SUBSTEPS)]
+            for j in range(len(u)):
+                restore_states([self.r], t, [state])
+                runs.append(self._steps(u, t, h / SUBSTEPS, _moved(u, j, eps)))
+        except _Refused as why:
+            if why.status > 3:
+                raise StepFailure(self.r, why.function, why.status, t, t + h) from None
+            self.model.failed = (f"{self.r.name}'s {why.function} returned "
+                                 f"{'discard' if why.status == 2 else 'error'} over a step of "
+                                 f"h/{SUBSTEPS} while probing it")
+            return None
+        finally:
+            self.steps = steps
+            restore_states([self.r], t, [state])
+        return np.array(runs)
 
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray,
              after: np.ndarray | None = None) -> bool:

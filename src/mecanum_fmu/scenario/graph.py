@@ -67,6 +67,11 @@ class Instance:
     def can_get_set_state(self) -> bool:
         return bool(self.model.coSimulation.canGetAndSetFMUstate)
 
+    @property
+    def can_vary_step(self) -> bool:
+        """canHandleVariableCommunicationStepSize (false: pythonfmu3's default)."""
+        return bool(self.model.coSimulation.canHandleVariableCommunicationStepSize)
+
 
 @dataclass(frozen=True)
 class Link:
@@ -358,8 +363,7 @@ def _variable_step_warning(scenario: Scenario, order: list[Instance]) -> list[st
     handle that (canHandleVariableCommunicationStepSize false: pythonfmu3's default). It is
     stepped anyway, as FMPy steps it; the warning says so and what keeps the step fixed."""
     how = master_entry(scenario.experiment.master)
-    fixed = [inst.name for inst in order
-             if not inst.model.coSimulation.canHandleVariableCommunicationStepSize]
+    fixed = [inst.name for inst in order if not inst.can_vary_step]
     if not how.adaptive or not fixed:
         return []
     return [f"{scenario.label}: the {how.name} master varies the communication step, which "
