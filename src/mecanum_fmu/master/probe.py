@@ -531,13 +531,20 @@ class Target:
     def _faster(self, fast: np.ndarray, t: float, h: float, u: np.ndarray, eps: np.ndarray,
                 state) -> None:
         """The probe's `fast` parts and their moments, from two steps of h / SUBSTEPS from
-        the saved `state` (probe_fit.fast_moments), where the FMU takes them (_substeps)."""
+        the saved `state` (probe_fit.fast_moments), where the FMU takes them (_substeps);
+        the probe before's where it found the same parts (within AGREE): no substeps."""
+        found = self.model.found[-1]
+        if len(self.model.found) > 1 and (last := self.model.found[-2][5]).fast.any() and \
+                (np.abs(fast - last.fast) <= AGREE * np.abs(last.fast)).all():
+            m = found[5]._replace(fast=last.fast, quick=last.quick, quick_bent=last.quick_bent)
+            self.model.found[-1] = (*found[:5], m, *found[6:])
+            return
         runs = self._substeps(t, h, u, eps, state)
         if runs is None:
             return
         sub = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
         floor = ((64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps).max(axis=0)
-        found = self.model.found[-1]    # (a direct part moved the first substep's end)
+        # (a direct part moved the first substep's end)
         fit = fast_moments(sub - np.stack((found[6], 0 * found[6])), floor, _slow(found), fast,
                            found[2] + found[6])
         if isinstance(fit, str):
