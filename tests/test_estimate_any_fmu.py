@@ -180,7 +180,8 @@ def test_an_input_saturated_where_it_is_probed_hands_over_to_richardson(tmp_path
     # x not moving with it at all; the model said so for the whole run, and the estimate
     # read "below round-off" for an error of 1e-3 (the reference: the graph at 1/64 of the
     # step)
-    graph = runner.prepare(_fed(tmp_path, fmus, "xtest_saturated", "x"))
+    graph = runner.prepare(_fed(tmp_path, fmus, "xtest_lag", "x",
+                                parameters=", parameters: {k: 2.0, lim: 0.5}"))
     fine, exp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
     reference = master.simulate(fine, exp)["it.x"][::64]
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)

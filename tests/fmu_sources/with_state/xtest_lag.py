@@ -1,6 +1,8 @@
 """Test FMU (third-party style): a first-order lag x' = -k x + u, exact for u held over a
 step (x <- x e^(-k h) + u (1 - e^(-k h)) / k); its output x does not depend on the current
-u (the test declares that in the model description, as a C exporter would)."""
+u (the test declares that in the model description, as a C exporter would). With `lim`, its
+input saturates at +-lim (x' = -k x + sat(u)): where it is saturated, x does not move with
+it, and a probe there measures no response at all."""
 import math
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
@@ -12,9 +14,10 @@ class XtestLag(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.k, self.u, self.x = 1.0, 0.0, 0.0
-        self.register_variable(Real("k", causality=Fmi2Causality.parameter,
-                                    variability=Fmi2Variability.fixed))
+        self.k, self.lim, self.u, self.x = 1.0, 1e300, 0.0, 0.0
+        for name in ("k", "lim"):
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                        variability=Fmi2Variability.fixed))
         self.register_variable(Real("u", causality=Fmi2Causality.input,
                                     variability=Fmi2Variability.continuous))
         self.register_variable(Real("x", causality=Fmi2Causality.output,
@@ -22,5 +25,6 @@ class XtestLag(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         decay = math.exp(-self.k * step_size)
-        self.x = self.x * decay + self.u * (1.0 - decay) / self.k
+        u = max(-self.lim, min(self.lim, self.u))
+        self.x = self.x * decay + u * (1.0 - decay) / self.k
         return True
