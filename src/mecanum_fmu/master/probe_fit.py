@@ -181,10 +181,9 @@ def fitted(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None = None
 
 def _modes(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None) -> tuple | str:
     """fitted's from ORDER2_STEPS responses: per (output, input) up to two poles z and their
-    shares c, g_n = sum c z^(n-1) for n >= 1 (the module doc); modes (z, c, m(z), their
-    bend(z)), each
-    (2, outputs, inputs). g0's state part is sum c / z; r the larger |z| (what two probes
-    compare: probe._agree); m 0 (the modes carry their own)."""
+    shares c, g_n = sum c z^(n-1) for n >= 1 (the module doc); modes (z, c, m(z), bend(z)),
+    each (2, outputs, inputs). g0's state part is sum c / z; r the larger |z| (what two
+    probes compare: probe._agree); m's carried moments 0 (the modes carry their own)."""
     g = g * (np.abs(g) > floor)
     z = np.zeros((2, *g.shape[1:]), dtype=complex)
     c = np.zeros_like(z)
@@ -236,9 +235,9 @@ def direct_fast(found: tuple, seen: np.ndarray, where: np.ndarray) -> tuple:
 def fast_moments(sub: np.ndarray, floor: np.ndarray, slow: list, fast: np.ndarray,
                  g0: np.ndarray) -> tuple | str:
     """(the fast parts kept, their moments, their bends): those of each `fast` part of `g0`
-    (fast_part; 0 where there is none) from `sub` (2,
-    outputs, inputs), the responses at the ends of two substeps of h / SUBSTEPS to a unit
-    held over the first, and their round-off `floor`. The slow poles' share of those is
+    (fast_part; 0 where there is none) from `sub` (2, outputs, inputs), the responses at the
+    ends of two substeps of h / SUBSTEPS to a unit held over the first, and their round-off
+    `floor`. The slow poles' share of those is
     taken out (`slow`: their parts of g0 and poles, (W, z) each: W answers W (z^(1/S) - 1)
     / (z - 1), then z^(1/S) of that); the rest decays by the fast part's ratio (fast_logs).
     A part under FAST_NOISE of g0 that the substeps do not see decay is taken for a slow
