@@ -109,6 +109,19 @@ def test_a_fast_state_in_an_fmu_that_cannot_step_shorter_hands_over(tmp_path, fm
     assert method.startswith("Richardson") and "cannot step shorter" in method, method
 
 
+def test_a_substep_the_fmu_refuses_hands_over_and_the_run_goes_on(tmp_path, fmus):
+    # the lag refuses steps under 0.01 s (Discard): the substep of h/64 is the probe's, not
+    # the run's, and the model hands over to Richardson, saying which call and why
+    path = write_scenario(tmp_path, "picky", _lag(tmp_path, fmus, 100.0, "quadratic")
+                          .read_text().replace("k: 100.0}", "k: 100.0, min_step: 0.01}"))
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
+    assert results.complete and results.time[-1] == pytest.approx(6.0)
+    method = master.estimate_error(graph, results)["error_estimate_method"]
+    assert method.startswith("Richardson") and "returned discard over a step of h/64" in \
+        method, method
+
+
 @pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
 def test_a_spring_with_a_fast_pole_is_estimated_with_that_part_measured_over_substeps(
         tmp_path, fmus, master_name):

@@ -2,7 +2,8 @@
 step (x <- x e^(-k h) + u (1 - e^(-k h)) / k); its output x does not depend on the current
 u (the test declares that in the model description, as a C exporter would). With `lim`, its
 input saturates at +-lim (x' = -k x + sat(u)): where it is saturated, x does not move with
-it, and a probe there measures no response at all."""
+it, and a probe there measures no response at all. With `min_step`, it refuses (Discard) a
+step shorter than that."""
 import math
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
@@ -14,8 +15,8 @@ class XtestLag(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.k, self.lim, self.u, self.x = 1.0, 1e300, 0.0, 0.0
-        for name in ("k", "lim"):
+        self.k, self.lim, self.min_step, self.u, self.x = 1.0, 1e300, 0.0, 0.0, 0.0
+        for name in ("k", "lim", "min_step"):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter,
                                         variability=Fmi2Variability.fixed))
         self.register_variable(Real("u", causality=Fmi2Causality.input,
@@ -24,6 +25,8 @@ class XtestLag(Fmi2Slave):
                                     variability=Fmi2Variability.continuous))
 
     def do_step(self, current_time, step_size):
+        if step_size < self.min_step:
+            return False
         decay = math.exp(-self.k * step_size)
         u = max(-self.lim, min(self.lim, self.u))
         self.x = self.x * decay + u * (1.0 - decay) / self.k
