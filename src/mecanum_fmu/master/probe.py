@@ -478,10 +478,9 @@ class Target:
 
     def probe(self, k: int, t: float, h: float, real: np.ndarray, room: int = 0) -> None:
         """One probe from the FMU's state now (t_k), the state set back after it. A call
-        that returns Discard or Error, or a response the model does not fit, marks the model
-        failed (the pair hands over to Richardson; FMI 2.0 lets a master set a saved state
-        back after Error); Fatal, or a state that cannot be saved or set back, fails the run
-        (StepFailure: FMI allows nothing more of such an instance).
+        that returns Discard, or a response the model does not fit, marks the model failed
+        (the pair hands over to Richardson); Error or worse, or a state that cannot be set
+        back, fails the run (StepFailure: FMI allows nothing more of such an instance).
         A model's first probe whose response one pole does not fit is made again with
         ORDER2_STEPS steps, where `room` (the steps after t_k the run still takes) has
         them: two poles may fit it (probe_fit), and its later probes take as many."""
@@ -560,8 +559,8 @@ class Target:
         """The outputs after two steps of h / SUBSTEPS from the saved `state`, unmoved and
         each input moved over the first, (1 + inputs, 2, outputs); the state set back after.
         None, the model marked failed, where the FMU says it cannot step shorter
-        (canHandleVariableCommunicationStepSize false) or a substep returns Discard or Error
-        (_refused)."""
+        (canHandleVariableCommunicationStepSize false) or a substep returns Discard
+        (_refused: Error or worse fails the run, naming the substep)."""
         if not self.r.inst.can_vary_step:
             self.model.failed = (f"{self.r.name}'s response has a part faster than the step, "
                                  "and it cannot step shorter for the probes to measure it "
@@ -582,17 +581,17 @@ class Target:
         return np.array(runs)
 
     def _refused(self, why: "_Refused", t: float, h: float, steps: str = "") -> None:
-        """A probe's call that returned Discard or Error marks the model failed (the caller
-        sets the saved state back); Fatal fails the run (StepFailure), naming the probe's
-        `steps` where they are not the run's."""
-        if why.status > 3:
+        """A probe's call that returned Discard marks the model failed (the caller sets the
+        saved state back); Error or Fatal fails the run (StepFailure: FMI allows nothing
+        more of that instance, and pythonfmu's crashed the process on the next call),
+        naming the probe's `steps` where they are not the run's."""
+        if why.status > 2:
             asked = f" (over a step of h/{SUBSTEPS} that the estimate's probe asked for; " \
                 "--estimate richardson asks none)" if steps else ""
             raise StepFailure(self.r, self.r.function_name(why.function) + asked, why.status, t,
                               t + h) from None
-        self.model.failed = (f"{self.r.name}'s {why.function} returned "
-                             f"{'discard' if why.status == 2 else 'error'}{steps} while "
-                             "probing it")
+        self.model.failed = f"{self.r.name}'s {why.function} returned discard{steps} while " \
+            "probing it"
 
     def _fit(self, k: int, h: float, runs: np.ndarray, eps: np.ndarray,
              after: np.ndarray | None = None) -> bool:
