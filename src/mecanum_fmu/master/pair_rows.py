@@ -531,7 +531,7 @@ class PairRows(Stencils):
         (ProbedModel: held - true end = error - lead)."""
         if self.carry is not None and i == self.plan.loop.origin:
             return self._carried(g, ks, h, hold, branch)
-        more = {"lead": lead} if lead is not None and isinstance(g.model, ProbedModel) else {}
+        more = {"lead": lead} if lead is not None else {}
         return g.model.steps(h, *hold, branch=branch, **more) if branch else \
             g.model.steps(h, *hold, **more)
 
@@ -663,14 +663,17 @@ class PairRows(Stencils):
         return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
 
 
-def _lead(g: Group, gathered: list, own: np.ndarray) -> tuple:
+def _lead(g: Group, gathered: list, own: np.ndarray) -> tuple | None:
     """Per step and input, what a measured model's direct part errs by less the hold's error
     against the true mean (ProbedModel.steps: held - true end = error - lead): the true end
     value less the mean; for a "through" input, whose end value the outputs see, the hold's
     own error (only an error forwarded from upstream is left). Then the true end less the
     mean alone: a lazy output's (ProbedModel.lazy), which reads the value held during the
     step, "through" or not. Third, the true (start + end) / 2 - mean, which a measured
-    model's moments weigh past the change (probe_fit.bend)."""
+    model's moments weigh past the change (probe_fit.bend). None for another group: its
+    model takes none."""
+    if not isinstance(g.model, ProbedModel):
+        return None
     mean, start, end = gathered
     late = end - mean
     return np.where(g.roles == "through", own, late), late, 0.5 * (start + end) - mean

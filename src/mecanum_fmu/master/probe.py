@@ -498,10 +498,7 @@ class Target:
         after = np.zeros((len(self.y), len(u))) if isinstance(self.model, ProbedModel) \
             else None
         try:
-            runs = [self._steps(u, t, h, after=(after, eps) if after is not None else None)]
-            for j in range(len(u)):
-                restore_states([r], t, [state])
-                runs.append(self._steps(u, t, h, _moved(u, j, eps)))
+            runs = self._moves(u, t, h, eps, state, (after, eps) if after is not None else None)
         except _Refused as why:
             self._refused(why, t, h)
         restore_states([r], t, [state])
@@ -568,10 +565,7 @@ class Target:
             return None
         steps, self.steps = self.steps, 2
         try:
-            runs = [self._steps(u, t, h / SUBSTEPS)]
-            for j in range(len(u)):
-                restore_states([self.r], t, [state])
-                runs.append(self._steps(u, t, h / SUBSTEPS, _moved(u, j, eps)))
+            runs = self._moves(u, t, h / SUBSTEPS, eps, state)
         except _Refused as why:
             self._refused(why, t, h, f" over a step of h/{SUBSTEPS}")
             return None
@@ -579,6 +573,17 @@ class Target:
             self.steps = steps
             restore_states([self.r], t, [state])
         return np.array(runs)
+
+    def _moves(self, u: np.ndarray, t: float, h: float, eps: np.ndarray, state,
+               after: tuple | None = None) -> list:
+        """The covered outputs after each of self.steps steps of h from the saved `state`,
+        unmoved (with `after`: _steps'), then per input with it moved by eps over the first,
+        the state set back before each. Raises _Refused."""
+        runs = [self._steps(u, t, h, after=after)]
+        for j in range(len(u)):
+            restore_states([self.r], t, [state])
+            runs.append(self._steps(u, t, h, _moved(u, j, eps)))
+        return runs
 
     def _refused(self, why: "_Refused", t: float, h: float, steps: str = "") -> None:
         """A probe's call that returned Discard marks the model failed (the caller sets the

@@ -102,13 +102,17 @@ def _moment(r: float) -> float:
     return moment_of_log(math.log(r)) if r > 0.0 else 0.0
 
 
-def moment_of_log(z: float) -> float:
-    """moment() of the pole e^z, z real; 1/2 at z = -inf (a decay within the step that the
-    probes do not resolve: SUBSTEPS): the input's weight all at the step's end."""
+def moment_of_log(z):
+    """moment() of the pole e^z (real or complex); 1/2 at z = -inf (a decay within the step
+    that the probes do not resolve: SUBSTEPS): the input's weight all at the step's end."""
     if z == -math.inf:
         return 0.5
     if abs(z) < 1e-4:
         return -z / 12
+    if isinstance(z, complex):
+        grown = cmath.exp(z)
+        mean = (grown - 1.0) / z
+        return (0.5 * mean - grown / z + (grown - 1.0) / (z * z)) / mean
     mean = math.expm1(z) / z
     return (0.5 * mean - math.exp(z) / z + math.expm1(z) / (z * z)) / mean
 
@@ -140,14 +144,7 @@ def bend_of_log(z):
 
 
 def _moment_complex(r: complex) -> complex:
-    if r.imag == 0.0:
-        return complex(_moment(r.real))
-    z = cmath.log(r)
-    if abs(z) < 1e-4:
-        return -z / 12
-    grown = cmath.exp(z)
-    mean = (grown - 1.0) / z
-    return (0.5 * mean - grown / z + (grown - 1.0) / (z * z)) / mean
+    return complex(_moment(r.real)) if r.imag == 0.0 else moment_of_log(cmath.log(r))
 
 
 def fitted(g: np.ndarray, floor: np.ndarray, direct: np.ndarray | None = None
@@ -228,8 +225,7 @@ def direct_fast(found: tuple, seen: np.ndarray, where: np.ndarray) -> tuple:
     rest = np.where(np.abs(rest) > FAST * np.abs(d_part), rest, 0.0)
     if not rest.any():
         return found
-    return (*found[:5], m._replace(fast=np.where(rest != 0.0, rest, m.fast)), d_part - rest,
-            *found[7:])
+    return (*found[:5], m._replace(fast=rest), d_part - rest, *found[7:])   # (a fresh fit's)
 
 
 def fast_moments(sub: np.ndarray, floor: np.ndarray, slow: list, fast: np.ndarray,
