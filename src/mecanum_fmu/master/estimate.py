@@ -189,7 +189,8 @@ def _coarse_estimate(graph: Graph, results: Results, names: list[str], pair, ste
         if isinstance(run, str):
             return _none(f"the same run at {float(factor)}x the step failed ({run})")
         coarse.append(run)
-    found = richardson(graph, results, names, factors, coarse, marks)
+    rough = isinstance(pair, dict) and pair.get("rough", False)
+    found = richardson(graph, results, names, factors, coarse, marks, rough)
     why = pair["failed"] if isinstance(pair, dict) else pair
     if why:
         found["error_estimate_method"] += f" (the embedded pair does not apply: {why})"

@@ -236,18 +236,20 @@ class PairRows(Stencils):
         read after the run on a chain (settle_end), else extrapolated, the end worked out
         with the cubic and with the parabola there (the estimate's third value per output;
         estimate.py words an end the two do not agree on within half of it as
-        unresolved)."""
+        unresolved). "rough": held inputs that do not move as smooth curves (jumps the master
+        does not know of, which may fall inside steps: richardson.ROUGH_END)."""
         tick = _time.perf_counter()
         parabola = self._rest()
         self.seconds += _time.perf_counter() - tick
+        rough = self._not_smooth()
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
                 "unresolved": self._ill(),
                 "unresolved_end": dict.fromkeys(self.net.cancelled(self.end), CANCELLED)
                 if self.net is not None else {},
                 "seconds": self.seconds,
                 "probe_calls": self.probe_calls,
-                "failed": self.failed or self._moved() or self._probe_failed()
-                or self._not_smooth(),
+                "failed": self.failed or self._moved() or self._probe_failed() or rough,
+                "rough": rough is not None,
                 "lagged": bool(self.lag),
                 "tables": self.known is not None,
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
