@@ -110,6 +110,8 @@ def _estimate_end(results: Results, pair, start: Start | None,
         found["probe_calls"] += recorder.probe.calls
     results.extra["pair"] = {"graph": graph, "found": found}
     if start is not None and not (isinstance(found, dict) and found["failed"] is None):
+        if isinstance(found, dict) and found.get("rough"):     # the run at h/2 instead
+            start.factors = coarse_plan(graph, recorder.experiment, rough=True)
         results.extra["coarse"] = coarse_runs(graph, results, start, holds, stepper, ctrl_c)
 
 

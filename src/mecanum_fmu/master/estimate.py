@@ -42,12 +42,14 @@ def recorded_outputs(graph: Graph, results: Results) -> list[str]:
 TURNED_OFF = "turned off (estimate: none; --estimate auto or richardson gives one)"
 
 
-def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
+def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None, rough: bool = False
                 ) -> tuple[Fraction, Fraction] | str | None:
     """The coarser steps the estimate steps (coarse_factors), or why it steps none (the
     reason its method gives), or None where a coarser run has nothing to do: the adaptive
     master (its own estimate) or no recorded Real output. master.simulate steps the factors
-    on the run's own instances; error_estimate words the reason."""
+    on the run's own instances; error_estimate words the reason. `rough`: the pair found
+    held inputs that jump at times the master does not know (PairRows.finish): the run at
+    h/2 (richardson.FINER_ROUGH)."""
     if exp.estimate == "none":
         return TURNED_OFF
     if not _fixed_with_reals(graph, exp):
@@ -60,7 +62,8 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None
                 "half the step keeps them, and how far it moves the outputs is the step's "
                 "share (docs/robot.md, \"The step's share\"; --estimate richardson makes "
                 "that run, at twice the run's cost)")
-    return coarse_factors(graph, exp, marks) or FEW_STEPS
+    factors = coarse_factors(graph, exp, marks)
+    return ((FINER,) if rough else factors) if factors else FEW_STEPS
 
 
 FEW_STEPS = "the run has fewer than 4 steps: no coarser runs to compare with"
@@ -178,7 +181,8 @@ def _coarse_estimate(graph: Graph, results: Results, names: list[str], pair, ste
     coarser runs master.simulate made)."""
     exp = graph.scenario.experiment
     marks = graph_breaks(graph).times()
-    factors = coarse_plan(graph, exp, marks)
+    rough = isinstance(pair, dict) and pair.get("rough", False)
+    factors = coarse_plan(graph, exp, marks, rough)
     if isinstance(factors, str):
         return _none(factors)
     coarse = []
@@ -189,7 +193,6 @@ def _coarse_estimate(graph: Graph, results: Results, names: list[str], pair, ste
         if isinstance(run, str):
             return _none(f"the same run at {float(factor)}x the step failed ({run})")
         coarse.append(run)
-    rough = isinstance(pair, dict) and pair.get("rough", False)
     found = richardson(graph, results, names, factors, coarse, marks, rough)
     why = pair["failed"] if isinstance(pair, dict) else pair
     if why:

@@ -56,8 +56,16 @@ SINGLE_METHOD = ("Richardson extrapolation: the run repeated at {r1} h, e ~ (y_h
 # step would move the samples. Half the step keeps both
 FINER = Fraction(1, 2)
 FINER_METHOD = ("Richardson extrapolation: the run repeated at h/2 ({why}), e ~ (y_h - y_h/2)/"
-                "(1 - 2^-p) with p = {order}, the master's order")
+                "(1 - 2^-p) with p = {order}{whose}")
 FINER_SAMPLED = "{sampled} sample at their own period: a coarser step would move the samples"
+# where the pair found held inputs that jump at times the master does not know (a staircase on
+# an FMU's own grid, a relay): a coarser step would step across the jumps the run steps on
+# (its error of another kind: a staircase on the run's nodes, which Jacobi holds exactly, read
+# 1e12x its round-off error), and the error a jump held over part of a step makes is of the
+# first order, whatever the master's
+FINER_ROUGH = ("held inputs jump at times the master does not know, as a staircase on an "
+               "FMU's own grid or a relay does: a coarser step would step across the jumps "
+               "the run steps on, and a jump held over part of a step errs to the first order")
 FINER_BREAKS = ("no coarser step steps on every breakpoint the run steps on: a path's or a "
                 "table's rows")
 FINER_END = (f"unresolved (its difference from the run at h/2 is under {CANCELS:g} of the "
@@ -85,14 +93,6 @@ CANCELLED = 0.05
 FAR = 0.7
 UNRESOLVED_END = (f"unresolved (the coarser runs are off by {FAR:.0%} of the output's range "
                   "or more)")
-# where the held inputs jump at times the master does not know (the pair found them not
-# smooth: pair_rows.NOT_SMOOTH), a jump falls elsewhere in a step in each run, and the runs'
-# ends may meet by chance: an end difference under CANCELLED of the largest is no
-# cancellation to fit. A relay into a lag at 0.01 s (Gauss-Seidel) read 1.3e-5 for 2e-3
-ROUGH_END = (f"unresolved (held inputs jump at times the master does not know, as a "
-             f"staircase on an FMU's own grid or a relay does, and the runs' ends differ by "
-             f"under {CANCELLED:.0%} of their largest difference: a jump falls elsewhere in a "
-             "step in each run, and the runs may meet at the end by chance)")
 # the highest order the error can have where the run steps across a kink or jump of a table
 # or segments (a breakpoint off its grid): the hold cannot follow a corner inside a step
 ACROSS_ORDER = 2
@@ -217,11 +217,10 @@ def _pairs(exp, factors: tuple, fine: np.ndarray, mid: np.ndarray, coarse: np.nd
 
 
 def _richardson(exp, steps: int, factors: tuple, values: tuple, rows: tuple,
-                orders: tuple[int, int], rough: bool = False) -> dict:
+                orders: tuple[int, int]) -> dict:
     """{"max", "end"} of one output from its values in the three runs (fine, mid, coarse)
     and the rows they share (_pairs); `orders`: the master's order (the h^p range) and the
-    highest the error can have here (2 where the run steps across a breakpoint); `rough`:
-    held inputs jump at times the master does not know (ROUGH_END)."""
+    highest the error can have here (2 where the run steps across a breakpoint)."""
     order, top = orders
     fine, mid, coarse = values
     (i_f2, i_m2), (i_f4, i_m4, i_c4) = rows
@@ -240,8 +239,6 @@ def _richardson(exp, steps: int, factors: tuple, values: tuple, rows: tuple,
     largest = big1 / (r1 ** p - 1.0)
     if big2 >= FAR * np.ptp(f2):
         return {"max": largest, "end": UNRESOLVED_END}
-    if rough and abs(float(d1_4[-1])) < CANCELLED * big1_4:
-        return {"max": largest, "end": ROUGH_END}
     end = min(_end(float(-d1_4[-1]), float(-d2[-1]), big1_4, floor, (r1, r2), p, order),
               largest)       # an end above the run's largest: no
     return {"max": largest, "end": end if end > floor else BELOW_ROUND_OFF}
@@ -309,9 +306,9 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
                coarse: list, marks: np.ndarray, rough: bool = False) -> dict:
     """summary.json's estimate from the coarser runs (coarse_rows' per factor), `marks` the
     graph's breakpoints (graph_breaks(graph).times()); `rough`: the pair found held inputs
-    that jump at times the master does not know (ROUGH_END)."""
+    that jump at times the master does not know (FINER_ROUGH: order 1)."""
     exp = graph.scenario.experiment
-    order = master_entry(exp.master).order
+    order = 1 if rough else master_entry(exp.master).order
     orders = (order, min(order, ACROSS_ORDER) if steps_across(marks, exp) else order)
     if len(factors) == 1:
         rows = _common(exp, float(_shared(ONE, factors[0])) * exp.step_size, results.time,
@@ -320,13 +317,14 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
             results[n], dtype=float), coarse[0][2][n]), rows, orders[1]) for n in names}
         method = SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1])
         if factors[0] == FINER:
-            why = (FINER_SAMPLED.format(sampled=", ".join(graph.sampled)) if graph.sampled
-                   else FINER_BREAKS)
-            method = FINER_METHOD.format(why=why, order=orders[1])
+            why = FINER_ROUGH if rough else FINER_SAMPLED.format(
+                sampled=", ".join(graph.sampled)) if graph.sampled else FINER_BREAKS
+            method = FINER_METHOD.format(why=why, order=orders[1],
+                                         whose="" if rough else ", the master's order")
     else:
         rows = _pairs(exp, factors, results.time, coarse[0][1], coarse[1][1])
         estimate = {n: _richardson(exp, results.steps, factors, (np.asarray(
-            results[n], dtype=float), coarse[0][2][n], coarse[1][2][n]), rows, orders, rough)
+            results[n], dtype=float), coarse[0][2][n], coarse[1][2][n]), rows, orders)
             for n in names}
         method = METHOD.format(r1=str(factors[0]), r2=str(factors[1]), order=orders[1])
     cost = sum(c[0] for c in coarse) / max(results.wall_time, 1e-12)
