@@ -529,6 +529,7 @@ def test_a_source_that_moves_on_its_own_grid_hands_the_pair_over(tmp_path, fmus,
         summary["error_estimate_method"]
     _within_3x(summary["error_estimate"]["it.x"], error)
     monkeypatch.setattr(pair_rough, "ROUGH", math.inf)
+    monkeypatch.setattr(pair_rough, "HELD_LEAST", math.inf)     # (one-row stairs: its holds)
     results = master.simulate(graph, graph.scenario.experiment, with_estimate=True)
     summary = master.estimate_error(graph, results)
     assert summary["error_estimate_method"].startswith("the embedded pair")
@@ -579,6 +580,28 @@ def test_a_staircase_on_an_fmus_own_grid_is_estimated_from_the_run_at_half_the_s
         assert 1 / 3 <= found["max"] / error.max() <= 3
         assert error[-1] > 0.1 * error.max()        # an end error the estimate must not miss
         assert found["end"].startswith("unresolved (its difference from the run at h/2")
+
+
+@pytest.mark.parametrize("master_name", ["quadratic", "gauss-seidel"])
+def test_a_staircase_of_stairs_one_to_two_steps_long_hands_the_pair_over(
+        tmp_path, fmus, monkeypatch, master_name):
+    """The wave on its own 0.13 s grid at 0.1 s: its values' fourth differences sum to
+    under ROUGH of their first, and the pair kept it, reading 0.20x (quadratic) of the
+    largest error against the same master at h/64. Its one-row holds between moves
+    (pair_rough.HELD) hand it over, and the run at h/2 reads the largest error within 3x."""
+    from mecanum_fmu.master import pair_rough
+    graph, exp = with_experiment(_stair_lag(tmp_path, fmus, 0.13), master=master_name)
+    fine, fexp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
+    results = master.simulate(graph, exp, with_estimate=True)
+    error = np.abs(results["it.x"] - master.simulate(fine, fexp)["it.x"][::64])
+    summary = master.estimate_error(graph, results)
+    assert "the run repeated at h/2 (held inputs jump" in summary["error_estimate_method"]
+    assert 1 / 3 <= summary["error_estimate"]["it.x"]["max"] / error.max() <= 3
+    if master_name == "quadratic":
+        monkeypatch.setattr(pair_rough, "HELD_LEAST", math.inf)
+        summary = master.estimate_error(graph, master.simulate(graph, exp, with_estimate=True))
+        assert summary["error_estimate_method"].startswith("the embedded pair")
+        assert summary["error_estimate"]["it.x"]["max"] < error.max() / 3
 
 
 def test_under_the_adaptive_master_a_staircase_leaves_the_estimate_unresolved(

@@ -42,3 +42,20 @@ def test_a_curve_too_fast_for_the_step_is_rough():
     # about (h omega)^3 for a curve: a cosine at 3 radians a step is past ROUGH, at 2 not
     assert _rough(np.cos(30 * T)[:, None]) == [0]
     assert _rough(np.cos(20 * T)[:, None]) == []
+
+
+def test_a_staircase_of_one_or_two_rows_a_stair_is_rough_by_its_holds(monkeypatch):
+    """Stairs of 0.13 s at 0.1 s steps: each value is held for one row or two, and the
+    fourth differences sum to 2.5x the first, under ROUGH (the bouncing ball's kinks sum to
+    2 to 3). A value held to the bit between two moves tells it. A kinked curve (|sin 2t|),
+    one that saturates (long holds, not between moves every few rows) and one at rest
+    before it moves hold none that way."""
+    from mecanum_fmu.master import pair_rough
+    stairs = np.cos(0.13 * np.floor(T / 0.13 + 1e-9))
+    kinked, saturated = np.abs(np.sin(2 * T)), np.clip(np.cos(T), -0.5, 0.5)
+    resting = np.where(T < 2.0, 0.2, 0.2 + np.sin(T - 2.0))
+    columns = np.column_stack((stairs, kinked, saturated, resting))
+    assert _rough(columns) == [0]
+    assert _rough(columns, chunk=7) == [0]
+    monkeypatch.setattr(pair_rough, "HELD_LEAST", np.inf)       # the sums alone
+    assert _rough(columns) == []

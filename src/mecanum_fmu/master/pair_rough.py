@@ -12,7 +12,8 @@ the sum of |fourth differences| against the sum of |first differences|: a smooth
 h omega gives about (h omega)^3 (0.001 at 10 steps a radian, 0.9 at a radian a step), a
 staircase 6 to 9 whatever its period, a single unknown jump under 1 (the cubic across it
 says O(h) of the jump, as it should). Over ROUGH, with a variation above round-off, the
-pair hands over. The adaptive master applies the same rule on its unequal steps
+pair hands over; so it does where a value is held to the bit for one row between two moves
+often enough (HELD: stairs 1 to 2 steps long, whose sums stay under ROUGH). The adaptive master applies the same rule on its unequal steps
 (adaptive._VarBlend.tally, ADAPTIVE_ROUGH), and leaves its estimate unresolved.
 """
 from __future__ import annotations
@@ -23,6 +24,13 @@ from ..results import round_off
 
 ROUGH = 5.0     # sum |4th differences| / sum |1st differences| (cos at 3 steps a radian: 4.9)
 SPAN = 5        # the rows one fourth difference reads
+# a staircase whose stairs last 1 to 2 steps sums its fourth differences to 2.2 to 2.9 of its
+# first (the wave on a 0.07 s grid at 0.05 s, on 0.13 s at 0.1 s), under ROUGH, where the
+# bouncing ball's kinks sum to 2.1 to 3.2: no limit tells them apart. Its rows show it
+# otherwise: a value held to the bit for one row between two moves (a share 1 - h / period
+# of its steps), which a curve that moves never holds. Over HELD of the moves, at least
+# HELD_LEAST times, the column is a staircase (its pair read 0.11x to 0.38x of the error)
+HELD, HELD_LEAST = 0.1, 3
 # the adaptive master's, per accepted step h^4 |u4| (the fourth derivative) against |the
 # step's change|: its steps shrink around a staircase's jumps, which dilutes the sum (a
 # staircase 4.3 to 8.1 at tolerances 1e-2 to 1e-6; the bundled and the test FMUs' curves
@@ -30,10 +38,11 @@ SPAN = 5        # the rows one fourth difference reads
 ADAPTIVE_ROUGH = 1.0
 
 
-def rough_columns(sums: np.ndarray, size: np.ndarray, n: int, limit: float) -> np.ndarray:
+def rough_columns(sums: np.ndarray, size: np.ndarray, n: int, limit) -> np.ndarray:
     """The columns whose `sums` (sum |4th differences|, sum |1st|) say they are not smooth
     curves: a variation above round-off (results.round_off: linear in the size, at least 1,
-    over n steps) whose fourth differences sum to over `limit` times it."""
+    over n steps) whose fourth differences sum to over `limit` times it (a float, or one
+    per column)."""
     moved = sums[1] > np.maximum(size, 1.0) * round_off([1.0], n)
     return np.flatnonzero(moved & (sums[0] > limit * sums[1]))
 
@@ -56,7 +65,8 @@ class Roughness:
         self.lag = np.full(width, -1)
         for d, these in cols.items():
             self.lag[these] = d
-        self.sums = np.zeros((2, width))    # per column: sum |4th differences|, |1st|
+        # per column: sum |4th differences|, |1st|; the moves, the one-row holds between
+        self.sums = np.zeros((4, width))
 
     def tally(self, window: np.ndarray, lo: int, first: int, count: int) -> None:
         """Add the fourth differences that end in the chunk of rows first .. first + count
@@ -68,8 +78,13 @@ class Roughness:
         node = np.arange(r0, r1 + 1)[:, None] - self.lag      # row r of lag d: node r - d
         ok = (node >= 0) & (self.lag >= 0) & self.whole[np.maximum(node, 0)]
         self.sums[0] += (np.abs(np.diff(rows, 4, axis=0)) * ok).sum(axis=0)
+        moves = np.diff(rows[:m + 3], axis=0) != 0      # the steps from rows r0 .. r1 + 2
         self.sums[1] += (np.abs(rows[1:m + 1] - rows[:m]) * ok).sum(axis=0)
+        self.sums[2] += (moves[:m] & ok).sum(axis=0)
+        self.sums[3] += (moves[:m] & ~moves[1:m + 1] & moves[2:m + 2] & ok).sum(axis=0)
 
     def rough(self, size: np.ndarray, n: int) -> np.ndarray:
-        """The columns whose values are not a smooth curve at this step."""
-        return rough_columns(self.sums, size, n, ROUGH)
+        """The columns whose values are not a smooth curve at this step: their fourth
+        differences over ROUGH of their first, or one-row holds between moves (HELD)."""
+        held = (self.sums[3] >= HELD_LEAST) & (self.sums[3] > HELD * self.sums[2])
+        return rough_columns(self.sums[:2], size, n, np.where(held, 0.0, ROUGH))
