@@ -236,12 +236,14 @@ class PairRows(Stencils):
         read after the run on a chain (settle_end), else extrapolated, the end worked out
         with the cubic and with the parabola there (the estimate's third value per output;
         estimate.py words an end the two do not agree on within half of it as
-        unresolved). "rough": held inputs that do not move as smooth curves (jumps the master
-        does not know of, which may fall inside steps: richardson.ROUGH_END)."""
+        unresolved). "rough": held inputs that do not move as smooth curves, or a measured
+        response that a probe's move did not move (an input that saturates or is quantized):
+        jumps or kinks the master does not know of (richardson.FINER_ROUGH)."""
         tick = _time.perf_counter()
         parabola = self._rest()
         self.seconds += _time.perf_counter() - tick
         rough = self._not_smooth()
+        deaf = any(m.deaf for m in self._measured())
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
                 "unresolved": self._ill(),
                 "unresolved_end": dict.fromkeys(self.net.cancelled(self.end), CANCELLED)
@@ -249,7 +251,7 @@ class PairRows(Stencils):
                 "seconds": self.seconds,
                 "probe_calls": self.probe_calls,
                 "failed": self.failed or self._moved() or self._probe_failed() or rough,
-                "rough": rough is not None,
+                "rough": rough is not None or deaf,
                 "lagged": bool(self.lag),
                 "tables": self.known is not None,
                 "models": [f"{g.name}: {g.model_name}" for g in self.plan.groups
@@ -352,13 +354,16 @@ class PairRows(Stencils):
     def _probe_failed(self) -> str | None:
         """Why the pair does not hold: a measured response (probe.py) that could not be
         measured."""
-        measured = [g.model for g in self.plan.groups if isinstance(g.model, ProbedModel)] + [
-            t.response for t in self.plan.throughs() if isinstance(t.response, ProbedResponse)]
-        for m in measured:
+        for m in self._measured():
             if m.failed or not m.found:
                 return m.failed or (f"{m.name}'s response is measured, and the run is too "
                                     "short to probe it")
         return None
+
+    def _measured(self) -> list:
+        """The measured responses (probe.py): the groups' models and the throughs'."""
+        return [g.model for g in self.plan.groups if isinstance(g.model, ProbedModel)] + [
+            t.response for t in self.plan.throughs() if isinstance(t.response, ProbedResponse)]
 
     def _fed_error(self) -> str | None:
         """Why the pair does not hold: a model's output that another FMU reads carries an

@@ -95,6 +95,7 @@ class ProbedModel:
             else direct
         self.found: list[tuple] = []
         self.failed: str | None = None
+        self.deaf = False   # failed as an input moved no output in a probe (_DEAF)
         self.undeclared = False     # every output Real, its dependencies not declared
         # (output, input): a direct part the output does not show for the input set after
         # the step (worked out in doStep alone: lazy())
@@ -455,6 +456,7 @@ class ProbedResponse:
         self.divides: dict = {}
         self.found: list[tuple] = []
         self.failed: str | None = None
+        self.deaf = False   # failed as an input moved no output in a probe (_DEAF)
 
     def jacobian(self, ins: np.ndarray, outs: np.ndarray) -> np.ndarray:
         j = self.found[-1][2] if self.found else np.zeros((len(self.outputs),
@@ -614,26 +616,7 @@ class Target:
         g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)   # (steps, o, j)
         floor = (64 * _EPS) * size[:, :, None] / eps
         if isinstance(self.model, ProbedResponse):
-            g0 = np.where(np.abs(g[0]) <= floor[0], 0.0, g[0])
-            if self.steps > 1:      # per output: moved within the step, kept a trace after
-                self.model.moved = g0.any(axis=1)
-                self.model.trace = (np.abs(g[1]) > floor[1]).any(axis=1)
-            if self.steps > 1 and self.model.trace.any():
-                self.model.failed = (
-                    f"{self.r.name}'s outputs kept a trace of an input's move one step later "
-                    f"(probed at t = {k * h:g} s): it holds a state, " + (
-                        "which its outputs' dependencies, on inputs only, do not say (FMI 2.0 "
-                        "does not ask a co-simulation FMU to)" if self.model.declared else
-                        "and its outputs declare no dependencies"))
-                return
-            found = (k, h, g0)
-            if self.model.found and not _agree(found, self.model.found[-1]):
-                self.model.failed = (
-                    f"{self.r.name}'s measured Jacobian changed along the run (probed at t = "
-                    f"{self.model.found[-1][0] * h:g} s and {k * h:g} s), and the pair "
-                    "carries an error only through an FMU without a state whose response it "
-                    "knows or that responds linearly")
-            self.model.found = [found]        # only the last is used
+            self._fit_response(k, h, g, floor)
             return
         fit = fitted(g, floor.max(axis=0), self.model.direct)
         if isinstance(fit, str):
@@ -648,7 +631,7 @@ class Target:
                 f"by t = {k * h:g} s (an output that grows by itself, an input that "
                 "saturates): the probes no longer measure how it carries an error")
         elif deaf is not None:
-            self.model.failed = _DEAF.format(self.r.name, self.model.inputs[deaf], k * h)
+            self._deaf(deaf, k * h)
         elif self.model.found and len(fit) > 5 and not _agree((k, h, *fit),
                                                               self.model.found[-1]):
             self.model.failed = (
@@ -657,6 +640,38 @@ class Target:
                 "two poles only where they stay, as a linear FMU's do")
         else:
             self._keep((k, h, *fit), after, eps, floor.max(axis=0))
+
+    def _fit_response(self, k: int, h: float, g: np.ndarray, floor: np.ndarray) -> None:
+        """A response's probe (_fit): its Jacobian, the outputs' change over each input's move
+        (g[0]); it fails where an output kept a trace of the move a step later (a state), an
+        input moved no output (_deaf: a quantizer, a saturation), or the Jacobian changed."""
+        g0 = np.where(np.abs(g[0]) <= floor[0], 0.0, g[0])
+        if self.steps > 1:      # per output: moved within the step, kept a trace after
+            self.model.moved = g0.any(axis=1)
+            self.model.trace = (np.abs(g[1]) > floor[1]).any(axis=1)
+        if self.steps > 1 and self.model.trace.any():
+            self.model.failed = (
+                f"{self.r.name}'s outputs kept a trace of an input's move one step later "
+                f"(probed at t = {k * h:g} s): it holds a state, " + (
+                    "which its outputs' dependencies, on inputs only, do not say (FMI 2.0 "
+                    "does not ask a co-simulation FMU to)" if self.model.declared else
+                    "and its outputs declare no dependencies"))
+            return
+        found, deaf = (k, h, g0), _deaf(g0[None], 0.0)
+        if deaf is not None:        # (a quantizer: a small move moves nothing)
+            self._deaf(deaf, k * h)
+        elif self.model.found and not _agree(found, self.model.found[-1]):
+            self.model.failed = (
+                f"{self.r.name}'s measured Jacobian changed along the run (probed at t = "
+                f"{self.model.found[-1][0] * h:g} s and {k * h:g} s), and the pair "
+                "carries an error only through an FMU without a state whose response it "
+                "knows or that responds linearly")
+        self.model.found = [found]        # only the last is used
+
+    def _deaf(self, i: int, t: float) -> None:
+        """The model failed: its input i moved no output in the probe at t (_DEAF)."""
+        self.model.failed = _DEAF.format(self.r.name, self.model.inputs[i], t)
+        self.model.deaf = True
 
     def _keep(self, found: tuple, after: np.ndarray | None, eps: np.ndarray,
               floor: np.ndarray) -> None:

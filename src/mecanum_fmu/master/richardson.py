@@ -59,13 +59,15 @@ FINER_METHOD = ("Richardson extrapolation: the run repeated at h/2 ({why}), e ~ 
                 "(1 - 2^-p) with p = {order}{whose}")
 FINER_SAMPLED = "{sampled} sample at their own period: a coarser step would move the samples"
 # where the pair found held inputs that jump at times the master does not know (a staircase on
-# an FMU's own grid, a relay): a coarser step would step across the jumps the run steps on
-# (its error of another kind: a staircase on the run's nodes, which Jacobi holds exactly, read
-# 1e12x its round-off error), and the error a jump held over part of a step makes is of the
-# first order, whatever the master's
-FINER_ROUGH = ("held inputs jump at times the master does not know, as a staircase on an "
-               "FMU's own grid or a relay does: a coarser step would step across the jumps "
-               "the run steps on, and a jump held over part of a step errs to the first order")
+# an FMU's own grid, a relay) or a response that a probe's move did not move (an input that
+# saturates or is quantized: kinks and jumps inside the FMU): a coarser step would step across
+# the jumps the run steps on (its error of another kind: a staircase on the run's nodes, which
+# Jacobi holds exactly, read 1e12x its round-off error), and a jump held over part of a step
+# errs to the first order, whatever the master's (a kink's higher order reads up to 2x over)
+FINER_ROUGH = ("held inputs or an FMU's response jump or bend at times the master does not "
+               "know, as a staircase on an FMU's own grid, a relay, or an input that saturates "
+               "or is quantized does: a coarser step would step across those the run steps on, "
+               "and a jump held over part of a step errs to the first order")
 FINER_BREAKS = ("no coarser step steps on every breakpoint the run steps on: a path's or a "
                 "table's rows")
 FINER_END = (f"unresolved (its difference from the run at h/2 is under {CANCELS:g} of the "

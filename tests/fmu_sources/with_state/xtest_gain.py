@@ -3,7 +3,10 @@ kp e + cube e^3 + i, e = r - y (linear where cube = 0, the default), its output 
 from its inputs whenever it is read (direct feedthrough); with lazy = 1, only in its doStep,
 as some exporters do against FMI 2.0 (an input set after the step does not move it). With ki
 > 0, an integral part i (a state, saved with the FMU's) that sums ki e h over the steps that
-start at or after t = after, and none before."""
+start at or after t = after, and none before. With quantum > 0, y is read quantized, as a
+sensor with that resolution gives it: quantum round(y / quantum)."""
+import math
+
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 
@@ -14,9 +17,9 @@ class XtestGain(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.kp, self.cube, self.lazy, self.r, self.y = 1.0, 0.0, 0.0, 0.0, 0.0
-        self.ki, self.after, self.i = 0.0, 0.0, 0.0
+        self.ki, self.after, self.i, self.quantum = 0.0, 0.0, 0.0, 0.0
         self._stepped = 0.0
-        for name in ("kp", "cube", "lazy", "ki", "after"):
+        for name in ("kp", "cube", "lazy", "ki", "after", "quantum"):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter,
                                         variability=Fmi2Variability.fixed))
         self.register_variable(Real("r", causality=Fmi2Causality.input,
@@ -30,7 +33,8 @@ class XtestGain(Fmi2Slave):
                                     getter=self._u))
 
     def _law(self):
-        e = self.r - self.y
+        y = self.quantum * math.floor(self.y / self.quantum + 0.5) if self.quantum else self.y
+        e = self.r - y
         return self.kp * e + self.cube * e ** 3 + self.i
 
     def _u(self):
