@@ -197,6 +197,34 @@ def test_an_input_saturated_where_it_is_probed_hands_over_to_richardson(tmp_path
     assert error.max() / 3 <= summary["error_estimate"]["it.x"]["max"] <= 3 * error.max()
 
 
+def test_a_finely_quantized_input_hands_the_pair_over(tmp_path, fmus):
+    """cos t quantized to 0.005 (a P controller reading it through a sensor of that
+    resolution) into the lag at 0.02 s: the values move at every row, by jumps smaller than
+    the step's change, and their fourth differences sum to 0.6 of their first (under
+    ROUGH): the pair took them for a curve and read 0.09x of the largest error against the
+    same master at h/64. Over every second row that ratio does not grow as a curve's does
+    (pair_rough.NOISY): the run at h/2 reads it within 3x."""
+    graph = runner.prepare(write_scenario(tmp_path, "quantized_cos", f"""\
+name: quantized_cos
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.02}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 1.0, quantum: 0.005}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 2.0}}}}
+connections: [[wave.u, ctrl.y], [ctrl.u, it.u]]
+outputs: [it.x]
+"""))
+    exp = graph.scenario.experiment
+    fine, fexp = with_experiment(graph, step_size=0.02 / 64, estimate="none")
+    results = master.simulate(graph, exp, with_estimate=True)
+    error = np.abs(results["it.x"] - master.simulate(fine, fexp)["it.x"][::64])
+    summary = master.estimate_error(graph, results)
+    method = summary["error_estimate_method"]
+    assert method.startswith("Richardson extrapolation: the run repeated at h/2") and \
+        "the held inputs of it do not move as smooth curves" in method, method
+    assert error.max() / 3 <= summary["error_estimate"]["it.x"]["max"] <= 3 * error.max()
+
+
 def test_a_quantized_reading_in_a_loop_hands_the_pair_over(tmp_path, fmus):
     """A P controller that reads the lag's x quantized to 0.02 (a sensor's resolution) at
     0.02 s: the probes' small move of y moves no u (the quantizer's steps are far wider),

@@ -2,7 +2,7 @@
 differences against their first (smooth pieces only), on series whose shape is known."""
 import numpy as np
 
-from mecanum_fmu.master.pair_rough import Roughness, whole_windows
+from mecanum_fmu.master.pair_rough import Roughness
 
 T = np.arange(0.0, 6.0 + 1e-9, 0.1)       # 61 rows, 60 steps of 0.1
 
@@ -11,8 +11,8 @@ def _rough(columns: np.ndarray, starts=(0,), ends=(60,), lag: int = 0, chunk: in
     """The rough columns of `columns` (rows x columns), fed in chunks as PairRows feeds
     them (the window keeps every row here)."""
     n = len(columns) - 1
-    tally = Roughness({lag: list(range(columns.shape[1]))},
-                      whole_windows(np.array(starts), np.array(ends), n), columns.shape[1])
+    tally = Roughness({lag: list(range(columns.shape[1]))}, np.array(starts), np.array(ends),
+                      n, columns.shape[1])
     for first in range(0, len(columns), chunk):
         tally.tally(columns[:first + chunk], 0, first, len(columns[first:first + chunk]))
     return tally.rough(np.abs(columns).max(axis=0), n).tolist()
@@ -59,3 +59,24 @@ def test_a_staircase_of_one_or_two_rows_a_stair_is_rough_by_its_holds(monkeypatc
     assert _rough(columns, chunk=7) == [0]
     monkeypatch.setattr(pair_rough, "HELD_LEAST", np.inf)       # the sums alone
     assert _rough(columns) == []
+
+
+def test_values_whose_ratio_does_not_grow_over_every_second_row_are_rough(monkeypatch):
+    """Over every second row a curve's sum of fourth differences against its first grows
+    as h^3 (8x), a kink's as h (2x), many small jumps' not at all: cos t quantized to 0.005
+    at 0.01 s (its ratio 1.2 at h, under ROUGH; 0.53 of it at 2h) is rough; a single unknown
+    jump on a curve (its ratio 1.6 at h and at 2h: it is one), kinks (|sin 2t|, a saturation)
+    and a curve are not, nor an odd-even ringing (which the subsample drops: a ratio that
+    falls under NOISY_LOW)."""
+    from mecanum_fmu.master import pair_rough
+    t = np.arange(0.0, 6.0 + 1e-9, 0.01)
+    quantized = 0.005 * np.floor(np.cos(t) / 0.005 + 0.5)
+    jump = np.cos(t) + np.where(t > 2.955, 1.0, 0.0)
+    kinks = np.column_stack((np.abs(np.sin(2 * t)), np.clip(np.cos(2 * t), -0.5, 0.5)))
+    columns = np.column_stack((quantized, jump, kinks, np.cos(3 * t)))
+    assert _rough(columns, ends=(600,)) == [0]
+    assert _rough(columns, ends=(600,), chunk=13) == [0]
+    ringing = np.cos(T) + 0.02 * (-1.0) ** np.arange(len(T)) * np.exp(-T)
+    assert _rough(ringing[:, None]) == []
+    monkeypatch.setattr(pair_rough, "NOISY", 0.0)       # the ratio at h alone
+    assert _rough(columns, ends=(600,)) == []

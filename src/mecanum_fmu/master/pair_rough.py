@@ -31,6 +31,16 @@ SPAN = 5        # the rows one fourth difference reads
 # of its steps), which a curve that moves never holds. Over HELD of the moves, at least
 # HELD_LEAST times, the column is a staircase (its pair read 0.11x to 0.38x of the error)
 HELD, HELD_LEAST = 0.1, 3
+# the same sums over every second row (a step of 2h): a smooth curve's ratio grows about 8x
+# (as h^3), a kink's about 2x (the bouncing ball, |sin 2t|, a saturation: 1.6 to 2.8), and
+# many small jumps' (a quantizer finer than the step's change) not at all: 0.25 to 0.61 of the
+# ratio at h on the test graphs. Between NOISY_LOW and NOISY of the ratio at h, which is over
+# NOISY_FLOOR (a curve's own (h omega)^3 is not the whole of it), the column is rough: a lag
+# fed cos t quantized to 0.005 read 0.02x to 0.09x of its largest error at 0.01 and 0.02 s.
+# Left to the pair: a single unknown jump on a curve (1.0: its cubic says O(h) of it); under
+# NOISY_LOW, a loop's odd-even ringing (0.14: a P loop at 0.2 s, trapezoidal, where the pair
+# reads 1.08x) and a staircase finer than the step (0.19), which the subsample aliases
+NOISY, NOISY_LOW, NOISY_FLOOR = 0.75, 0.2, 0.1
 # the adaptive master's, per accepted step h^4 |u4| (the fourth derivative) against |the
 # step's change|: its steps shrink around a staircase's jumps, which dilutes the sum (a
 # staircase 4.3 to 8.1 at tolerances 1e-2 to 1e-6; the bundled and the test FMUs' curves
@@ -47,44 +57,68 @@ def rough_columns(sums: np.ndarray, size: np.ndarray, n: int, limit) -> np.ndarr
     return np.flatnonzero(moved & (sums[0] > limit * sums[1]))
 
 
-def whole_windows(starts: np.ndarray, ends: np.ndarray, n: int) -> np.ndarray:
-    """Per node j = 0 .. n: whether nodes j .. j + 4 lie in one smooth piece (breakpoints.
-    Pieces' starts and ends)."""
+def whole_windows(starts: np.ndarray, ends: np.ndarray, n: int, span: int = SPAN
+                  ) -> np.ndarray:
+    """Per node j = 0 .. n: whether nodes j .. j + span - 1 lie in one smooth piece
+    (breakpoints.Pieces' starts and ends)."""
     nodes = np.arange(n + 1)
     piece = np.searchsorted(starts, nodes, side="right") - 1
-    return nodes + SPAN - 1 <= ends[np.maximum(piece, 0)]
+    return nodes + span - 1 <= ends[np.maximum(piece, 0)]
 
 
 class Roughness:
     """The tally of one run's held columns (PairRows' window columns by lag), chunk by
     chunk as the rows come in."""
 
-    def __init__(self, cols: dict, whole: np.ndarray, width: int):
-        self.whole = whole
+    def __init__(self, cols: dict, starts: np.ndarray, ends: np.ndarray, n: int, width: int):
+        """`starts`, `ends`: the run's smooth pieces (breakpoints.Pieces), of n steps."""
+        # per node, whether the rows of a fourth difference from it lie in one smooth piece:
+        # at the step, and over every second row
+        self.whole = (whole_windows(starts, ends, n), whole_windows(starts, ends, n, 2 * SPAN - 1))
         # per column its lag (-1: not tallied; a column read at two lags: the last)
         self.lag = np.full(width, -1)
         for d, these in cols.items():
             self.lag[these] = d
-        # per column: sum |4th differences|, |1st|; the moves, the one-row holds between
-        self.sums = np.zeros((4, width))
+        # per column: sum |4th differences|, |1st|; the moves, the one-row holds between;
+        # sum |4th differences|, |1st| over every second row
+        self.sums = np.zeros((6, width))
 
     def tally(self, window: np.ndarray, lo: int, first: int, count: int) -> None:
         """Add the fourth differences that end in the chunk of rows first .. first + count
-        - 1 (the window holds rows lo .. , at least four before the chunk)."""
-        r0, r1 = max(first - SPAN + 1, lo), first + count - SPAN
-        if r1 < r0:
-            return
-        rows, m = window[r0 - lo:r1 + SPAN - lo], r1 - r0 + 1
+        - 1 (the window holds rows lo .. , at least eight before the chunk)."""
+        span = SPAN
+        r0, r1 = max(first - span + 1, lo), first + count - span
+        if r1 >= r0:
+            rows, m, ok = self._rows(window, lo, r0, r1, span, 0)
+            self.sums[0] += (np.abs(np.diff(rows, 4, axis=0)) * ok).sum(axis=0)
+            moves = np.diff(rows[:m + 3], axis=0) != 0      # the steps from rows r0 .. r1 + 2
+            self.sums[1] += (np.abs(rows[1:m + 1] - rows[:m]) * ok).sum(axis=0)
+            self.sums[2] += (moves[:m] & ok).sum(axis=0)
+            self.sums[3] += (moves[:m] & ~moves[1:m + 1] & moves[2:m + 2] & ok).sum(axis=0)
+        span = 2 * SPAN - 1         # every second row: rows r, r + 2, .. r + 8
+        r0, r1 = max(first - span + 1, lo), first + count - span
+        if r1 >= r0:
+            rows, m, ok = self._rows(window, lo, r0, r1, span, 1)
+            fourth = rows[8:] - 4 * rows[6:-2] + 6 * rows[4:-4] - 4 * rows[2:-6] + rows[:-8]
+            self.sums[4] += (np.abs(fourth) * ok).sum(axis=0)
+            self.sums[5] += (np.abs(rows[2:m + 2] - rows[:m]) * ok).sum(axis=0)
+
+    def _rows(self, window: np.ndarray, lo: int, r0: int, r1: int, span: int, which: int
+              ) -> tuple:
+        """Rows r0 .. r1 + span - 1, how many differences start in r0 .. r1, and per such row
+        and column whether its rows lie in one smooth piece (self.whole[which])."""
         node = np.arange(r0, r1 + 1)[:, None] - self.lag      # row r of lag d: node r - d
-        ok = (node >= 0) & (self.lag >= 0) & self.whole[np.maximum(node, 0)]
-        self.sums[0] += (np.abs(np.diff(rows, 4, axis=0)) * ok).sum(axis=0)
-        moves = np.diff(rows[:m + 3], axis=0) != 0      # the steps from rows r0 .. r1 + 2
-        self.sums[1] += (np.abs(rows[1:m + 1] - rows[:m]) * ok).sum(axis=0)
-        self.sums[2] += (moves[:m] & ok).sum(axis=0)
-        self.sums[3] += (moves[:m] & ~moves[1:m + 1] & moves[2:m + 2] & ok).sum(axis=0)
+        ok = (node >= 0) & (self.lag >= 0) & self.whole[which][np.maximum(node, 0)]
+        return window[r0 - lo:r1 + span - lo], r1 - r0 + 1, ok
 
     def rough(self, size: np.ndarray, n: int) -> np.ndarray:
         """The columns whose values are not a smooth curve at this step: their fourth
-        differences over ROUGH of their first, or one-row holds between moves (HELD)."""
-        held = (self.sums[3] >= HELD_LEAST) & (self.sums[3] > HELD * self.sums[2])
-        return rough_columns(self.sums[:2], size, n, np.where(held, 0.0, ROUGH))
+        differences over ROUGH of their first, or one-row holds between moves (HELD), or
+        a ratio that does not grow over every second row (NOISY)."""
+        s = self.sums
+        held = (s[3] >= HELD_LEAST) & (s[3] > HELD * s[2])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at_h = np.where(s[1] > 0, s[0] / s[1], 0.0)
+            at_2h = np.where(s[5] > 0, s[4] / s[5], np.inf)
+            noisy = (at_h > NOISY_FLOOR) & (at_2h < NOISY * at_h) & (at_2h > NOISY_LOW * at_h)
+        return rough_columns(s[:2], size, n, np.where(held | noisy, 0.0, ROUGH))

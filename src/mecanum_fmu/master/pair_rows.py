@@ -23,7 +23,7 @@ from .pair_parts import Group, PairPlan
 from .pair_known import KnownInputs
 from .pair_loop import LoopCarry
 from .pair_network import NetworkCarry
-from .pair_rough import ROUGH, Roughness, whole_windows
+from .pair_rough import ROUGH, Roughness
 from .probe import ProbedModel, ProbedResponse
 from .pair_stencils import Stencils, with_branch
 from .stencils import values
@@ -93,8 +93,8 @@ class PairRows(Stencils):
                        default=0)
         self.reach = 4 + self.lag       # the rows past a step its stencils read
         self.cols, self.at, self.lags = _columns(plan)
-        self.roughness = Roughness(self.cols, whole_windows(self.pieces.starts, self.pieces.ends,
-                                                        n_steps), len(plan.slots)) \
+        self.roughness = Roughness(self.cols, self.pieces.starts, self.pieces.ends, n_steps,
+                                   len(plan.slots)) \
             if plan.unknown else None
         self.needed, self.late_names, self.late_cols = self._held_and_late()
         loop, net = plan.loop, plan.network
