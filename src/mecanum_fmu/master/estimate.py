@@ -48,8 +48,8 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None, rough: bool 
     reason its method gives), or None where a coarser run has nothing to do: the adaptive
     master (its own estimate) or no recorded Real output. master.simulate steps the factors
     on the run's own instances; error_estimate words the reason. `rough`: the pair found
-    held inputs that jump at times the master does not know (PairRows.finish): the run at
-    h/2 (richardson.FINER_ROUGH)."""
+    held inputs or a measured response that jump or bend at times the master does not know
+    (PairRows.finish): the run at h/2 (richardson.FINER_ROUGH)."""
     if exp.estimate == "none":
         return TURNED_OFF
     if not _fixed_with_reals(graph, exp):

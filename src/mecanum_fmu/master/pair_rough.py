@@ -13,8 +13,10 @@ h omega gives about (h omega)^3 (0.001 at 10 steps a radian, 0.9 at a radian a s
 staircase 6 to 9 whatever its period, a single unknown jump under 1 (the cubic across it
 says O(h) of the jump, as it should). Over ROUGH, with a variation above round-off, the
 pair hands over; so it does where a value is held to the bit for one row between two moves
-often enough (HELD: stairs 1 to 2 steps long, whose sums stay under ROUGH). The adaptive master applies the same rule on its unequal steps
-(adaptive._VarBlend.tally, ADAPTIVE_ROUGH), and leaves its estimate unresolved.
+often enough (HELD: stairs 1 to 2 steps long, whose sums stay under ROUGH), and where the
+ratio does not grow over every second row as a curve's or a kink's does (NOISY: a quantizer
+finer than the step's change). The adaptive master applies the first rule on its unequal
+steps (adaptive._VarBlend.tally, ADAPTIVE_ROUGH), and leaves its estimate unresolved.
 """
 from __future__ import annotations
 
@@ -74,7 +76,8 @@ class Roughness:
         """`starts`, `ends`: the run's smooth pieces (breakpoints.Pieces), of n steps."""
         # per node, whether the rows of a fourth difference from it lie in one smooth piece:
         # at the step, and over every second row
-        self.whole = (whole_windows(starts, ends, n), whole_windows(starts, ends, n, 2 * SPAN - 1))
+        self.whole = (whole_windows(starts, ends, n),
+                      whole_windows(starts, ends, n, 2 * SPAN - 1))
         # per column its lag (-1: not tallied; a column read at two lags: the last)
         self.lag = np.full(width, -1)
         for d, these in cols.items():

@@ -308,7 +308,8 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
                coarse: list, marks: np.ndarray, rough: bool = False) -> dict:
     """summary.json's estimate from the coarser runs (coarse_rows' per factor), `marks` the
     graph's breakpoints (graph_breaks(graph).times()); `rough`: the pair found held inputs
-    that jump at times the master does not know (FINER_ROUGH: order 1)."""
+    or a measured response that jump or bend at times the master does not know (FINER_ROUGH:
+    order 1)."""
     exp = graph.scenario.experiment
     order = 1 if rough else master_entry(exp.master).order
     orders = (order, min(order, ACROSS_ORDER) if steps_across(marks, exp) else order)
