@@ -99,11 +99,11 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     on a node starts the next piece there, the one before ending a node earlier; one inside
     a step ends a piece at the step's start and starts the next at its end. Where several
     fall on one node, the strongest says how (a jump over one across a step over a kink)."""
-    kinks, jumps = np.asarray(breaks.kinks, dtype=float), breaks.taken_as_jumps()
-    x = (np.concatenate((kinks, jumps)) - start) / h
-    if not len(x):
+    if not (len(breaks.kinks) or len(breaks.jumps) or len(breaks.others)):
         return Pieces(np.zeros(1, dtype=np.int64), np.array([n]), np.zeros(0, dtype=np.int64),
                       {}, False, False)
+    kinks, jumps = np.asarray(breaks.kinks, dtype=float), breaks.taken_as_jumps()
+    x = (np.concatenate((kinks, jumps)) - start) / h
     jump = np.arange(len(x)) >= len(kinks)
     j = np.rint(x)
     on = np.abs(x - j) < NEAR

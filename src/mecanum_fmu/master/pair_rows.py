@@ -56,9 +56,13 @@ def _columns(plan: PairPlan) -> tuple[dict, list, list]:
     for _, c, d in plan.lagged:
         if c not in cols.setdefault(d, []):
             cols[d].append(c)
-    at = [{d: (np.flatnonzero(g.lags == d), np.array([cols[d].index(c)
-                                                      for c in g.cols[g.lags == d]]))
-           for d in set(g.lags.tolist())} for g in plan.groups]
+    at = []
+    for g in plan.groups:
+        places: dict[int, list] = {}        # per lag: (the input's place, its column's)
+        for i, (c, d) in enumerate(zip(g.cols.tolist(), g.lags.tolist())):
+            places.setdefault(d, []).append((i, cols[d].index(c)))
+        at.append({d: (np.array([i for i, _ in p], dtype=np.intp), np.array([j for _, j in p]))
+                   for d, p in places.items()})
     by_lag: dict[int, list] = {}
     for name, col, d in plan.lagged:
         by_lag.setdefault(d, []).append((name, cols[d].index(col)))
@@ -76,6 +80,8 @@ def _gap(d: int) -> np.ndarray:
 
 class PairRows(Stencils):
     """The pair over the rows of one run of n steps (Recorder.tap, then finish())."""
+
+    still: bool | None = None       # every row the same (_still), once compared
 
     def __init__(self, plan: PairPlan, exp, n_steps: int, breaks, known=()):
         self.plan, self.n, self.h = plan, n_steps, exp.step_size
@@ -573,9 +579,14 @@ class PairRows(Stencils):
         """Whether every column the pair reads holds one value over the whole run (none
         worked out yet, every row in the window) and nothing moves between the nodes (no
         breakpoint inside a step, no table stepped across): every hold is then exact and
-        every error 0, under any master (the bicycle on constant commands)."""
-        return self.k == 0 and self.lo == 0 and len(self.window) == self.n + 1 and not (
-            len(self.across_k) or self.known) and not (self.window != self.window[0]).any()
+        every error 0, under any master (the bicycle on constant commands). Asked up to three
+        times after the run (wants_end, settle_end, _rest): the rows are compared once."""
+        if not (self.k == 0 and self.lo == 0 and len(self.window) == self.n + 1) or \
+                len(self.across_k) or self.known:
+            return False
+        if self.still is None:
+            self.still = not (self.window != self.window[0]).any()
+        return self.still
 
     @property
     def _branchable(self) -> bool:

@@ -155,8 +155,8 @@ class PoseBatch:
     def __init__(self, index: list[int], inst):
         self.index, self.name = np.array(index), inst.name
         # the twist's columns: a slice where they are side by side in order (no copy)
-        self.twist = slice(index[0], index[0] + 3) if np.all(np.diff(index) == 1) \
-            else self.index
+        self.twist = slice(index[0], index[0] + 3) \
+            if list(index) == list(range(index[0], index[0] + 3)) else self.index
         self.outputs = _POSE
         self.theta = float(inst.value("theta0"))      # the run's heading
         self.e, self.heading = np.zeros(2), 0.0         # run - true: position, heading
