@@ -67,6 +67,14 @@ def _within_3x(estimate: dict, error: np.ndarray) -> None:
         assert value / 3 <= estimate[which] <= 3 * value, (which, estimate, value)
 
 
+def _against_h64(graph, exp, output: str = "it.x") -> tuple[dict, np.ndarray]:
+    """The run's estimate (summary.json's) and |its output - the same master's at h/64|."""
+    fine, fexp = with_experiment(graph, step_size=exp.step_size / 64, estimate="none")
+    results = master.simulate(graph, exp, with_estimate=True)
+    error = np.abs(results[output] - master.simulate(fine, fexp)[output][::64])
+    return master.estimate_error(graph, results), error
+
+
 @pytest.mark.parametrize("master_name", ["quadratic", "trapezoidal", "gauss-seidel", "jacobi"])
 @pytest.mark.parametrize("divide", [1, 2, 8])
 def test_the_estimate_of_a_fixed_master_is_within_3x_of_the_closed_form(tmp_path, fmus,
@@ -214,11 +222,7 @@ components:
 connections: [[wave.u, ctrl.y], [ctrl.u, it.u]]
 outputs: [it.x]
 """))
-    exp = graph.scenario.experiment
-    fine, fexp = with_experiment(graph, step_size=0.02 / 64, estimate="none")
-    results = master.simulate(graph, exp, with_estimate=True)
-    error = np.abs(results["it.x"] - master.simulate(fine, fexp)["it.x"][::64])
-    summary = master.estimate_error(graph, results)
+    summary, error = _against_h64(graph, graph.scenario.experiment)
     method = summary["error_estimate_method"]
     assert method.startswith("Richardson extrapolation: the run repeated at h/2") and \
         "the held inputs of it do not move as smooth curves" in method, method
@@ -242,11 +246,7 @@ components:
 connections: [[wave.u, ctrl.r], [it.x, ctrl.y], [ctrl.u, it.u]]
 outputs: [it.x]
 """))
-    exp = graph.scenario.experiment
-    fine, fexp = with_experiment(graph, step_size=0.02 / 64, estimate="none")
-    results = master.simulate(graph, exp, with_estimate=True)
-    error = np.abs(results["it.x"] - master.simulate(fine, fexp)["it.x"][::64])
-    summary = master.estimate_error(graph, results)
+    summary, error = _against_h64(graph, graph.scenario.experiment)
     method = summary["error_estimate_method"]
     assert method.startswith("Richardson extrapolation: the run repeated at h/2") and \
         "ctrl's outputs did not move with its input y" in method, method
@@ -621,10 +621,7 @@ def test_a_staircase_on_an_fmus_own_grid_is_estimated_from_the_run_at_half_the_s
     first order: each within 3x, the chance end unresolved, against the same master at
     h/64."""
     graph, exp = with_experiment(_stair_lag(tmp_path, fmus, period), master=master_name)
-    fine, fexp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
-    results = master.simulate(graph, exp, with_estimate=True)
-    error = np.abs(results["it.x"] - master.simulate(fine, fexp)["it.x"][::64])
-    summary = master.estimate_error(graph, results)
+    summary, error = _against_h64(graph, exp)
     assert summary["error_estimate_method"].startswith(
         "Richardson extrapolation: the run repeated at h/2 (held inputs or an FMU's response "
         "jump or bend at times the master does not know") and "with p = 1 (the embedded pair" in \
@@ -649,10 +646,7 @@ def test_a_staircase_of_stairs_one_to_two_steps_long_hands_the_pair_over(
     (pair_rough.HELD) hand it over, and the run at h/2 reads the largest error within 3x."""
     from mecanum_fmu.master import pair_rough
     graph, exp = with_experiment(_stair_lag(tmp_path, fmus, 0.13), master=master_name)
-    fine, fexp = with_experiment(graph, step_size=0.1 / 64, estimate="none")
-    results = master.simulate(graph, exp, with_estimate=True)
-    error = np.abs(results["it.x"] - master.simulate(fine, fexp)["it.x"][::64])
-    summary = master.estimate_error(graph, results)
+    summary, error = _against_h64(graph, exp)
     assert "the run repeated at h/2 (held inputs or an FMU's response jump" in \
         summary["error_estimate_method"]
     assert 1 / 3 <= summary["error_estimate"]["it.x"]["max"] / error.max() <= 3
