@@ -81,8 +81,6 @@ def _gap(d: int) -> np.ndarray:
 class PairRows(Stencils):
     """The pair over the rows of one run of n steps (Recorder.tap, then finish())."""
 
-    still: bool | None = None       # every row the same (_still), once compared
-
     def __init__(self, plan: PairPlan, exp, n_steps: int, breaks, known=()):
         self.plan, self.n, self.h = plan, n_steps, exp.step_size
         self.last = (exp.stop_time - exp.start_time) / exp.step_size - (n_steps - 1)
@@ -579,14 +577,9 @@ class PairRows(Stencils):
         """Whether every column the pair reads holds one value over the whole run (none
         worked out yet, every row in the window) and nothing moves between the nodes (no
         breakpoint inside a step, no table stepped across): every hold is then exact and
-        every error 0, under any master (the bicycle on constant commands). Asked up to three
-        times after the run (wants_end, settle_end, _rest): the rows are compared once."""
-        if not (self.k == 0 and self.lo == 0 and len(self.window) == self.n + 1) or \
-                len(self.across_k) or self.known:
-            return False
-        if self.still is None:
-            self.still = not (self.window != self.window[0]).any()
-        return self.still
+        every error 0, under any master (the bicycle on constant commands)."""
+        return self.k == 0 and self.lo == 0 and len(self.window) == self.n + 1 and not (
+            len(self.across_k) or self.known) and not (self.window != self.window[0]).any()
 
     @property
     def _branchable(self) -> bool:

@@ -541,8 +541,8 @@ class Target:
         runs = self._substeps(t, h, u, eps, state)
         if runs is None:
             return
-        sub = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
-        floor = ((64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps).max(axis=0)
+        sub, floor = _gains(runs, eps)
+        floor = floor.max(axis=0)
         # (a direct part moved the first substep's end)
         fit = fast_moments(sub - np.stack((found[6], 0 * found[6])), floor, _slow(found), fast,
                            found[2] + found[6])
@@ -612,9 +612,7 @@ class Target:
             self.model.failed = (f"{self.r.name}'s outputs were not finite numbers in the "
                                  f"probe at t = {k * h:g} s")
             return
-        size = np.abs(runs).max(axis=0)                                     # (steps, outputs)
-        g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)   # (steps, o, j)
-        floor = (64 * _EPS) * size[:, :, None] / eps
+        g, floor = _gains(runs, eps)
         if isinstance(self.model, ProbedResponse):
             self._fit_response(k, h, g, floor)
             return
@@ -731,6 +729,14 @@ class _Refused(Exception):
     def __init__(self, function: str, status: int):
         super().__init__(function, status)
         self.function, self.status = function, status
+
+
+def _gains(runs: np.ndarray, eps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """From a probe's runs (1 + inputs, steps, outputs; the first unmoved, then each input
+    moved by eps): the responses g, each output's change over each input's move, and their
+    round-off floor, each (steps, outputs, inputs)."""
+    g = ((runs[1:] - runs[0]) / eps[:, None, None]).transpose(1, 2, 0)
+    return g, (64 * _EPS) * np.abs(runs).max(axis=0)[:, :, None] / eps
 
 
 def _moved(u: np.ndarray, j: int, eps: np.ndarray) -> np.ndarray:
