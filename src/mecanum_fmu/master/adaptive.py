@@ -93,6 +93,9 @@ class AdaptiveHolds(Holds):
         self.clients: list = []     # the error models handed a blend
         self.paired: list["_VarBlend"] = []   # the blends no model takes: the embedded pair's
         self.half = None        # the pair's half steps: which half is being taken (0, 1)
+        # the pair's end passes (_Loop._ends): each held input at its value at the step's
+        # start (0) or end (1)
+        self.point = None
         # the share of each held mean's estimated error (_VarBlend.next) added to it: -1 in
         # the pass that takes the step without it (_Loop._attempt), the divisor in the
         # whole-step trajectory's (trajectory.py: its difference over the divisor then
@@ -121,6 +124,10 @@ class AdaptiveHolds(Holds):
         theirs. 3 (the holds are second order); 1 where some FMU's inputs are held at their
         end values (held_at_end: first order)."""
         return 1.0 if self.held_at_end else 3.0
+
+    def moved(self) -> bool:
+        """Whether a held input of one of the pair's blends moved over this step."""
+        return any(((b.rows[0] != b.rows[1]) & ~(b.fed | b.end)).any() for b in self.paired)
 
     def kinked(self) -> bool:
         """Whether a kink sits among the values of one of the pair's blends this step
@@ -208,6 +215,9 @@ class _VarBlend:
         if self.shift is not None:
             self.rows[0] += self.shift
         now, u, u1, _ = self.rows
+        if hs.point is not None:
+            self.staging[:] = np.where(self.fed | self.end, now, now if hs.point else u)
+            return
         h, g = hs.h, hs.g
         mean = 0.5 * (now + u)
         # the held polynomial, u + (now - u) s/h + a s (s - h) + b s (s - h) (s + g) on the
@@ -344,7 +354,8 @@ class OutputErrors:
     the held mean where the input changes within the step), and its signed sum over the
     accepted steps."""
 
-    def __init__(self, recorder: Recorder, clients: list, paired: bool, divisor: float = 3.0):
+    def __init__(self, recorder: Recorder, clients: list, paired: bool, divisor: float = 3.0,
+                 held: frozenset = frozenset()):
         real = [p for p in recorder.graph.recorded if p.type == "Real"]
         slot = {str(p.ref): recorder.buffers.slot(p) for p in real}
         covered = [[f"{c.name}.{o}" for o in c.outputs if f"{c.name}.{o}" in slot]
@@ -356,8 +367,11 @@ class OutputErrors:
         self.real = recorder.buffers.real
         # per error model, the slots of its recorded outputs: their size for rtol
         self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
-        self.whole, self.step, self.sum, self.scaled, self.weighted, self.loose = (
-            np.zeros(len(self.slots)) for _ in range(6))
+        self.whole, self.step, self.sum, self.scaled, self.weighted, self.loose, self.bend = (
+            np.zeros(len(self.slots)) for _ in range(7))
+        # the outputs of FMUs that hold some of the pair's inputs (`held`: their names)
+        owner = {str(p.ref): p.ref.instance for p in real}
+        self.holding = np.array([owner[n] in held for n in self.names], dtype=bool)
         self.positions = slot_positions(self.slots)
         self.carried = None     # a WholeSteps: the accumulated error the dynamics carried
         self.divisor = divisor  # (whole - halves) / it: AdaptiveHolds.richardson
@@ -386,6 +400,19 @@ class OutputErrors:
         self.step /= self.divisor
         self.step += self.loose
         self.loose[:] = 0.0
+        self.bend[:] = 0.0
+
+    def deaf(self) -> bool:
+        """Whether the halves left every output of an FMU holding the pair's inputs where
+        the whole step did, to the round-off (some FMU holds them)."""
+        whole, halves = self.whole[self.holding], self.real[self.slots[self.holding]]
+        return bool(len(whole)) and bool((np.abs(whole - halves) <= 64 * np.finfo(float).eps
+                                          * np.maximum(np.abs(whole), np.abs(halves))).all())
+
+    def bent(self, error: np.ndarray) -> None:
+        """Add a bend's error (_Loop._ends) to this step's."""
+        self.bend[:] = error
+        self.step += error
 
     def ratios(self, atol: float, rtol: float) -> tuple[float, float, float]:
         """(this step's own error, the accumulated error with it, without it), each in the
@@ -494,7 +521,8 @@ class _Loop:
         self.first = first_step(tol[0], self.span)
         self.control = Controller(self.span, self.first, self.span)
         self.errors = OutputErrors(recorder, holds.clients,
-                                   bool(holds.paired) or not holds.clients, holds.richardson)
+                                   bool(holds.paired) or not holds.clients, holds.richardson,
+                                   frozenset(b.owner for b in holds.paired))
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
         self.rows = DenseRows(recorder, tol, near, self.names(),
@@ -538,6 +566,7 @@ class _Loop:
         if self.whole is not None:
             self.counts["passes"] += 1
             self.whole.step(t, h)
+            self.whole.bends += self.errors.bend
         free_states(self.running, t)
         self.holds.commit()
         self.counts["steps_taken"] += 1
@@ -608,11 +637,36 @@ class _Loop:
                 holds.kinks = 0.0
                 self.errors.keep_loose()
             self._restore(t, self.predicted)
-            for half in (0, 1):
-                holds.half = half
-                self._pass(t + half * h / 2, h / 2)
-            holds.half = None
+            self._halves(t, h)
             self.errors.measure()
+            if holds.check and self.errors.deaf() and holds.moved():
+                self._ends(t, h)
+
+    def _halves(self, t: float, h: float) -> None:
+        for half in (0, 1):
+            self.holds.half = half
+            self._pass(t + half * h / 2, h / 2)
+        self.holds.half = None
+
+    def _ends(self, t: float, h: float) -> None:
+        """A step whose outputs the held means did not move (the pair's difference at
+        round-off; a held input moved): taken again with every held input at its value at
+        the step's start, then at its end. Where either moves an output, the FMU's response
+        bends inside the range the input swept (a saturation it leaves or enters: the
+        held mean sits on its flat side, and so do the halves' means), and the step's error
+        is taken as half what they moved it, summed (a bound: a kink at a share f of the
+        step from its live end errs by f/2 of it, and f is not known); then the halves
+        again (what is kept)."""
+        moved = np.zeros(len(self.errors.slots))
+        for point in (0, 1):
+            self._restore(t, self.predicted)
+            self.holds.point = point
+            self._pass(t, h)
+            moved += self.real[self.errors.slots] - self.errors.whole
+        self.holds.point = None
+        self._restore(t, self.predicted)
+        self._halves(t, h)
+        self.errors.bent(-0.5 * moved)
 
     def _pass(self, t: float, h: float) -> None:
         self.counts["passes"] += 1
