@@ -25,7 +25,7 @@ from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario.document import Experiment
 from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
 from .coarse import Start, coarse_runs
-from .estimate import coarse_plan, error_estimate, pair_tap, wants_pair
+from .estimate import coarse_plan, error_estimate, pair_tap, steps_coarser, wants_pair
 from .instance import FmuCallError, RunningInstance
 from .pair_rows import PairRows
 from .plan import Buffers, Holds, plan_transfers
@@ -110,8 +110,9 @@ def _estimate_end(results: Results, pair, start: Start | None,
         found["probe_calls"] += recorder.probe.calls
     results.extra["pair"] = {"graph": graph, "found": found}
     if start is not None and not (isinstance(found, dict) and found["failed"] is None):
-        if isinstance(found, dict) and found.get("rough"):     # the run at h/2 instead
-            start.factors = coarse_plan(graph, recorder.experiment, rough=True)
+        # after a rough hand-over the run at h/2 (coarse_plan)
+        start.factors = coarse_plan(graph, recorder.experiment,
+                                    rough=isinstance(found, dict) and found.get("rough"))
         results.extra["coarse"] = coarse_runs(graph, results, start, holds, stepper, ctrl_c)
 
 
@@ -249,11 +250,10 @@ def _start(graph: Graph, exp: Experiment, running: list[RunningInstance], buffer
            stack: ExitStack) -> Start | None:
     """The t0 the estimate's coarser runs start from (coarse.Start, freed with the run), or
     None where it makes none or an FMU cannot save its state."""
-    factors = coarse_plan(graph, exp)
-    if not isinstance(factors, tuple) or not all(r.can_roll_back for r in running):
+    if not steps_coarser(graph, exp) or not all(r.can_roll_back for r in running):
         return None
     try:
-        start = Start(running, buffers, exp.start_time, factors)
+        start = Start(running, buffers, exp.start_time)
     except StepFailure as err:  # an FMU that says it can and cannot: the estimate runs
         if err.status > 2:      # afresh; after Error or worse FMI allows it nothing more
             raise

@@ -33,11 +33,11 @@ from .stepping import (EndRequested, NonFinite, StepFailure, before_stop, free_s
 class Start:
     """The run's t0: every FMU's state and the buffers' values after initialisation, in
     states of their own (the quadratic master's rollback uses each instance's one saved
-    state every step), and the coarser steps to take from it (estimate.coarse_plan)."""
+    state every step), and the coarser steps to take from it (estimate.coarse_plan, set
+    where they are stepped: master._estimate_end)."""
 
-    def __init__(self, running: list[RunningInstance], buffers: Buffers, t0: float,
-                 factors: tuple[Fraction, ...]):
-        self.factors = factors
+    def __init__(self, running: list[RunningInstance], buffers: Buffers, t0: float):
+        self.factors: tuple[Fraction, ...] = ()
         self.states = [ctypes.c_void_p() for _ in running]
         save_states(running, t0, self.states)
         self.running, self.buffers, self.t0 = running, buffers, t0

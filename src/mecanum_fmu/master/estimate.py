@@ -23,7 +23,8 @@ from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
 from .pair_parts import PairPlan
 from .pair_rows import PairRows
 from .memory import held_at_end_advice, hidden_advice, undeclared
-from .richardson import FINER, coarse_experiment, coarse_factors, coarse_run, richardson
+from .richardson import (FINER, coarse_experiment, coarse_factors, coarse_run, richardson,
+                         room_for_coarser)
 
 ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
                    "the run and the same run stepped whole on its accepted steps (each step "
@@ -50,20 +51,38 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None, rough: bool 
     on the run's own instances; error_estimate words the reason. `rough`: the pair found
     held inputs or a measured response that jump or bend at times the master does not know
     (PairRows.finish): the run at h/2 (richardson.FINER_ROUGH)."""
+    why = _no_coarser(graph, exp)
+    if why is not _SOME:
+        return why
+    if graph.sampled:       # (Richardson by name)
+        return (FINER,)
+    return (FINER,) if rough else coarse_factors(graph, exp, marks)
+
+
+def steps_coarser(graph: Graph, exp) -> bool:
+    """Whether coarse_plan gives coarser steps, without working out which (master._start:
+    the run keeps its t0 for them; which, it asks only where they are stepped)."""
+    return _no_coarser(graph, exp) is _SOME
+
+
+_SOME = object()    # _no_coarser: the estimate may step coarser runs
+
+
+def _no_coarser(graph: Graph, exp) -> str | None | object:
+    """coarse_plan's reason or None where it steps no coarser run, else _SOME."""
     if exp.estimate == "none":
         return TURNED_OFF
     if not _fixed_with_reals(graph, exp):
         return None
     if graph.sampled and exp.estimate == "richardson":
-        return (FINER,)
+        return _SOME
     if graph.sampled:
         return (f"{', '.join(graph.sampled)} sample at their own period: a coarser step moves "
                 "their samples (a different model, not a coarser run of this one); a run at "
                 "half the step keeps them, and how far it moves the outputs is the step's "
                 "share (docs/robot.md, \"The step's share\"; --estimate richardson makes "
                 "that run, at twice the run's cost)")
-    factors = coarse_factors(graph, exp, marks)
-    return ((FINER,) if rough else factors) if factors else FEW_STEPS
+    return _SOME if room_for_coarser(exp) else FEW_STEPS
 
 
 FEW_STEPS = "the run has fewer than 4 steps: no coarser runs to compare with"

@@ -114,6 +114,11 @@ def _on_grid(k: np.ndarray, r: float) -> np.ndarray:
     return np.abs(k / r - np.round(k / r)) < 1e-3
 
 
+def room_for_coarser(exp) -> bool:
+    """Whether the run has 4 steps or more, the fewest coarse_factors compares."""
+    return exp.stop_time - exp.start_time >= 4 * exp.step_size * (1 - 1e-9)
+
+
 def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
                    ) -> tuple[Fraction, ...] | None:
     """The coarser steps (r1 h, r2 h) of the estimate: the first pair of CANDIDATES whose
@@ -124,7 +129,7 @@ def coarse_factors(graph: Graph, exp, marks: np.ndarray | None = None
     inside a step): comparing the two says nothing of the run's. None when the run has
     fewer than 4 steps. `marks`: graph_breaks(graph).times(), when known."""
     h, span = exp.step_size, exp.stop_time - exp.start_time
-    if span < 4 * h * (1 - 1e-9):
+    if not room_for_coarser(exp):
         return None
     marks = graph_breaks(graph).times() if marks is None else marks
     k = (np.append(marks, exp.stop_time) - exp.start_time) / h
