@@ -18,9 +18,15 @@ Per step, after the pass (docs/masters.md, "The adaptive master"):
   input's values (KINK: a third-party FMU's, which no breakpoint announces) the step is
   taken once more whole without the hold's estimated error, and the outputs' difference is
   added to the step's; the whole-step trajectory holds that error times its divisor, so that
-  its estimate carries it. An FMU whose held inputs an error model of Graph.error_models
-  takes (the PoseIntegrator's, models/pose_error.py) is left to it: the model computes the
-  same from the step's values, without the extra pass, and adds what the pair cannot see
+  its estimate carries it. On such graphs, where a step's halves moved no output of an FMU
+  that holds the pair's inputs and one taken with the held inputs at their mean less or plus
+  half their change left them to the bit (a flat response: a saturation), every later step
+  is also taken with the held inputs so: what is left of the two beyond a linear response
+  is a bend inside the step (bend_error), which the held means do not see where they sit
+  on one side of it; its error is added to the step's and to the whole-step trajectory's
+  estimate. An FMU whose held inputs an error model of Graph.error_models takes (the
+  PoseIntegrator's, models/pose_error.py) is left to it: the model computes the same from
+  the step's values, without the extra pass, and adds what the pair cannot see
   (the frame turning within the step). No pass is added when every held input has a model;
 - the error is weighed per output as ODE solvers do: e_i / (atol + rtol |y_i|), the largest
   over the outputs (the max norm); atol is the tolerance, rtol the relative one;
@@ -93,8 +99,8 @@ class AdaptiveHolds(Holds):
         self.clients: list = []     # the error models handed a blend
         self.paired: list["_VarBlend"] = []   # the blends no model takes: the embedded pair's
         self.half = None        # the pair's half steps: which half is being taken (0, 1)
-        # the pair's end passes (_Loop._ends): each held input at its value at the step's
-        # start (0) or end (1)
+        # the pair's end passes (_Loop._ends): each held input at its mean less (0) or plus
+        # (1) half its change over the step
         self.point = None
         # the share of each held mean's estimated error (_VarBlend.next) added to it: -1 in
         # the pass that takes the step without it (_Loop._attempt), the divisor in the
@@ -215,9 +221,6 @@ class _VarBlend:
         if self.shift is not None:
             self.rows[0] += self.shift
         now, u, u1, _ = self.rows
-        if hs.point is not None:
-            self.staging[:] = np.where(self.fed | self.end, now, now if hs.point else u)
-            return
         h, g = hs.h, hs.g
         mean = 0.5 * (now + u)
         # the held polynomial, u + (now - u) s/h + a s (s - h) + b s (s - h) (s + g) on the
@@ -251,6 +254,8 @@ class _VarBlend:
                                                 np.where(self.end, now, mean)))
         else:
             self.staging[:] = np.where(self.fed | self.end, now, mean)
+        if hs.point is not None:    # the mean -+ half the step's change (_Loop._ends)
+            self.staging += np.where(self.fed | self.end, 0.0, (hs.point - 0.5) * (now - u))
 
     def _kinked(self, dropped: np.ndarray, third: np.ndarray, smooth: np.ndarray,
                 correction: np.ndarray) -> None:
@@ -525,6 +530,9 @@ class _Loop:
                                    frozenset(b.owner for b in holds.paired))
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
+        # whether some step found a flat response (a saturation), whose bends every step
+        # then looks for (_bent)
+        self.bends = False
         self.rows = DenseRows(recorder, tol, near, self.names(),
                               len(self.names()) - len(self.errors.names), holds.check)
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
@@ -636,11 +644,11 @@ class _Loop:
                 self._pass(t, h)
                 holds.kinks = 0.0
                 self.errors.keep_loose()
+            ends = self._ends(t, h) if self.bends and holds.moved() else None
             self._restore(t, self.predicted)
             self._halves(t, h)
             self.errors.measure()
-            if holds.check and self.errors.deaf() and holds.moved():
-                self._ends(t, h)
+            self._bent(t, h, ends)
 
     def _halves(self, t: float, h: float) -> None:
         for half in (0, 1):
@@ -648,29 +656,58 @@ class _Loop:
             self._pass(t + half * h / 2, h / 2)
         self.holds.half = None
 
-    def _ends(self, t: float, h: float) -> None:
-        """A step whose outputs the held means did not move (the pair's difference at
-        round-off; a held input moved): taken again with every held input at its value at
-        the step's start, then at its end. Where either moves an output, the FMU's response
-        bends inside the range the input swept (a saturation it leaves or enters: the
-        held mean sits on its flat side, and so do the halves' means), and the step's error
-        is taken as half what they moved it, summed (a bound: a kink at a share f of the
-        step from its live end errs by f/2 of it, and f is not known); then the halves
-        again (what is kept)."""
-        moved = np.zeros(len(self.errors.slots))
+    def _bent(self, t: float, h: float, ends: tuple | None) -> None:
+        """A bend of an FMU's response inside the range a held input swept over the step (a
+        saturation it leaves or enters), which neither the whole step nor the halves see
+        where their held means sit on the same side of it: its error (bend_error), from
+        the step taken with the held inputs at their mean less and plus half their change
+        (`ends`: _ends). A flat response: the halves moved no output of an FMU that holds
+        the pair's inputs from the whole step's (to 64 round-offs) while a held input moved,
+        and one of the two ends leaves them where the whole step did, to the bit (the mean
+        and that end saturated alike). The first such step takes the ends now (and its
+        halves again: what is kept); every step after it takes them before its halves."""
+        suspect = self.holds.check and self.errors.deaf() and self.holds.moved()
+        if suspect and ends is None:
+            ends = self._ends(t, h)
+            self._restore(t, self.predicted)
+            self._halves(t, h)
+        held = self.errors.holding
+        flat = suspect and any(not end[held].any() for end in ends)
+        self.bends = self.bends or flat
+        if ends is not None:
+            self.errors.bent(bend_error(*ends, flat))
+
+    def _ends(self, t: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """What the step taken with every held input at its mean less, then plus half its
+        change over the step moves the recorded outputs from the whole step."""
+        ends = []
         for point in (0, 1):
             self._restore(t, self.predicted)
             self.holds.point = point
             self._pass(t, h)
-            moved += self.real[self.errors.slots] - self.errors.whole
+            ends.append(self.real[self.errors.slots] - self.errors.whole)
         self.holds.point = None
-        self._restore(t, self.predicted)
-        self._halves(t, h)
-        self.errors.bent(-0.5 * moved)
+        return ends[0], ends[1]
 
     def _pass(self, t: float, h: float) -> None:
         self.counts["passes"] += 1
         one_pass(self.program, t, h)
+
+
+def bend_error(below: np.ndarray, above: np.ndarray, flat: bool) -> np.ndarray:
+    """The step's error (kept - true) from a bend inside the range its held inputs swept,
+    per output, from what holding them at their mean less and plus half their change moves
+    it (`below`, `above`). On a response linear over that range the two cancel; what is
+    left, K = below + above, is the bend's. With the held mean on the flat side of a
+    saturation (`flat`), -K/2 (a bound: a bend at a share f of the step from its live end
+    errs by f/2 of K, and f is not known); on its live side, f = |K| / (2 x the larger of
+    |below| and |above|, the live end's: half the step's live response), and -f K / 2 (the
+    flat share's error; a smooth curvature leaves K ~ h^3, and K^2 of it nothing)."""
+    bend, share = below + above, np.ones(len(below))
+    if not flat:
+        live = np.maximum(np.abs(below), np.abs(above))
+        np.divide(np.abs(bend), 2 * live, out=share, where=live != 0)
+    return -0.5 * bend * np.minimum(share, 1.0)
 
 
 def _not_controlled(counts: dict) -> str | None:
