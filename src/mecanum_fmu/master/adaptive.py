@@ -414,6 +414,15 @@ class OutputErrors:
         return bool(len(whole)) and bool((np.abs(whole - halves) <= 64 * np.finfo(float).eps
                                           * np.maximum(np.abs(whole), np.abs(halves))).all())
 
+    def one_sided(self, below: np.ndarray, above: np.ndarray) -> bool:
+        """Whether one of two passes (Loop._ends) left every output of an FMU holding the
+        pair's inputs where the whole step did, to the bit, and the other moved one of them
+        beyond 64 round-offs."""
+        held = self.holding
+        size = 64 * np.finfo(float).eps * np.abs(self.whole[held])
+        return any(not still[held].any() and bool((np.abs(moved[held]) > size).any())
+                   for still, moved in ((below, above), (above, below)))
+
     def bent(self, error: np.ndarray) -> None:
         """Add a bend's error (_Loop._ends) to this step's."""
         self.bend[:] = error
@@ -664,17 +673,17 @@ class _Loop:
         (`ends`: _ends). A flat response: the halves moved no output of an FMU that holds
         the pair's inputs from the whole step's (to 64 round-offs) while a held input moved,
         and one of the two ends leaves them where the whole step did, to the bit (the mean
-        and that end saturated alike). The first such step takes the ends now (and its
+        and that end saturated alike), where the other moves them beyond round-off (a bend
+        seen: a step too short to move them is not taken for one). The first such step takes the ends now (and its
         halves again: what is kept); every step after it takes them before its halves."""
         suspect = self.holds.check and self.errors.deaf() and self.holds.moved()
         if suspect and ends is None:
             ends = self._ends(t, h)
             self._restore(t, self.predicted)
             self._halves(t, h)
-        held = self.errors.holding
-        flat = suspect and any(not end[held].any() for end in ends)
+        flat = suspect and self.errors.one_sided(*ends)
         self.bends = self.bends or flat
-        if ends is not None:
+        if self.bends:
             self.errors.bent(bend_error(*ends, flat))
 
     def _ends(self, t: float, h: float) -> tuple[np.ndarray, np.ndarray]:
