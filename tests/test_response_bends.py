@@ -91,3 +91,23 @@ def test_the_bend_error_of_a_saturation_on_either_side_of_it():
     assert abs(bend_error(*ends, flat=False)[0]) < 1e-15
     ends, _ = _integrator(np.square, 0.3, 0.31)
     assert abs(bend_error(*ends, flat=False)[0]) < 0.02 * abs(ends[0][0] + ends[1][0])
+
+
+def test_a_staircase_into_a_saturation_runs_and_says_the_estimate_is_unresolved(tmp_path,
+                                                                                 fmus):
+    # a stair holds the input still over whole steps, where no end pass is taken: it used
+    # to end in a TypeError once a flat response was found
+    path = write_scenario(tmp_path, "stairs", f"""\
+name: stairs
+experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: adaptive,
+              tolerance: 1e-3}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{omega: 2.0, period: 0.3}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}, lim: {LIM}}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]
+""")
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment)
+    assert results.time[-1] == STOP
+    assert results.extra["error_estimate"]["it.x"]["max"].startswith("unresolved")

@@ -415,7 +415,7 @@ class OutputErrors:
                                           * np.maximum(np.abs(whole), np.abs(halves))).all())
 
     def one_sided(self, below: np.ndarray, above: np.ndarray) -> bool:
-        """Whether one of two passes (Loop._ends) left every output of an FMU holding the
+        """Whether one of two passes (_Loop._ends) left every output of an FMU holding the
         pair's inputs where the whole step did, to the bit, and the other moved one of them
         beyond 64 round-offs."""
         held = self.holding
@@ -674,8 +674,9 @@ class _Loop:
         the pair's inputs from the whole step's (to 64 round-offs) while a held input moved,
         and one of the two ends leaves them where the whole step did, to the bit (the mean
         and that end saturated alike), where the other moves them beyond round-off (a bend
-        seen: a step too short to move them is not taken for one). The first such step takes the ends now (and its
-        halves again: what is kept); every step after it takes them before its halves."""
+        seen: a step too short to move them is not taken for one). The first such step
+        takes the ends now (and its halves again: what is kept); every step after it whose
+        held inputs move takes them before its halves."""
         suspect = self.holds.check and self.errors.deaf() and self.holds.moved()
         if suspect and ends is None:
             ends = self._ends(t, h)
@@ -683,7 +684,7 @@ class _Loop:
             self._halves(t, h)
         flat = suspect and self.errors.one_sided(*ends)
         self.bends = self.bends or flat
-        if self.bends:
+        if self.bends and ends is not None:
             self.errors.bent(bend_error(*ends, flat))
 
     def _ends(self, t: float, h: float) -> tuple[np.ndarray, np.ndarray]:
