@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from helpers import assert_estimated, state_fmus, write_scenario
+from helpers import assert_estimated, state_fmus, with_experiment, write_scenario
 from mecanum_fmu import master, runner
 from mecanum_fmu.master.adaptive import bend_error
 
@@ -19,7 +19,8 @@ K, LIM, STOP = 2.0, 0.5, 6.0
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
-    return state_fmus(tmp_path_factory.mktemp("state_fmus"), only=("xtest_wave", "xtest_lag"))
+    return state_fmus(tmp_path_factory.mktemp("state_fmus"),
+                      only=("xtest_wave", "xtest_lag", "xtest_gain"))
 
 
 def _exact(times: np.ndarray, omega: float) -> np.ndarray:
@@ -111,3 +112,30 @@ outputs: [it.x]
     results = master.simulate(graph, graph.scenario.experiment)
     assert results.time[-1] == STOP
     assert results.extra["error_estimate"]["it.x"]["max"].startswith("unresolved")
+
+
+def test_a_saturation_inside_a_loop_holds_the_tolerance(tmp_path, fmus):
+    # the lag under a P controller, u = 3 (cos t - x), saturating at 0.5; the truth: the
+    # quadratic master at 1/256 of the output interval. Before: 8.71 tolerances off,
+    # estimated at 0.02x
+    path = write_scenario(tmp_path, "loop", f"""\
+name: loop
+experiment: {{start_time: 0.0, stop_time: 10.0, step_size: 0.1, master: adaptive,
+              tolerance: 1e-4}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}}}
+  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}, lim: {LIM}}}}}
+connections: [[wave.u, ctrl.r], [it.x, ctrl.y], [ctrl.u, it.u]]
+outputs: [it.x]
+""")
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment)
+    fine, exp = with_experiment(graph, step_size=0.1 / 256, master="quadratic", tolerance=None,
+                                estimate="none")
+    truth = master.simulate(fine, exp)
+    on_rows = np.isin(np.round(truth.time, 9), np.round(results.time, 9))
+    error = np.abs(results["it.x"] - truth["it.x"][on_rows])
+    assert error.max() <= 1e-4
+    estimate = results.extra["error_estimate"]["it.x"]["max"]
+    assert error.max() / 3 <= estimate <= 3 * error.max()

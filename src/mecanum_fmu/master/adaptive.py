@@ -75,6 +75,10 @@ _GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))   # two-point 
 # far from the input, and the step is taken once more without that error (_Loop._attempt)
 KINK = 1e-3
 JUMP = 8.0
+# a step's held input moved by more than this share of its size: a response that does not
+# move with it is flat (_Loop._bent; a step of 1e-8 s, where a quantized loop chatters,
+# moves its inputs by 1e-8 of themselves, and an output by less than its round-off)
+MOVED = 1e-6
 
 
 def _minmod(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -131,9 +135,12 @@ class AdaptiveHolds(Holds):
         end values (held_at_end: first order)."""
         return 1.0 if self.held_at_end else 3.0
 
-    def moved(self) -> bool:
-        """Whether a held input of one of the pair's blends moved over this step."""
-        return any(((b.rows[0] != b.rows[1]) & ~(b.fed | b.end)).any() for b in self.paired)
+    def moved(self, share: float = 0.0) -> bool:
+        """Whether a held input of one of the pair's blends moved over this step (by more
+        than `share` of its size)."""
+        return any(((np.abs(b.rows[0] - b.rows[1]) > share * np.maximum(
+            np.abs(b.rows[0]), np.abs(b.rows[1]))) & ~(b.fed | b.end)).any()
+            for b in self.paired)
 
     def kinked(self) -> bool:
         """Whether a kink sits among the values of one of the pair's blends this step
@@ -414,14 +421,10 @@ class OutputErrors:
         return bool(len(whole)) and bool((np.abs(whole - halves) <= 64 * np.finfo(float).eps
                                           * np.maximum(np.abs(whole), np.abs(halves))).all())
 
-    def one_sided(self, below: np.ndarray, above: np.ndarray) -> bool:
+    def still(self, below: np.ndarray, above: np.ndarray) -> bool:
         """Whether one of two passes (_Loop._ends) left every output of an FMU holding the
-        pair's inputs where the whole step did, to the bit, and the other moved one of them
-        beyond 64 round-offs."""
-        held = self.holding
-        size = 64 * np.finfo(float).eps * np.abs(self.whole[held])
-        return any(not still[held].any() and bool((np.abs(moved[held]) > size).any())
-                   for still, moved in ((below, above), (above, below)))
+        pair's inputs where the whole step did, to the bit."""
+        return any(not end[self.holding].any() for end in (below, above))
 
     def bent(self, error: np.ndarray) -> None:
         """Add a bend's error (_Loop._ends) to this step's."""
@@ -671,18 +674,17 @@ class _Loop:
         where their held means sit on the same side of it: its error (bend_error), from
         the step taken with the held inputs at their mean less and plus half their change
         (`ends`: _ends). A flat response: the halves moved no output of an FMU that holds
-        the pair's inputs from the whole step's (to 64 round-offs) while a held input moved,
-        and one of the two ends leaves them where the whole step did, to the bit (the mean
-        and that end saturated alike), where the other moves them beyond round-off (a bend
-        seen: a step too short to move them is not taken for one). The first such step
+        the pair's inputs from the whole step's (to 64 round-offs) while a held input moved
+        by more than MOVED of itself, and one of the two ends leaves them where the whole
+        step did, to the bit (the mean and that end saturated alike). The first such step
         takes the ends now (and its halves again: what is kept); every step after it whose
         held inputs move takes them before its halves."""
-        suspect = self.holds.check and self.errors.deaf() and self.holds.moved()
+        suspect = self.holds.check and self.errors.deaf() and self.holds.moved(MOVED)
         if suspect and ends is None:
             ends = self._ends(t, h)
             self._restore(t, self.predicted)
             self._halves(t, h)
-        flat = suspect and self.errors.one_sided(*ends)
+        flat = suspect and self.errors.still(*ends)
         self.bends = self.bends or flat
         if self.bends and ends is not None:
             self.errors.bent(bend_error(*ends, flat))
