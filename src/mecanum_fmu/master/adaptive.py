@@ -427,7 +427,7 @@ class OutputErrors:
         return any(not end[self.holding].any() for end in (below, above))
 
     def bent(self, error: np.ndarray) -> None:
-        """Add a bend's error (_Loop._ends) to this step's."""
+        """Add a bend's error (_Loop._bent) to this step's."""
         self.bend[:] = error
         self.step += error
 

@@ -69,7 +69,8 @@ _SOME = object()    # _no_coarser: the estimate may step coarser runs
 
 
 def _no_coarser(graph: Graph, exp) -> str | None | object:
-    """coarse_plan's reason or None where it steps no coarser run, else _SOME."""
+    """Where the estimate steps no coarser run, coarse_plan's answer (its reason, or None:
+    nothing to do); else _SOME."""
     if exp.estimate == "none":
         return TURNED_OFF
     if not _fixed_with_reals(graph, exp):

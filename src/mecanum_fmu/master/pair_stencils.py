@@ -140,7 +140,8 @@ class Stencils:
         if not len(ks):
             return
         a, b = self._sides(ks, d)
-        row = lambda j: self.window[np.clip(j + d - self.lo, 0, len(self.window) - 1)][:, cols]  # noqa
+        last = len(self.window) - 1
+        row = lambda j: self.window[np.clip(j + d - self.lo, 0, last)][:, cols]  # noqa: E731
         u0, u1 = row(ks), row(ks + 1)
         f = fs[:, None]
         left = u0 + (u0 - row(ks - 1)) * f

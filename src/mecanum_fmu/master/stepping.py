@@ -59,9 +59,10 @@ def settled_end(running: list[RunningInstance], graph: Graph, real: np.ndarray
     graph's dependency order) set its sources' newest values, no doStep, and its outputs
     read again, as initialise walks the links at t0. An output with direct feedthrough then
     shows its value for inputs of the last time (FMI 2.0 lets a master read it so, as
-    settle does after a sample), which under Jacobi its rows reach only steps later. The Real buffer after it (a copy),
-    the run's own `real` left as it was; None where a call fails (an FMU whose call
-    returned Error or Fatal is marked failed: FMI allows nothing more of it)."""
+    settle does after a sample), which under Jacobi its rows reach only steps later. The
+    Real buffer after it (a copy), the run's own `real` left as it was; None where a call
+    fails (an FMU whose call returned Error or Fatal is marked failed: FMI allows nothing
+    more of it)."""
     by_name, saved = {r.name: r for r in running}, real.copy()
     try:
         for r in running:       # in step order: only FMUs whose outputs their inputs move

@@ -45,7 +45,7 @@ class WholeSteps:
         self.states: list | None = None         # None: at t0 it is the run's own state
         self.history = [b.history.copy() for b in blends]
         self.difference = np.zeros(len(slots))
-        # the steps' errors where an FMU's response bends inside them (adaptive._Loop._ends),
+        # the steps' errors where an FMU's response bends inside them (adaptive._Loop._bent),
         # summed: the trajectory's held means do not make them, and nothing damps them here
         self.bends = np.zeros(len(slots))
         self.positions = slot_positions(slots)
@@ -81,7 +81,7 @@ class WholeSteps:
 
     def now(self) -> np.ndarray:
         """The kept run's signed error per recorded output: the difference over 2^p - 1 (3:
-        second order)."""
+        second order), plus the bends' errors."""
         return self.difference / self.divisor + self.bends
 
     def error(self) -> np.ndarray:
