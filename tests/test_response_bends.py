@@ -139,3 +139,25 @@ outputs: [it.x]
     assert error.max() <= 1e-4
     estimate = results.extra["error_estimate"]["it.x"]["max"]
     assert error.max() / 3 <= estimate <= 3 * error.max()
+
+
+def test_a_saturation_beside_a_live_fmu_is_seen(tmp_path, fmus):
+    # a second lag on the same wave never saturates: the bends are looked for per output.
+    # Before, with every output of the held FMUs to go flat at once: 1.85 tolerances off,
+    # estimated at 0.15x (before this session too)
+    path = write_scenario(tmp_path, "two", f"""\
+name: two
+experiment: {{start_time: 0.0, stop_time: {STOP}, step_size: 0.1, master: adaptive,
+              tolerance: 1e-4}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{omega: 3.0}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}, lim: {LIM}}}}}
+  free: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 1.0}}}}
+connections: [[wave.u, it.u], [wave.u, free.u]]
+outputs: [it.x, free.x]
+""")
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment)
+    error = np.abs(results["it.x"] - _exact(results.time, 3.0))
+    assert error.max() <= 1e-4
+    assert_estimated(master.estimate_error(graph, results), "it.x", error, 3.0)

@@ -135,12 +135,12 @@ class AdaptiveHolds(Holds):
         end values (held_at_end: first order)."""
         return 1.0 if self.held_at_end else 3.0
 
-    def moved(self, share: float = 0.0) -> bool:
-        """Whether a held input of one of the pair's blends moved over this step (by more
-        than `share` of its size)."""
-        return any(((np.abs(b.rows[0] - b.rows[1]) > share * np.maximum(
-            np.abs(b.rows[0]), np.abs(b.rows[1]))) & ~(b.fed | b.end)).any()
-            for b in self.paired)
+    def moved(self, share: float = 0.0) -> set[str]:
+        """The FMUs whose inputs the pair holds and one of which moved over this step (by
+        more than `share` of its size)."""
+        return {b.owner for b in self.paired if (~(b.fed | b.end) & (np.abs(
+            b.rows[0] - b.rows[1]) > share * np.maximum(np.abs(b.rows[0]), np.abs(b.rows[1])))
+                                                  ).any()}
 
     def kinked(self) -> bool:
         """Whether a kink sits among the values of one of the pair's blends this step
@@ -381,9 +381,11 @@ class OutputErrors:
         self.model_slots = [np.array([slot[n] for n in c], dtype=np.intp) for c in covered]
         self.whole, self.step, self.sum, self.scaled, self.weighted, self.loose, self.bend = (
             np.zeros(len(self.slots)) for _ in range(7))
-        # the outputs of FMUs that hold some of the pair's inputs (`held`: their names)
+        # per output, the FMU it is of, where that FMU holds some of the pair's inputs
+        # (`held`: their names), else ""
         owner = {str(p.ref): p.ref.instance for p in real}
-        self.holding = np.array([owner[n] in held for n in self.names], dtype=bool)
+        self.owner = np.array([owner[n] if owner[n] in held else "" for n in self.names],
+                              dtype=object)
         self.positions = slot_positions(self.slots)
         self.carried = None     # a WholeSteps: the accumulated error the dynamics carried
         self.divisor = divisor  # (whole - halves) / it: AdaptiveHolds.richardson
@@ -414,17 +416,18 @@ class OutputErrors:
         self.loose[:] = 0.0
         self.bend[:] = 0.0
 
-    def deaf(self) -> bool:
-        """Whether the halves left every output of an FMU holding the pair's inputs where
-        the whole step did, to the round-off (some FMU holds them)."""
-        whole, halves = self.whole[self.holding], self.real[self.slots[self.holding]]
-        return bool(len(whole)) and bool((np.abs(whole - halves) <= 64 * np.finfo(float).eps
-                                          * np.maximum(np.abs(whole), np.abs(halves))).all())
+    def quiet(self, owners: set[str]) -> np.ndarray:
+        """Per output: whether it is one of the `owners`' (FMUs whose held inputs moved) and
+        the halves left it where the whole step did, to 64 round-offs."""
+        whole, halves = self.whole, self.real[self.slots]
+        return np.isin(self.owner, list(owners)) & (np.abs(whole - halves) <= 64 * np.finfo(
+            float).eps * np.maximum(np.abs(whole), np.abs(halves)))
 
-    def still(self, below: np.ndarray, above: np.ndarray) -> bool:
-        """Whether one of two passes (_Loop._ends) left every output of an FMU holding the
-        pair's inputs where the whole step did, to the bit."""
-        return any(not end[self.holding].any() for end in (below, above))
+    @staticmethod
+    def still(below: np.ndarray, above: np.ndarray) -> np.ndarray:
+        """Per output: whether one of two passes (_Loop._ends) left it where the whole step
+        did, to the bit."""
+        return (below == 0.0) | (above == 0.0)
 
     def bent(self, error: np.ndarray) -> None:
         """Add a bend's error (_Loop._bent) to this step's."""
@@ -679,13 +682,14 @@ class _Loop:
         step did, to the bit (the mean and that end saturated alike). The first such step
         takes the ends now (and its halves again: what is kept); every step after it whose
         held inputs move takes them before its halves."""
-        suspect = self.holds.check and self.errors.deaf() and self.holds.moved(MOVED)
-        if suspect and ends is None:
+        quiet = self.errors.quiet(self.holds.moved(MOVED)) if self.holds.check else None
+        if quiet is not None and quiet.any() and ends is None:
             ends = self._ends(t, h)
             self._restore(t, self.predicted)
             self._halves(t, h)
-        flat = suspect and self.errors.still(*ends)
-        self.bends = self.bends or flat
+        flat = quiet & self.errors.still(*ends) if ends is not None and quiet is not None \
+            else np.zeros(len(self.errors.slots), dtype=bool)
+        self.bends = self.bends or bool(flat.any())
         if self.bends and ends is not None:
             self.errors.bent(bend_error(*ends, flat))
 
@@ -706,19 +710,19 @@ class _Loop:
         one_pass(self.program, t, h)
 
 
-def bend_error(below: np.ndarray, above: np.ndarray, flat: bool) -> np.ndarray:
+def bend_error(below: np.ndarray, above: np.ndarray, flat) -> np.ndarray:
     """The step's error (kept - true) from a bend inside the range its held inputs swept,
     per output, from what holding them at their mean less and plus half their change moves
     it (`below`, `above`). On a response linear over that range the two cancel; what is
-    left, K = below + above, is the bend's. With the held mean on the flat side of a
-    saturation (`flat`), -K/2 (a bound: a bend at a share f of the step from its live end
-    errs by f/2 of K, and f is not known); on its live side, f = |K| / (2 x the larger of
-    |below| and |above|, the live end's: half the step's live response), and -f K / 2 (the
-    flat share's error; a smooth curvature leaves K ~ h^3, and K^2 of it nothing)."""
-    bend, share = below + above, np.ones(len(below))
-    if not flat:
-        live = np.maximum(np.abs(below), np.abs(above))
-        np.divide(np.abs(bend), 2 * live, out=share, where=live != 0)
+    left, K = below + above, is the bend's. Where the held mean sits on the flat side of a
+    saturation (`flat`, per output), -K/2 (a bound: a bend at a share f of the step from its
+    live end errs by f/2 of K, and f is not known); on its live side, f = |K| / (2 x the
+    larger of |below| and |above|, the live end's: half the step's live response), and
+    -f K / 2 (the flat share's error; a smooth curvature leaves K ~ h^3, and K^2 of it
+    nothing)."""
+    bend, live = below + above, np.maximum(np.abs(below), np.abs(above))
+    share = np.ones(len(bend))
+    np.divide(np.abs(bend), 2 * live, out=share, where=(live != 0) & ~np.asarray(flat, bool))
     return -0.5 * bend * np.minimum(share, 1.0)
 
 
