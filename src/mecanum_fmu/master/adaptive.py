@@ -282,6 +282,14 @@ class _VarBlend:
         bend = ((now - u) / hs.h - (u - u1) / hs.g) * hs.h / 4
         self.next[:] = np.where(kinked, bend - correction, 0.0)
 
+    def polynomial(self, kept: tuple | None = None) -> tuple:
+        """The held polynomial of this step (its end values and terms, which the halves
+        hold: _fill_half), a copy; with `kept`, that one set back."""
+        if kept is not None:
+            for mine, value in zip((self.rows[0], self.a, self.b, self.next), kept):
+                mine[:] = value
+        return tuple(v.copy() for v in (self.rows[0], self.a, self.b, self.next))
+
     @property
     def exact(self) -> bool:
         """Whether this step's error (error()) is exact: a jump's own step, h (new - old) / 2
@@ -654,11 +662,13 @@ class _Loop:
         if holds.paired:
             self.errors.keep_whole()
             if holds.kinked():
+                kept = self._polynomials()
                 self._restore(t, self.predicted)
                 holds.kinks = -1.0
                 self._pass(t, h)
                 holds.kinks = 0.0
                 self.errors.keep_loose()
+                self._polynomials(kept)
             ends = self._ends(t, h) if self.bends and holds.moved() else None
             self._restore(t, self.predicted)
             self._halves(t, h)
@@ -695,7 +705,10 @@ class _Loop:
 
     def _ends(self, t: float, h: float) -> tuple[np.ndarray, np.ndarray]:
         """What the step taken with every held input at its mean less, then plus half its
-        change over the step moves the recorded outputs from the whole step."""
+        change over the step moves the recorded outputs from the whole step. The blends
+        keep the whole step's polynomials for the halves (a held input read from an FMU
+        upstream has another end value in these passes)."""
+        kept = self._polynomials()
         ends = []
         for point in (0, 1):
             self._restore(t, self.predicted)
@@ -703,7 +716,14 @@ class _Loop:
             self._pass(t, h)
             ends.append(self.real[self.errors.slots] - self.errors.whole)
         self.holds.point = None
+        self._polynomials(kept)
         return ends[0], ends[1]
+
+    def _polynomials(self, kept: list | None = None) -> list:
+        """Every blend's held polynomial of this step (_VarBlend.polynomial), or `kept` set
+        back: what the halves hold is the whole step's, whatever other passes held since."""
+        return [b.polynomial(k) for b, k in zip(self.holds.blends,
+                                                 kept or [None] * len(self.holds.blends))]
 
     def _pass(self, t: float, h: float) -> None:
         self.counts["passes"] += 1
