@@ -63,7 +63,34 @@ outputs: [it.x]
     results = master.simulate(graph, graph.scenario.experiment)
     error = np.abs(results["it.x"] - _exact(results.time, omega))
     assert tolerance / 10 < error.max() <= tolerance
-    assert_estimated(master.estimate_error(graph, results), "it.x", error, 2.0)
+    summary = master.estimate_error(graph, results)
+    assert_estimated(summary, "it.x", error, 2.0)
+    # the input saturates from t = 0 (cos 0 = 1): the method says the bends were counted
+    assert "went flat" in summary["error_estimate_method"]
+    assert results.extra["flat_at"] < 0.5
+
+
+def test_a_lag_that_never_saturates_takes_no_end_pass(tmp_path, fmus):
+    # the same lag without a limit: no flat response, no pass more than the pair's (the
+    # whole step and its halves per step tried, the whole-step trajectory's per step
+    # taken), and the method says nothing of bends
+    path = write_scenario(tmp_path, "free", f"""\
+name: free
+experiment: {{start_time: 0.0, stop_time: {STOP}, step_size: 0.1, master: adaptive,
+              tolerance: 1e-4}}
+components:
+  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{omega: 2.0}}}}
+  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]
+""")
+    graph = runner.prepare(path)
+    results = master.simulate(graph, graph.scenario.experiment)
+    summary = master.estimate_error(graph, results)
+    assert "flat_at" not in results.extra
+    assert "went flat" not in summary["error_estimate_method"]
+    tried = results.steps_taken + results.steps_rejected
+    assert results.extra["passes"] == 3 * tried + results.steps_taken
 
 
 def _integrator(response, below: float, above: float):

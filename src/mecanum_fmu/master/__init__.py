@@ -91,6 +91,8 @@ def simulate(graph: Graph, experiment: Experiment,
                                                            counts["steps_rejected"])
             results.extra["error_estimate"] = estimate_of(counts["names"], results, counts)
             results.extra["passes"] = counts["passes"]
+            if counts.get("flat_at") is not None:
+                results.extra["flat_at"] = counts["flat_at"]
         return results
 
 

@@ -526,6 +526,7 @@ def step_adaptive(running: list[RunningInstance], recorder: Recorder, ctrl_c: li
             progress((t - start) / (stop - start))
             next_report = _time.perf_counter() + 0.5
     counts["terms"], counts["jumps"] = loop.terms(), loop.bracket.found
+    counts["flat_at"] = loop.flat_at
     counts["not_smooth"] = holds.not_smooth(counts["steps_taken"])
     counts["rough_rows"] = loop.rows.not_smooth(loop.names())
     if loop.whole is not None:
@@ -554,8 +555,8 @@ class _Loop:
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
         # whether some step found a flat response (a saturation), whose bends every step
-        # then looks for (_bent)
-        self.bends = False
+        # then looks for (_bent), and when the first did
+        self.bends, self.flat_at = False, None
         self.rows = DenseRows(recorder, tol, near, self.names(),
                               len(self.names()) - len(self.errors.names), holds.check)
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
@@ -699,7 +700,8 @@ class _Loop:
             self._halves(t, h)
         flat = quiet & self.errors.still(*ends) if ends is not None and quiet is not None \
             else np.zeros(len(self.errors.slots), dtype=bool)
-        self.bends = self.bends or bool(flat.any())
+        if flat.any() and not self.bends:
+            self.bends, self.flat_at = True, t
         if self.bends and ends is not None:
             self.errors.bent(bend_error(*ends, flat))
 

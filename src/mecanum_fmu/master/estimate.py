@@ -32,6 +32,12 @@ ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, o
                    "model its own (a PoseIntegrator's: the hold's next term, the frame's "
                    "turning, the heading's lever arm, the error of the twist it is fed)")
 
+# where the adaptive master found an FMU's response flat (adaptive._Loop._bent)
+FLAT = ("; from t = {:.6g} s, where an FMU's response went flat while its input moved (a "
+        "saturation inside it), each step also taken with the held inputs at their mean less "
+        "and plus half their change, and a bend of the response inside the step counted "
+        "(docs/masters.md, \"A kink inside an FMU's own equations\")")
+
 
 def recorded_outputs(graph: Graph, results: Results) -> list[str]:
     """Every recorded Real output (the scenario's `outputs:`, by default every output of
@@ -166,7 +172,9 @@ def _adaptive_estimate(results: Results, exp) -> dict:
     advice = held_at_end_advice(results.extra.get("held_at_end", {})) + \
         hidden_advice(results.extra.get("hidden_state", ())) + \
         _over_tolerance(results, estimate, tol, rtol)
-    return {"error_estimate": estimate, "error_estimate_method": ADAPTIVE_METHOD,
+    flat = results.extra.get("flat_at")
+    method = ADAPTIVE_METHOD + ("" if flat is None else FLAT.format(flat))
+    return {"error_estimate": estimate, "error_estimate_method": method,
             "tolerance": tol, "relative_tolerance": rtol,
             "steps_taken": results.steps_taken, "steps_rejected": results.steps_rejected,
             **({"error_estimate_advice": advice} if advice else {})}
