@@ -2,7 +2,7 @@
 embedded pair with their response measured by probes (master/probe.py) against the true
 error, and its cost against Richardson's, per master and step, in one process.
 
-Fifteen graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
+Seventeen graphs of test FMUs built here with pythonfmu (tests/fmu_sources/with_state): a source
 u = cos t into a lag x' = -2 x + u; u = cos 2t into a speed under quadratic drag v' = u - 3 v
 |v| (nonlinear; the truth: the same graph at 1/64 of the step); a chain of two lags (x1' = -2
 x1 + cos t, x2' = -x2 + x1: the error forwarded from one into the next); the lag with a
@@ -24,8 +24,11 @@ than the step: "stiff", the lag at k = 100 (gone within a step from 0.05 s up: i
 measured over substeps, probe.Target._faster), "overdamped", the spring at c = 101, k = 100
 (poles -1 and -100: the fast one's part of the speed), and "triple", three lags in a row
 (x1' = -x1 + cos t, x2' = x1 - 2 x2, x3' = x2 - 300 x3: at 0.01 s two poles fit x3's
-response only to 1e-3, and the pair hands over to Richardson). The truths of the linear
-ones: their ODEs by scipy's DOP853 at rtol 1e-12. Per run and recorded output: the estimate
+response only to 1e-3, and the pair hands over to Richardson); and two whose response bends
+inside the FMU: "saturated", cos 2t into the lag, its input saturating at 0.5 inside its
+doStep, and "saturated_loop", the loop with that lag. The truths of the linear ones and of
+the saturating ones: their ODEs by scipy's DOP853 at rtol 1e-12 (1.6e-12 from the closed
+form of "saturated"). Per run and recorded output: the estimate
 over the true error for the largest value and the end (within 3x: [0.33, 3]), and the
 estimate's cost against the run's stepping time (error_estimate_cost: the pair's NumPy work
 and the probes' time, medians of 5 runs; "ms", the same in milliseconds, the pair's own), and
@@ -134,6 +137,15 @@ GRAPHS["triple"] = ("""\
 connections: [[wave.u, it.u]]
 outputs: [it.x1, it.x2, it.x3]""", lambda t, y: [np.cos(t) - y[0], y[0] - 2.0 * y[1],
                                                  y[1] - 300.0 * y[2]])
+
+GRAPHS["saturated"] = ("""\
+  wave: {{fmu: {xtest_wave}, parameters: {{omega: 2.0}}}}
+  it: {{fmu: {xtest_lag}, parameters: {{k: 2.0, lim: 0.5}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]""", lambda t, y: [-2 * y[0] + np.clip(np.cos(2 * t), -0.5, 0.5)])
+GRAPHS["saturated_loop"] = (GRAPHS["loop"][0].replace("k: 2.0}", "k: 2.0, lim: 0.5}"),
+                            lambda t, y: [-2 * y[0] + np.clip(3 * (np.cos(t) - y[0]), -0.5,
+                                                              0.5)])
 
 
 def scenario(folder: Path, fmus: dict, name: str) -> Path:
