@@ -44,23 +44,34 @@ def _exact(times: np.ndarray, omega: float) -> np.ndarray:
     return out
 
 
+def _run(folder, fmus, tolerance: float, parts: str, stop: float = STOP):
+    """(graph, results) of the adaptive master at `tolerance` on the components,
+    connections and outputs in `parts` (FMU names in braces: the test FMUs'), 0 to `stop`
+    at 0.1 s rows."""
+    path = write_scenario(folder, "bends", f"""\
+name: bends
+experiment: {{start_time: 0.0, stop_time: {stop}, step_size: 0.1, master: adaptive,
+              tolerance: {tolerance}}}
+components:
+{parts.format(**{k: str(v) for k, v in fmus.items()}, K=K, LIM=LIM)}
+""")
+    graph = runner.prepare(path)
+    return graph, master.simulate(graph, graph.scenario.experiment)
+
+
+SATURATED = """\
+  wave: {{fmu: {xtest_wave}, parameters: {{omega: %s}}}}
+  it: {{fmu: {xtest_lag}, parameters: {{k: {K}%s}}}}
+connections: [[wave.u, it.u]]
+outputs: [it.x]"""
+
+
 @pytest.mark.parametrize("omega, tolerance", [(1.0, 1e-4), (2.0, 1e-4), (2.0, 1e-6),
                                               (3.0, 1e-4), (3.0, 1e-6)])
 def test_a_saturation_inside_an_fmu_holds_the_tolerance(tmp_path, fmus, omega, tolerance):
     # before: 1.93, 2.26, 51.6, 5.10 and 18.9 tolerances off, estimated at 0.22x, 0.18x,
     # 0.007x, 0.07x and 0.016x
-    path = write_scenario(tmp_path, "saturated", f"""\
-name: saturated
-experiment: {{start_time: 0.0, stop_time: {STOP}, step_size: 0.1, master: adaptive,
-              tolerance: {tolerance}}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{omega: {omega}}}}}
-  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}, lim: {LIM}}}}}
-connections: [[wave.u, it.u]]
-outputs: [it.x]
-""")
-    graph = runner.prepare(path)
-    results = master.simulate(graph, graph.scenario.experiment)
+    graph, results = _run(tmp_path, fmus, tolerance, SATURATED % (omega, ", lim: {LIM}"))
     error = np.abs(results["it.x"] - _exact(results.time, omega))
     assert tolerance / 10 < error.max() <= tolerance
     summary = master.estimate_error(graph, results)
@@ -74,18 +85,7 @@ def test_a_lag_that_never_saturates_takes_no_end_pass(tmp_path, fmus):
     # the same lag without a limit: no flat response, no pass more than the pair's (the
     # whole step and its halves per step tried, the whole-step trajectory's per step
     # taken), and the method says nothing of bends
-    path = write_scenario(tmp_path, "free", f"""\
-name: free
-experiment: {{start_time: 0.0, stop_time: {STOP}, step_size: 0.1, master: adaptive,
-              tolerance: 1e-4}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{omega: 2.0}}}}
-  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}}}}}
-connections: [[wave.u, it.u]]
-outputs: [it.x]
-""")
-    graph = runner.prepare(path)
-    results = master.simulate(graph, graph.scenario.experiment)
+    graph, results = _run(tmp_path, fmus, 1e-4, SATURATED % (2.0, ""))
     summary = master.estimate_error(graph, results)
     assert "flat_at" not in results.extra
     assert "went flat" not in summary["error_estimate_method"]
@@ -125,18 +125,8 @@ def test_a_staircase_into_a_saturation_runs_and_says_the_estimate_is_unresolved(
                                                                                  fmus):
     # a stair holds the input still over whole steps, where no end pass is taken: it used
     # to end in a TypeError once a flat response was found
-    path = write_scenario(tmp_path, "stairs", f"""\
-name: stairs
-experiment: {{start_time: 0.0, stop_time: 6.0, step_size: 0.1, master: adaptive,
-              tolerance: 1e-3}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{omega: 2.0, period: 0.3}}}}
-  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}, lim: {LIM}}}}}
-connections: [[wave.u, it.u]]
-outputs: [it.x]
-""")
-    graph = runner.prepare(path)
-    results = master.simulate(graph, graph.scenario.experiment)
+    _, results = _run(tmp_path, fmus, 1e-3, SATURATED.replace("%s}}", "%s, period: 0.3}}", 1)
+                      % (2.0, ", lim: {LIM}"))
     assert results.time[-1] == STOP
     assert results.extra["error_estimate"]["it.x"]["max"].startswith("unresolved")
 
@@ -145,19 +135,12 @@ def test_a_saturation_inside_a_loop_holds_the_tolerance(tmp_path, fmus):
     # the lag under a P controller, u = 3 (cos t - x), saturating at 0.5; the truth: the
     # quadratic master at 1/256 of the output interval. Before: 8.71 tolerances off,
     # estimated at 0.02x
-    path = write_scenario(tmp_path, "loop", f"""\
-name: loop
-experiment: {{start_time: 0.0, stop_time: 10.0, step_size: 0.1, master: adaptive,
-              tolerance: 1e-4}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}}}
-  ctrl: {{fmu: {fmus["xtest_gain"]}, parameters: {{kp: 3.0}}}}
-  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}, lim: {LIM}}}}}
+    graph, results = _run(tmp_path, fmus, 1e-4, """\
+  wave: {{fmu: {xtest_wave}}}
+  ctrl: {{fmu: {xtest_gain}, parameters: {{kp: 3.0}}}}
+  it: {{fmu: {xtest_lag}, parameters: {{k: {K}, lim: {LIM}}}}}
 connections: [[wave.u, ctrl.r], [it.x, ctrl.y], [ctrl.u, it.u]]
-outputs: [it.x]
-""")
-    graph = runner.prepare(path)
-    results = master.simulate(graph, graph.scenario.experiment)
+outputs: [it.x]""", stop=10.0)
     fine, exp = with_experiment(graph, step_size=0.1 / 256, master="quadratic", tolerance=None,
                                 estimate="none")
     truth = master.simulate(fine, exp)
@@ -172,19 +155,12 @@ def test_a_saturation_beside_a_live_fmu_is_seen(tmp_path, fmus):
     # a second lag on the same wave never saturates: the bends are looked for per output.
     # Before, with every output of the held FMUs to go flat at once: 1.85 tolerances off,
     # estimated at 0.15x (before this session too)
-    path = write_scenario(tmp_path, "two", f"""\
-name: two
-experiment: {{start_time: 0.0, stop_time: {STOP}, step_size: 0.1, master: adaptive,
-              tolerance: 1e-4}}
-components:
-  wave: {{fmu: {fmus["xtest_wave"]}, parameters: {{omega: 3.0}}}}
-  it: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: {K}, lim: {LIM}}}}}
-  free: {{fmu: {fmus["xtest_lag"]}, parameters: {{k: 1.0}}}}
+    graph, results = _run(tmp_path, fmus, 1e-4, """\
+  wave: {{fmu: {xtest_wave}, parameters: {{omega: 3.0}}}}
+  it: {{fmu: {xtest_lag}, parameters: {{k: {K}, lim: {LIM}}}}}
+  free: {{fmu: {xtest_lag}, parameters: {{k: 1.0}}}}
 connections: [[wave.u, it.u], [wave.u, free.u]]
-outputs: [it.x, free.x]
-""")
-    graph = runner.prepare(path)
-    results = master.simulate(graph, graph.scenario.experiment)
+outputs: [it.x, free.x]""")
     error = np.abs(results["it.x"] - _exact(results.time, 3.0))
     assert error.max() <= 1e-4
     assert_estimated(master.estimate_error(graph, results), "it.x", error, 3.0)
