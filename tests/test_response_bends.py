@@ -164,3 +164,19 @@ outputs: [it.x, free.x]""")
     error = np.abs(results["it.x"] - _exact(results.time, 3.0))
     assert error.max() <= 1e-4
     assert_estimated(master.estimate_error(graph, results), "it.x", error, 3.0)
+
+
+def test_an_output_the_halves_cannot_see_is_asked_once(tmp_path, fmus):
+    # a PI controller's u: its halves integrate the same held means as the whole step, so
+    # the halves never move it, while the end passes move it by as much either way (a
+    # linear response): asked once (4 passes), not at every step. Before: 581 passes where
+    # the pair takes 289
+    graph, results = _run(tmp_path, fmus, 1e-3, """\
+  wave: {{fmu: {xtest_wave}}}
+  c: {{fmu: {xtest_gain}, parameters: {{kp: 2.0, ki: 1.0}}}}
+  a: {{fmu: {xtest_lag}, parameters: {{k: {K}}}}}
+connections: [[wave.u, c.r], [c.u, a.u]]
+outputs: [a.x, c.u]""")
+    tried = results.steps_taken + results.steps_rejected
+    assert results.extra["passes"] == 3 * tried + results.steps_taken + 4
+    assert "flat_at" not in results.extra

@@ -555,8 +555,10 @@ class _Loop:
         self.real, self.ints = recorder.buffers.real, recorder.buffers.int
         self.saved = (self.real.copy(), self.ints.copy())      # the values at t_k
         # whether some step found a flat response (a saturation), whose bends every step
-        # then looks for (_bent), and when the first did
+        # then looks for (_bent), and when the first did; per output, whether the halves do
+        # not see it move where its response is linear (_bent: no step is taken for it again)
         self.bends, self.flat_at = False, None
+        self.blind = np.zeros(len(self.errors.slots), dtype=bool)
         self.rows = DenseRows(recorder, tol, near, self.names(),
                               len(self.names()) - len(self.errors.names), holds.check)
         self.predicted = (self.real.copy(), self.ints.copy())  # after the predictor
@@ -692,14 +694,19 @@ class _Loop:
         by more than MOVED of itself, and one of the two ends leaves them where the whole
         step did, to the bit (the mean and that end saturated alike). The first such step
         takes the ends now (and its halves again: what is kept); every step after it whose
-        held inputs move takes them before its halves."""
-        quiet = self.errors.quiet(self.holds.moved(MOVED)) if self.holds.check else None
+        held inputs move takes them before its halves. An output the halves left while
+        the ends moved it on a linear response (a PI controller's, whose halves integrate
+        the same held means) is one the halves do not see: it is not asked again."""
+        quiet = self.errors.quiet(self.holds.moved(MOVED)) & ~self.blind \
+            if self.holds.check else None
         if quiet is not None and quiet.any() and ends is None:
             ends = self._ends(t, h)
             self._restore(t, self.predicted)
             self._halves(t, h)
         flat = quiet & self.errors.still(*ends) if ends is not None and quiet is not None \
             else np.zeros(len(self.errors.slots), dtype=bool)
+        if quiet is not None and ends is not None:
+            self.blind |= quiet & ~flat & _linear(*ends)
         if flat.any() and not self.bends:
             self.bends, self.flat_at = True, t
         if self.bends and ends is not None:
@@ -746,6 +753,13 @@ def bend_error(below: np.ndarray, above: np.ndarray, flat) -> np.ndarray:
     share = np.ones(len(bend))
     np.divide(np.abs(bend), 2 * live, out=share, where=(live != 0) & ~np.asarray(flat, bool))
     return -0.5 * bend * np.minimum(share, 1.0)
+
+
+def _linear(below: np.ndarray, above: np.ndarray) -> np.ndarray:
+    """Per output: whether both end passes moved it, by as much either way (to 1e-6 of
+    that): a response linear over the range the held inputs swept."""
+    live = np.maximum(np.abs(below), np.abs(above))
+    return (below != 0.0) & (above != 0.0) & (np.abs(below + above) <= 1e-6 * live)
 
 
 def _not_controlled(counts: dict) -> str | None:
