@@ -23,8 +23,8 @@ from .pair import LOOP_METHOD, METHOD as PAIR_METHOD, pair_plan
 from .pair_parts import PairPlan
 from .pair_rows import PairRows
 from .memory import held_at_end_advice, hidden_advice, undeclared
-from .richardson import (FINER, coarse_experiment, coarse_factors, coarse_run, richardson,
-                         room_for_coarser)
+from .richardson import (FINER, ROUGH, coarse_experiment, coarse_factors, coarse_run,
+                         richardson, room_for_coarser)
 
 ADAPTIVE_METHOD = ("the adaptive master's: per recorded output the difference, over 3, of "
                    "the run and the same run stepped whole on its accepted steps (each step "
@@ -56,13 +56,13 @@ def coarse_plan(graph: Graph, exp, marks: np.ndarray | None = None, rough: bool 
     master (its own estimate) or no recorded Real output. master.simulate steps the factors
     on the run's own instances; error_estimate words the reason. `rough`: the pair found
     held inputs or a measured response that jump or bend at times the master does not know
-    (PairRows.finish): the run at h/2 (richardson.FINER_ROUGH)."""
+    (PairRows.finish): the runs at h/2 and h/3 (richardson.ROUGH)."""
     why = _no_coarser(graph, exp)
     if why is not _SOME:
         return why
     if graph.sampled:       # (Richardson by name)
         return (FINER,)
-    return (FINER,) if rough else coarse_factors(graph, exp, marks)
+    return ROUGH if rough else coarse_factors(graph, exp, marks)
 
 
 def steps_coarser(graph: Graph, exp) -> bool:

@@ -70,6 +70,18 @@ FINER_ROUGH = ("held inputs or an FMU's response jump or bend at times the maste
                "and a jump held over part of a step errs to the first order")
 FINER_BREAKS = ("no coarser step steps on every breakpoint the run steps on: a path's or a "
                 "table's rows")
+# there, the run is repeated at h/2 and at h/3 and the larger estimate kept: a jump's error
+# on a step hangs on where in the step it falls, and one finer grid may see it fall as the
+# run does on average (a staircase every n + 1/2 steps at h/2, n + 1/3 at h/3: 0.10x to
+# 0.30x with h/2 alone on 11 of 60 staircases, 1 with both; docs/masters.md)
+ROUGH = (Fraction(1, 2), Fraction(1, 3))
+ROUGH_METHOD = ("Richardson extrapolation: the run repeated at h/2 and at h/3 ({why}; a "
+                "jump's error hangs on where in the step it falls, which one finer grid may "
+                "see as the run does), e ~ the larger of (y_h - y_h/2)/(1 - 2^-1) and "
+                "(y_h - y_h/3)/(1 - 3^-1)")
+ROUGH_END = (f"unresolved (its differences from the runs at h/2 and h/3 are under {CANCELS:g} "
+             "of the largest: one difference does not tell an end whose error cancels from "
+             "two runs that meet there by chance)")
 FINER_END = (f"unresolved (its difference from the run at h/2 is under {CANCELS:g} of the "
              "largest: one difference does not tell an end whose error cancels from two runs "
              "that meet there by chance, as a count's ticks make them)")
@@ -309,6 +321,24 @@ def _single(steps: int, r: float, values: tuple, rows: list, p: int) -> dict:
     return {"max": largest, "end": end if end > floor else BELOW_ROUND_OFF}
 
 
+def _finer(exp, results: Results, factors: tuple, coarse: list, name: str) -> dict:
+    """{"max", "end"} of one output from the runs at h/2 and h/3 (ROUGH), at order 1: the
+    larger of the two estimates, row by row; an end under CANCELS of the largest is
+    unresolved (ROUGH_END)."""
+    fine = np.asarray(results[name], dtype=float)
+    floor = round_off(fine, results.steps)
+    largest, end = 0.0, 0.0
+    for r, run in zip(factors, coarse):
+        rows = _common(exp, float(_shared(ONE, r)) * exp.step_size, results.time, run[1])
+        e = np.abs(fine[rows[0]] - run[2][name][rows[1]]) / abs(float(r) - 1.0)
+        largest, end = max(largest, float(e.max())), max(end, float(e[-1]))
+    if largest <= floor:
+        return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
+    if end < CANCELS * largest:
+        return {"max": largest, "end": ROUGH_END}
+    return {"max": largest, "end": end if end > floor else BELOW_ROUND_OFF}
+
+
 def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
                coarse: list, marks: np.ndarray, rough: bool = False) -> dict:
     """summary.json's estimate from the coarser runs (coarse_rows' per factor), `marks` the
@@ -318,7 +348,10 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
     exp = graph.scenario.experiment
     order = 1 if rough else master_entry(exp.master).order
     orders = (order, min(order, ACROSS_ORDER) if steps_across(marks, exp) else order)
-    if len(factors) == 1:
+    if tuple(factors) == ROUGH:
+        estimate = {n: _finer(exp, results, factors, coarse, n) for n in names}
+        method = ROUGH_METHOD.format(why=FINER_ROUGH)
+    elif len(factors) == 1:
         rows = _common(exp, float(_shared(ONE, factors[0])) * exp.step_size, results.time,
                        coarse[0][1])
         estimate = {n: _single(results.steps, float(factors[0]), (np.asarray(
