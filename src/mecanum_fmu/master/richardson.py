@@ -72,8 +72,8 @@ FINER_BREAKS = ("no coarser step steps on every breakpoint the run steps on: a p
                 "table's rows")
 # there, the run is repeated at h/2 and at h/3 and the larger estimate kept: a jump's error
 # on a step hangs on where in the step it falls, and one finer grid may see it fall as the
-# run does on average (a staircase every n + 1/2 steps at h/2, n + 1/3 at h/3: 0.10x to
-# 0.30x with h/2 alone on 11 of 60 staircases, 1 with both; docs/masters.md)
+# run does on average (a staircase every n + 1/2 steps at h/2, n + 1/3 at h/3: 11 of 120
+# staircases' largest errors read 0.10x to 0.30x with h/2 alone, 1 with both; docs/masters.md)
 ROUGH = (Fraction(1, 2), Fraction(1, 3))
 ROUGH_METHOD = ("Richardson extrapolation: the run repeated at h/2 and at h/3 ({why}; a "
                 "jump's error hangs on where in the step it falls, which one finer grid may "
@@ -323,16 +323,18 @@ def _single(steps: int, r: float, values: tuple, rows: list, p: int) -> dict:
 
 def _finer(exp, results: Results, factors: tuple, coarse: list, name: str) -> dict:
     """{"max", "end"} of one output from the runs at h/2 and h/3 (ROUGH), at order 1: the
-    larger of the two estimates, row by row; an end under CANCELS of the largest is
-    unresolved (ROUGH_END)."""
+    larger of the two estimates' largest values, and of their ends; an end under CANCELS
+    of the largest is unresolved (ROUGH_END)."""
     fine = np.asarray(results[name], dtype=float)
     floor = round_off(fine, results.steps)
-    largest, end = 0.0, 0.0
+    largest, end, differs = 0.0, 0.0, 0.0
     for r, run in zip(factors, coarse):
         rows = _common(exp, float(_shared(ONE, r)) * exp.step_size, results.time, run[1])
-        e = np.abs(fine[rows[0]] - run[2][name][rows[1]]) / abs(float(r) - 1.0)
+        d = np.abs(fine[rows[0]] - run[2][name][rows[1]])
+        e = d / abs(float(r) - 1.0)
         largest, end = max(largest, float(e.max())), max(end, float(e[-1]))
-    if largest <= floor:
+        differs = max(differs, float(d.max()))
+    if differs <= floor:
         return {"max": BELOW_ROUND_OFF, "end": BELOW_ROUND_OFF}
     if end < CANCELS * largest:
         return {"max": largest, "end": ROUGH_END}
