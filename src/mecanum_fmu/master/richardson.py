@@ -321,16 +321,21 @@ def _single(steps: int, r: float, values: tuple, rows: list, p: int) -> dict:
     return {"max": largest, "end": end if end > floor else BELOW_ROUND_OFF}
 
 
-def _finer(exp, results: Results, factors: tuple, coarse: list, name: str) -> dict:
-    """{"max", "end"} of one output from the runs at h/2 and h/3 (ROUGH), at order 1: the
-    larger of the two estimates' largest values, and of their ends; an end under CANCELS
-    of the largest is unresolved (ROUGH_END)."""
+def _on_run(exp, results: Results, r: Fraction, run: tuple) -> list[np.ndarray]:
+    """The rows of the run and of its repetition at r h (coarse_rows') at their common
+    times (of the run's grid and r h's)."""
+    return _common(exp, float(_shared(ONE, r)) * exp.step_size, results.time, run[1])
+
+
+def _finer(results: Results, factors: tuple, coarse: list, rows: list, name: str) -> dict:
+    """{"max", "end"} of one output from the runs at h/2 and h/3 (ROUGH; `rows`: _on_run's
+    per run), at order 1: the larger of the two estimates' largest values, and of their
+    ends; an end under CANCELS of the largest is unresolved (ROUGH_END)."""
     fine = np.asarray(results[name], dtype=float)
     floor = round_off(fine, results.steps)
     largest, end, differs = 0.0, 0.0, 0.0
-    for r, run in zip(factors, coarse):
-        rows = _common(exp, float(_shared(ONE, r)) * exp.step_size, results.time, run[1])
-        d = np.abs(fine[rows[0]] - run[2][name][rows[1]])
+    for r, run, at in zip(factors, coarse, rows):
+        d = np.abs(fine[at[0]] - run[2][name][at[1]])
         e = d / abs(float(r) - 1.0)
         largest, end = max(largest, float(e.max())), max(end, float(e[-1]))
         differs = max(differs, float(d.max()))
@@ -351,11 +356,11 @@ def richardson(graph: Graph, results: Results, names: list[str], factors: tuple,
     order = 1 if rough else master_entry(exp.master).order
     orders = (order, min(order, ACROSS_ORDER) if steps_across(marks, exp) else order)
     if tuple(factors) == ROUGH:
-        estimate = {n: _finer(exp, results, factors, coarse, n) for n in names}
+        rows = [_on_run(exp, results, r, run) for r, run in zip(factors, coarse)]
+        estimate = {n: _finer(results, factors, coarse, rows, n) for n in names}
         method = ROUGH_METHOD.format(why=FINER_ROUGH)
     elif len(factors) == 1:
-        rows = _common(exp, float(_shared(ONE, factors[0])) * exp.step_size, results.time,
-                       coarse[0][1])
+        rows = _on_run(exp, results, factors[0], coarse[0])
         estimate = {n: _single(results.steps, float(factors[0]), (np.asarray(
             results[n], dtype=float), coarse[0][2][n]), rows, orders[1]) for n in names}
         method = SINGLE_METHOD.format(r1=str(factors[0]), order=orders[1])
