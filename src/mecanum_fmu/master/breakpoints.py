@@ -6,6 +6,7 @@ that ends on a jump (step_cuts); the error estimate keeps all of them on its coa
 (pieces)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,39 +99,33 @@ def pieces(breaks, start: float, h: float, n: int) -> Pieces:
     a node ends one piece there and starts the next; a jump (or what may be one: `others`)
     on a node starts the next piece there, the one before ending a node earlier; one inside
     a step ends a piece at the step's start and starts the next at its end. Where several
-    fall on one node, the strongest says how (a jump over one across a step over a kink)."""
+    fall on one node, the strongest says how (a jump over one across a step over a kink).
+    (In plain floats: a run's breakpoints are few, and a NumPy call per line cost more.)"""
     if not (len(breaks.kinks) or len(breaks.jumps) or len(breaks.others)):
         return Pieces(np.zeros(1, dtype=np.int64), np.array([n]), np.zeros(0, dtype=np.int64),
                       {}, False, False)
-    kinks, jumps = np.asarray(breaks.kinks, dtype=float), breaks.taken_as_jumps()
-    x = (np.concatenate((kinks, jumps)) - start) / h
-    jump = np.arange(len(x)) >= len(kinks)
-    j = np.rint(x)
-    on = np.abs(x - j) < NEAR
-    inside = ~on & (x > 0) & (x < n)
-    k = np.floor(x[inside]).astype(np.int64)
-    rank = np.full(n + 2, -1)           # per node, what starts a piece there (-1: nothing)
-    at = on & (j > 0) & (j <= n)
-    np.maximum.at(rank, j[at].astype(np.int64), np.where(jump[at], JUMP, KINK))
-    np.maximum.at(rank, k + 1, np.where(jump[inside], ACROSS_JUMP, ACROSS_KINK))
-    bounds = np.flatnonzero(rank >= 0)
-    starts = np.concatenate(([0], bounds))
-    ends = np.concatenate((np.where(rank[bounds] == KINK, bounds, bounds - 1), [n]))
-    after_kink = (rank[starts] >= KINK) & (rank[starts] <= ACROSS_KINK)
-    kinked = after_kink | np.append(after_kink[1:], False)      # a kink at either end
+    rank: dict[int, int] = {}       # per node, what starts a piece there
+    across: dict[int, tuple] = {}   # per step, its first kink, or its last jump
+    marked = [(b, False) for b in np.asarray(breaks.kinks, dtype=float).tolist()] + [
+        (b, True) for b in breaks.taken_as_jumps().tolist()]
+    for b, jump in marked:
+        x = (b - start) / h
+        j = round(x)
+        if abs(x - j) < NEAR:
+            if 0 < j <= n:
+                rank[j] = max(rank.get(j, -1), JUMP if jump else KINK)
+        elif 0 < x < n:
+            k = math.floor(x)
+            rank[k + 1] = max(rank.get(k + 1, -1), ACROSS_JUMP if jump else ACROSS_KINK)
+            if k not in across or jump:
+                across[k] = (x - k, jump)
+    bounds = sorted(rank)
+    starts = [0, *bounds]
+    ends = [b if rank[b] == KINK else b - 1 for b in bounds] + [n]
+    after_kink = [rank.get(s, -1) in (KINK, ACROSS_KINK) for s in starts]
+    kinked = [a or b for a, b in zip(after_kink, after_kink[1:] + [False])]  # either end
     # (a piece that starts on the last node holds no step: a table's row at the stop time)
-    lone = (ends - starts < 1) & (starts < n)
-    return Pieces(starts.astype(np.int64), ends.astype(np.int64),
-                  np.flatnonzero(rank == JUMP).astype(np.int64),
-                  _across(x[inside], k, jump[inside]), bool((lone & kinked).any()),
-                  bool(lone.any()))
-
-
-def _across(x: np.ndarray, k: np.ndarray, jump: np.ndarray) -> dict:
-    """Step index -> (the fraction of it before a breakpoint inside it, whether that may be
-    a jump): per step its first kink, or its last jump where it holds one."""
-    across = {}
-    for xi, ki, ji in zip(x.tolist(), k.tolist(), jump.tolist()):
-        if ki not in across or ji:
-            across[ki] = (xi - ki, ji)
-    return across
+    lone = [e - s < 1 and s < n for s, e in zip(starts, ends)]
+    return Pieces(np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64),
+                  np.array([b for b in bounds if rank[b] == JUMP], dtype=np.int64), across,
+                  any(l and k for l, k in zip(lone, kinked)), any(lone))
