@@ -24,6 +24,12 @@ class Group:
     model_name: str = ""        # the FMU's model (its modelName), for the method's words
     lags: np.ndarray | None = None      # per input (in a Network they may differ); lag: the most
 
+    @property
+    def ahead(self) -> bool:
+        """Whether an input closes a loop ("state_ahead", "fed_back"): its value of t_k+1 is
+        extrapolated where the master does not roll back (PairRows._extrapolated)."""
+        return any(r in ("state_ahead", "fed_back") for r in self.roles.tolist())
+
 
 @dataclass
 class PairPlan:

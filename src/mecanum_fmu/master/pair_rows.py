@@ -628,48 +628,55 @@ class PairRows(Stencils):
         now = self._row(g, ks, 0)
         if self.plan.hold == "frozen":      # Jacobi: the values of t_k, late by the lag
             return now, now - mean, end - start
-        seen = np.where(self.cut[ks + 1][:, None], end, self._row(g, ks, 1))
+        seen = self._row(g, ks, 1)
+        if len(self.pieces.cut):        # a step cut at a jump on its end sees the left value
+            seen = np.where(self.cut[ks + 1][:, None], end, seen)
         if self.plan.hold == "zoh":         # the newest value: of t_k where a loop closes
             held = np.where(g.roles == "direct", seen, now)
             return held, held - mean, end - start
         trapezoid = 0.5 * (now + seen)
+        since = self._since_restart(ks)
         if self.plan.hold == "quadratic":
-            trapezoid = trapezoid - self._parabola(ks, now, seen, self._row(g, ks, -1),
+            trapezoid = trapezoid - self._parabola(since, now, seen, self._row(g, ks, -1),
                                                    self._row(g, ks, -2))
         if self.plan.rolled_back:       # the corrector, on the predicted end: the run's
             held = np.where((g.roles == "direct") | (g.roles == "fed_back"), seen, trapezoid)
         else:
-            held = self._extrapolated(g, ks, now, np.where(g.roles == "direct", seen,
-                                                           trapezoid))
+            held = np.where(g.roles == "direct", seen, trapezoid)
+            if g.ahead:
+                held = self._extrapolated(g, ks, now, held, since)
         return held, held - mean, end - start
 
     def _row(self, g: Group, ks: np.ndarray, shift: int) -> np.ndarray:
         """Group g's input values in the rows `shift` from each step's start."""
         return self.window[np.maximum(ks + shift - self.lo, 0)][:, g.cols]
 
-    def _extrapolated(self, g: Group, ks: np.ndarray, now: np.ndarray, held: np.ndarray
-                      ) -> np.ndarray:
+    def _extrapolated(self, g: Group, ks: np.ndarray, now: np.ndarray, held: np.ndarray,
+                      since: np.ndarray | None = None) -> np.ndarray:
         """`held` with a loop's inputs extrapolated from u_k-1 and u_k, as the trapezoidal
         hold (plan.HOLDS) sets them where their end value is not known: the mean over the
         step (1.5 u_k - 0.5 u_k-1; "fed_back": the end value, 2 u_k - u_k-1); after a
-        restart (the run's start, a jump), u_k alone."""
-        slope = np.where((self._since_restart(ks) >= 1)[:, None],
-                         now - self._row(g, ks, -1), 0.0)
+        restart (the run's start, a jump), u_k alone. `since`: _since_restart(ks)."""
+        since = self._since_restart(ks) if since is None else since
+        slope = np.where((since >= 1)[:, None], now - self._row(g, ks, -1), 0.0)
         return np.where(g.roles == "state_ahead", now + 0.5 * slope,
                         np.where(g.roles == "fed_back", now + slope, held))
 
-    def _parabola(self, ks, now, seen, before, older) -> np.ndarray:
+    @staticmethod
+    def _parabola(since, now, seen, before, older) -> np.ndarray:
         """The quadratic master's correction to the trapezoid (plan._Blend): the second
         difference over the step, limited (minmod) by the one before, from the second step
-        after a restart (the run's start, a jump) on."""
+        after a restart (the run's start, a jump) on (`since`: _since_restart's)."""
         a = (seen - now - now + before) * (1 / 12)
         b = (now - before - before + older) * (1 / 12)
         limited = np.minimum(np.maximum(b, np.minimum(a, 0.0)), np.maximum(a, 0.0))
-        return np.where((self._since_restart(ks) >= 2)[:, None], limited, 0.0)
+        return np.where((since >= 2)[:, None], limited, 0.0)
 
     def _since_restart(self, ks: np.ndarray) -> np.ndarray:
         """Per step, the steps since the holds last restarted (the run's start, a cut at a
         jump): the history the master's blends have behind them."""
+        if not len(self.pieces.cut):
+            return ks
         restarts = np.concatenate(([0], self.pieces.cut))
         return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
 
