@@ -6,7 +6,9 @@ their ratio, MISS where the ratio is outside [1/3, 3], and the estimate's cost: 
 calls against the run's ("calls", exact: 0 for the pair) and its time against the run's
 stepping time ("wall": summary.json's error_estimate_cost, the median of COST_REPEATS runs);
 then, per scenario at its own step, the same cost as medians of 5 repetitions, of the stepping
-loops and of the whole (each run's set-up included).
+loops and of the whole (each run's set-up included); last, the pair's seconds split into a fixed
+part and a part per step (a line through each scenario's and master's three steps), and the run
+length from which it costs at most 0.2x of the stepping.
 
 The scenarios are those whose single pose has a ground truth (report/ground_truth.py); a
 closed loop's "truth" is the path its follower is asked to follow (the tracking error, not the
@@ -162,9 +164,14 @@ def measure(scenario: str, name: str, factor: int, estimate: str = "auto",
     truth = (reference_errors if loops else true_errors)(graph, results)
     estimate = found.get("error_estimate")
     lines, misses, withheld = [], 0, 0
-    cost = statistics.median([float(found.get("error_estimate_cost", float("nan")))] + [
-        float(master.estimate_error(graph, master.simulate(graph, exp, with_estimate=True))
-              .get("error_estimate_cost", float("nan"))) for _ in range(COST_REPEATS - 1)])
+    runs = [(found, results)] + [
+        (master.estimate_error(graph, again), again) for again in
+        (master.simulate(graph, exp, with_estimate=True) for _ in range(COST_REPEATS - 1))]
+    ratios = [float(f.get("error_estimate_cost", float("nan"))) for f, _ in runs]
+    cost = statistics.median(ratios)
+    # the estimate's seconds and the run's stepping seconds, medians: the fixed-cost fit
+    seconds = (statistics.median(c * r.wall_time for c, (_, r) in zip(ratios, runs)),
+               statistics.median(r.wall_time for _, r in runs), results.steps)
     steps = calls(graph, exp, results.steps, found)
     for output, true in truth.items():
         for which in ("max", "end"):
@@ -176,7 +183,7 @@ def measure(scenario: str, name: str, factor: int, estimate: str = "auto",
             lines.append(f"{scenario:<32} {name:<12} {exp.step_size:>6g} {output:<11} "
                          f"{which:<3} {true[which]:>10.3e} {shown:>16} {ratio:>10} "
                          f"{steps:>5.2f} {cost:>5.2f} {miss}")
-    return lines, (misses, withheld), (steps, cost)
+    return lines, (misses, withheld), (steps, cost, seconds)
 
 
 def cost(scenario: str, reps: int = 5, estimate: str = "auto"
@@ -340,6 +347,7 @@ def main(argv: list[str] | None = None) -> None:
           f"{'estimate':>16} {'est/true':>10} {'calls':>5} {'wall':>5}")
     total, misses, withheld, costs = 0, 0, 0, []
     walls_by: dict[tuple[str, str], list[float]] = {}   # (method, master): wall costs
+    seconds_by: dict[tuple[str, str], list] = {}  # (scenario, master): the pair's seconds
     by_method = {"the pair": [0, 0, 0, 0], "Richardson": [0, 0, 0, 0]}   # runs, values, ...
     names = [s for s in scenarios(args.loops) if args.only in s]
     for scenario in names:
@@ -350,9 +358,11 @@ def main(argv: list[str] | None = None) -> None:
                 print("\n".join(lines), flush=True)
                 total, misses, withheld = (total + len(lines), misses + missed[0],
                                            withheld + missed[1])
-                costs.append(cost)
+                costs.append(cost[:2])
                 method = "the pair" if cost[0] == 0 else "Richardson"
                 walls_by.setdefault((method, name), []).append(cost[1])
+                if method == "the pair":
+                    seconds_by.setdefault((scenario, name), []).append(cost[2])
                 counts = by_method[method]
                 for i, n in enumerate((1, len(lines), *missed)):
                     counts[i] += n
@@ -366,6 +376,7 @@ def main(argv: list[str] | None = None) -> None:
           f"{np.median(steps):.2f}; its stepping time / the run's: max {np.nanmax(walls):.2f}, "
           f"median {np.nanmedian(walls):.2f} over {len(walls)} runs (wall: medians of {COST_REPEATS})")
     print_costs_by(walls_by)
+    print_fixed_cost(seconds_by)
 
 
 def print_costs_by(walls_by: dict) -> None:
@@ -377,6 +388,33 @@ def print_costs_by(walls_by: dict) -> None:
         w = np.array(walls, dtype=float)
         print(f"  {method:<10} {name:<12} max {np.nanmax(w):.2f}  median "
               f"{np.nanmedian(w):.2f}  {int(np.sum(w > 0.2))} of {len(w)} over 0.2x")
+
+
+def print_fixed_cost(seconds_by: dict) -> None:
+    """The pair's seconds as a fixed part and a part per step (least squares over the three
+    steps of one scenario and master: n, n/2 and n/4 steps), the run's stepping seconds per
+    step, and the run length from which the pair costs at most 0.2x of the stepping: the
+    fixed part (the plan, the rows' set-up, the finish: NumPy calls on cold caches right
+    after the FMUs' set-up and stepping) over 0.2x a step less the pair's own per step."""
+    found = []
+    for runs in seconds_by.values():
+        if len(runs) < 2:
+            continue
+        est, run, n = (np.array(v, dtype=float) for v in zip(*runs))
+        per_step, fixed = np.polyfit(n, est, 1)
+        stepping = float(np.median(run / n))
+        room = 0.2 * stepping - per_step
+        found.append((fixed, per_step, stepping, fixed / room if room > 0 else math.inf))
+    if not found:
+        return
+    fixed, per_step, stepping, reach = (np.array(v) for v in zip(*found))
+    print(f"the pair's seconds = fixed + per step x n, fitted over the three steps of each of "
+          f"{len(found)} scenarios and masters: fixed {np.median(fixed) * 1e6:.0f} us median ("
+          f"{fixed.min() * 1e6:.0f} to {fixed.max() * 1e6:.0f}), per step "
+          f"{np.median(per_step) * 1e6:.2f} us median ({per_step.min() * 1e6:.2f} to "
+          f"{per_step.max() * 1e6:.2f}), against the run's {np.median(stepping) * 1e6:.0f} "
+          f"us per step; at most 0.2x of the stepping from {np.median(reach):.0f} steps "
+          f"median, {reach.max():.0f} at most")
 
 
 if __name__ == "__main__":
