@@ -635,7 +635,7 @@ class PairRows(Stencils):
             held = np.where(g.roles == "direct", seen, now)
             return held, held - mean, end - start
         trapezoid = 0.5 * (now + seen)
-        since = self._since_restart(ks)
+        since = self._since_restart(ks) if self.plan.hold == "quadratic" or g.ahead else None
         if self.plan.hold == "quadratic":
             trapezoid = trapezoid - self._parabola(since, now, seen, self._row(g, ks, -1),
                                                    self._row(g, ks, -2))
