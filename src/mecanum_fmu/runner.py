@@ -14,7 +14,7 @@ from .bag_output import check_room, remove_previous, write_run_bag
 from .errors import (ArgumentError, Interrupted, MecanumError, Problem, ScenarioError,
                      SimulationError)
 from .scenario.graph import Graph, compile_graph
-from .models.library import build_bundled
+from .models.rebuild import build_bundled
 from .models.topology import Topology, topology
 from .report import against_recorded
 from .report.evaluation import Evaluation, evaluate, report_lines as evaluation_lines

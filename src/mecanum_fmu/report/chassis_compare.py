@@ -20,7 +20,7 @@ from ..errors import MecanumError, ScenarioError
 from ..process import exit_now
 from ..results import Results
 from ..scenario.graph import Graph, compile_graph
-from ..models.library import build_bundled
+from ..models.rebuild import build_bundled
 from ..models.topology import topology
 from ..scenario.document import read_scenario
 from .evaluation import Evaluation, evaluate, report_lines
