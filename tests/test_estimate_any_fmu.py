@@ -680,10 +680,10 @@ def test_under_the_adaptive_master_a_staircase_leaves_the_estimate_unresolved(
     """The same staircase (the wave on its own 0.2 s grid) at tolerance 1e-4: its error
     against gauss-seidel at h/64, which holds each stair exactly, is over the tolerance;
     with the check, every output is unresolved and says why. With the check turned off, the
-    stairs are kinks among the held values (adaptive.KINK): the hold's error there does not
+    stairs are kinks among the held values (adaptive_holds.KINK): the hold's error there does not
     fall with the step, and the steps over them are found as jumps no breakpoint announces
     (before the kinks were seen, the estimate said a hundredth of the error)."""
-    from mecanum_fmu.master import adaptive
+    from mecanum_fmu.master import adaptive_holds
     path = _stair(tmp_path, fmus, "master: adaptive, tolerance: 1e-4")
     graph = runner.prepare(path)
     fine, fexp = with_experiment(graph, master="gauss-seidel", step_size=0.1 / 64,
@@ -694,7 +694,7 @@ def test_under_the_adaptive_master_a_staircase_leaves_the_estimate_unresolved(
     found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
     words = found["error_estimate"]["it.x"]["max"]
     assert words.startswith("unresolved (the held inputs of it do not move as smooth curves")
-    monkeypatch.setattr(adaptive, "ADAPTIVE_ROUGH", math.inf)
+    monkeypatch.setattr(adaptive_holds, "ADAPTIVE_ROUGH", math.inf)
     found = master.estimate_error(graph, master.simulate(graph, graph.scenario.experiment))
     words = found["error_estimate"]["it.x"]["max"]
     assert words.startswith("unresolved (") and "over a jump that no breakpoint" in words
@@ -879,10 +879,10 @@ def test_rows_that_cross_a_staircases_jumps_leave_the_adaptive_estimate_unresolv
     points sum fourth differences far over their changes, and the estimate says the
     tolerance is not controlled, where it gave a number against rows off by more than
     the tolerance. A smooth source into the same lag keeps its numbers."""
-    from mecanum_fmu.master import adaptive, dense, step_control
+    from mecanum_fmu.master import adaptive_holds, dense, step_control
     monkeypatch.setattr(step_control.Bracket, "SHRINK", math.inf)
-    monkeypatch.setattr(adaptive, "KINK", math.inf)     # (a stair is a kink among the holds')
-    monkeypatch.setattr(adaptive, "ADAPTIVE_ROUGH", math.inf)     # the held inputs' tally
+    monkeypatch.setattr(adaptive_holds, "KINK", math.inf)   # (a stair is a kink among the holds')
+    monkeypatch.setattr(adaptive_holds, "ADAPTIVE_ROUGH", math.inf)   # the held inputs' tally
     graph = _wave_lag(tmp_path, fmus, 0.2)
     results = master.simulate(graph, graph.scenario.experiment)
     stair = np.cos(0.2 * np.floor(np.round(results.time / 0.2, 9)))

@@ -23,7 +23,8 @@ from ..process import ctrl_c_latched
 from ..results import Results
 from ..runtime import RUNTIME, STATUS, release_instances
 from ..scenario.document import Experiment
-from .adaptive import AdaptiveHolds, NoProgress, estimate_of, step_adaptive
+from .adaptive import NoProgress, estimate_of, step_adaptive
+from .adaptive_holds import AdaptiveHolds
 from .coarse import Start, coarse_runs
 from .estimate import coarse_plan, error_estimate, pair_tap, steps_coarser, wants_pair
 from .instance import FmuCallError, RunningInstance

@@ -16,7 +16,7 @@ pair hands over; so it does where a value is held to the bit for one row between
 often enough (HELD: stairs 1 to 2 steps long, whose sums stay under ROUGH), and where the
 ratio does not grow over every second row as a curve's or a kink's does (NOISY: a quantizer
 finer than the step's change). The adaptive master applies the first rule on its unequal
-steps (adaptive._VarBlend.tally, ADAPTIVE_ROUGH), and leaves its estimate unresolved.
+steps (adaptive_holds._VarBlend.tally, ADAPTIVE_ROUGH), and leaves its estimate unresolved.
 """
 from __future__ import annotations
 

@@ -94,7 +94,7 @@ class WholeSteps:
 
     def _kinks(self, share: float) -> None:
         """Its held means take `share` x their estimated error where it is large against the
-        step's change (adaptive._VarBlend.next: a kink among an input's values), so that
+        step's change (adaptive_holds._VarBlend.next: a kink among an input's values), so that
         the difference over the divisor carries the kept run's error there too."""
         for b in self.blends:
             b.holds.kinks = share
