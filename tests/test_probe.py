@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from mecanum_fmu.master.probe import PROBE_EVERY, Prober, ProbedModel
+from mecanum_fmu.master.probe import PROBE_EVERY, Prober
+from mecanum_fmu.master.probed_model import ProbedModel
 from mecanum_fmu.master.probe_fit import Moments, bend, fitted, moment
 
 

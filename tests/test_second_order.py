@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 
 from helpers import assert_estimated, state_fmus, with_experiment, write_scenario
 from mecanum_fmu import master, runner
-from mecanum_fmu.master.probe import ProbedModel
+from mecanum_fmu.master.probed_model import ProbedModel
 from mecanum_fmu.master.probe_fit import Moments, _two_poles, moment
 
 M, K, C = 1.0, 4.0, 0.4     # xtest_spring's defaults

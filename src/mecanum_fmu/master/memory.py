@@ -22,7 +22,7 @@ second is made from the inputs, not from a state; the pair does not apply, and s
 
 After the run, an FMU with a state whose outputs all declare nothing gets advice: its inputs
 were held at their end values, as a direct input's must be (first order on a lag); its probes
-(probe.ProbedModel) measured which linked inputs each output reads directly (its direct
+(probed_model.ProbedModel) measured which linked inputs each output reads directly (its direct
 part), and said in the scenario (`dependencies: {x: [], y: [u]}`) they are held at their
 step mean while it steps (plan.holds_through; second order). Where an output that reads an
 input is worked out in doStep alone (probe.lazy: it does not follow the input set after the
@@ -36,9 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .plan import has_state, state_only_inputs, state_undeclared
-from .probe import (PROBE_STEPS, REAL, ProbedModel, ProbedResponse, Target, probeable,
-                    probed_model, probed_response)
-from .probe_fit import SUBSTEPS
+from .probe import ProbedResponse, Target, probed_response
+from .probe_fit import PROBE_STEPS, SUBSTEPS
+from .probed_model import REAL, ProbedModel, probeable, probed_model
 
 NO_DIRECT = 1e-6    # a direct part under this share of the state's part is round-off
 

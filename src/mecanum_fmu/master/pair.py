@@ -51,7 +51,8 @@ from ..masters import entry as master_entry
 from ..scenario.graph import Graph
 from .pair_parts import Group, Loop, Network, Node, PairPlan, Through
 from .plan import has_state, holds_through, state_only_inputs
-from .probe import PROBED, ProbedModel, probed_model, probed_response
+from .probe import PROBED, probed_response
+from .probed_model import ProbedModel, probed_model
 
 METHOD = ("the embedded pair: per step, each held input's hold against the mean of the cubic "
           "through its nearest values in the same smooth piece ({steps}), carried "
@@ -371,7 +372,7 @@ def _forwarded(fed: list, groups: list[Group], position: dict) -> tuple[list, li
 def _group(how, inst, links: list, loop: set, col, model, measured: bool) -> Group | str:
     """The held inputs of an FMU with a state, with its error model's batch form (None
     where it does not take these inputs); without a model, its response measured where
-    `measured` (the scenario layer knows nothing of it: probe.ProbedModel), else None;
+    `measured` (the scenario layer knows nothing of it: probed_model.ProbedModel), else None;
     `loop`: the ids of the links that close a loop into it. Its lag is set once every
     source's is known (pair_plan)."""
     if any(l.target.type != "Real" for l in links):

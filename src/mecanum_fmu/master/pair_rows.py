@@ -24,7 +24,8 @@ from .pair_known import KnownInputs
 from .pair_loop import LoopCarry
 from .pair_network import NetworkCarry
 from .pair_rough import ROUGH, Roughness
-from .probe import ProbedModel, ProbedResponse
+from .probe import ProbedResponse
+from .probed_model import ProbedModel
 from .pair_stencils import Stencils, with_branch
 from .stencils import values
 
