@@ -247,10 +247,11 @@ class PairRows(Stencils):
         tick = _time.perf_counter()
         parabola = self._rest()
         self.seconds += _time.perf_counter() - tick
-        rough = self._not_smooth()
+        not_smooth = self._rough()
+        rough = self._not_smooth(not_smooth)
         deaf = any(m.deaf for m in self._measured())
         return {"estimate": {n: (self.worst[n], self.end[n], parabola[n]) for n in self.worst},
-                "unresolved": self._ill(),
+                "unresolved": self._ill(not_smooth),
                 "unresolved_end": dict.fromkeys(self.net.cancelled(self.end), CANCELLED)
                 if self.net is not None else {},
                 "seconds": self.seconds,
@@ -296,12 +297,13 @@ class PairRows(Stencils):
         return [t.name + (" (measured)" if isinstance(t.response, ProbedResponse) else "")
                 for t in self.plan.throughs()]
 
-    def _ill(self) -> dict[str, str]:
+    def _ill(self, not_smooth: np.ndarray) -> dict[str, str]:
         """The chain's outputs whose estimate is unresolved: their divisor's error is not
         small against it on some row, or it comes near 0 (within NEAR_ZERO of its largest
-        |value|), where 1 / its square magnifies the error of one row."""
+        |value|), where 1 / its square magnifies the error of one row; Jacobi's late outputs
+        among the columns `not_smooth` (_rough)."""
         ill = {**self.plan.unresolved, **self.ill}
-        rough = set(self._rough.tolist())
+        rough = set(not_smooth.tolist())
         for name, c, _ in self.plan.lagged:     # Jacobi's late outputs
             if c in rough:
                 ill.setdefault(name, f"unresolved (its values{NOT_SMOOTH})")
@@ -343,15 +345,14 @@ class PairRows(Stencils):
                         "within the steps")
         return None
 
-    @property
     def _rough(self) -> np.ndarray:
         """The columns whose values are not smooth curves at this step (pair_rough.py)."""
         return self.roughness.rough(self.size, self.n) if self.roughness is not None else \
             np.zeros(0, dtype=np.intp)
 
-    def _not_smooth(self) -> str | None:
-        """Why the pair does not hold: held inputs that are not smooth curves at this step."""
-        rough = self._rough
+    def _not_smooth(self, rough: np.ndarray) -> str | None:
+        """Why the pair does not hold: held inputs among the columns that are not smooth
+        curves at this step (`rough`: _rough)."""
         held = [g.name for g in self.plan.groups if np.isin(g.cols, rough).any()] \
             if len(rough) else []
         return f"the held inputs of {', '.join(held)}{NOT_SMOOTH}" if held else None
