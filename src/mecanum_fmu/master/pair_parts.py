@@ -27,7 +27,7 @@ class Group:
     @property
     def ahead(self) -> bool:
         """Whether an input closes a loop ("state_ahead", "fed_back"): its value of t_k+1 is
-        extrapolated where the master does not roll back (PairRows._extrapolated)."""
+        extrapolated where the master does not roll back (pair_holds.RebuiltHolds._extrapolated)."""
         return any(r in ("state_ahead", "fed_back") for r in self.roles.tolist())
 
 

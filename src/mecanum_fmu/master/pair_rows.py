@@ -26,6 +26,7 @@ from .pair_network import NetworkCarry
 from .pair_rough import ROUGH, Roughness
 from .probe import ProbedResponse
 from .probed_model import ProbedModel
+from .pair_holds import RebuiltHolds, lead_of
 from .pair_stencils import Stencils, with_branch
 from .stencils import values
 
@@ -79,7 +80,7 @@ def _gap(d: int) -> np.ndarray:
     return values((-d - 2.0, -d - 1.0, -float(d), 0.0), np.arange(1 - d, 0, dtype=float))
 
 
-class PairRows(Stencils):
+class PairRows(Stencils, RebuiltHolds):
     """The pair over the rows of one run of n steps (Recorder.tap, then finish())."""
 
     def __init__(self, plan: PairPlan, exp, n_steps: int, breaks, known=()):
@@ -524,7 +525,7 @@ class PairRows(Stencils):
                 holds[i] = (held, error, change)
                 continue
             self._kept(i, self._signed(i, g, ks, h, (held, error, change),
-                                       lead=_lead(g, gathered, own)))
+                                       lead=lead_of(g, gathered, own)))
         if self.net is not None:
             self._network(ks, h, holds)
         if self.lags:
@@ -540,8 +541,8 @@ class PairRows(Stencils):
                 branch: int = 0, lead: tuple | None = None) -> np.ndarray:
         """Group i's signed errors after each step (with a `branch`, its rows after them):
         its model's (a branch only to a model that takes one: _branchable), or around the
-        loop it starts (_carried). `lead`: _lead's, for a measured model's direct part
-        (ProbedModel: held - true end = error - lead)."""
+        loop it starts (_carried). `lead`: lead_of's (pair_holds.py), for a measured model's
+        direct part (ProbedModel: held - true end = error - lead)."""
         if self.carry is not None and i == self.plan.loop.origin:
             return self._carried(g, ks, h, hold, branch)
         more = {"lead": lead} if lead is not None else {}
@@ -565,7 +566,7 @@ class PairRows(Stencils):
             self._note_moved(i, error[:len(ks)])
             return
         signed = self._signed(i, g, ks, with_branch(h, branch), (held, error, change), branch,
-                              lead=_lead(g, gathered, error))
+                              lead=lead_of(g, gathered, error))
         self._kept(i, signed[:len(ks)])
         names, index = self.covers[i]
         self.branch_end.update(zip(names, np.abs(signed[-1, index]).tolist()))
@@ -609,91 +610,3 @@ class PairRows(Stencils):
                 ends[1:] += self._late_carried(ks[-1:] + 1, branch=True)
                 self.branch_end.update(zip(names, np.abs(ends[1]).tolist()))
         self._keep(names, errors)
-
-    def _gathered(self, i: int, stencils: dict) -> list:
-        """Group i's inputs' (mean, start, end) per step from the stencils of their lags."""
-        at = self.at[i]
-        if len(at) == 1:
-            (d, (_, index)), = at.items()
-            return [a[:, index] for a in stencils[d]]
-        rows, width = len(stencils[next(iter(at))][0]), len(self.plan.groups[i].cols)
-        out = [np.empty((rows, width)) for _ in range(3)]
-        for d, (places, index) in at.items():
-            for o, a in zip(out, stencils[d]):
-                o[:, places] = a[:, index]
-        return out
-
-    def _group(self, g: Group, ks: np.ndarray, stencils: list) -> tuple:
-        """(held, held - true mean, the true change over the step) per step and input, from
-        the true input's (mean, start, end) per step (_stencils)."""
-        mean, start, end = stencils
-        now = self._row(g, ks, 0)
-        if self.plan.hold == "frozen":      # Jacobi: the values of t_k, late by the lag
-            return now, now - mean, end - start
-        seen = self._row(g, ks, 1)
-        if len(self.pieces.cut):        # a step cut at a jump on its end sees the left value
-            seen = np.where(self.cut[ks + 1][:, None], end, seen)
-        if self.plan.hold == "zoh":         # the newest value: of t_k where a loop closes
-            held = np.where(g.roles == "direct", seen, now)
-            return held, held - mean, end - start
-        trapezoid = 0.5 * (now + seen)
-        since = self._since_restart(ks) if self.plan.hold == "quadratic" or g.ahead else None
-        if self.plan.hold == "quadratic":
-            trapezoid = trapezoid - self._parabola(since, now, seen, self._row(g, ks, -1),
-                                                   self._row(g, ks, -2))
-        if self.plan.rolled_back:       # the corrector, on the predicted end: the run's
-            held = np.where((g.roles == "direct") | (g.roles == "fed_back"), seen, trapezoid)
-        else:
-            held = np.where(g.roles == "direct", seen, trapezoid)
-            if g.ahead:
-                held = self._extrapolated(g, ks, now, held, since)
-        return held, held - mean, end - start
-
-    def _row(self, g: Group, ks: np.ndarray, shift: int) -> np.ndarray:
-        """Group g's input values in the rows `shift` from each step's start."""
-        return self.window[np.maximum(ks + shift - self.lo, 0)][:, g.cols]
-
-    def _extrapolated(self, g: Group, ks: np.ndarray, now: np.ndarray, held: np.ndarray,
-                      since: np.ndarray | None = None) -> np.ndarray:
-        """`held` with a loop's inputs extrapolated from u_k-1 and u_k, as the trapezoidal
-        hold (plan.HOLDS) sets them where their end value is not known: the mean over the
-        step (1.5 u_k - 0.5 u_k-1; "fed_back": the end value, 2 u_k - u_k-1); after a
-        restart (the run's start, a jump), u_k alone. `since`: _since_restart(ks)."""
-        since = self._since_restart(ks) if since is None else since
-        slope = np.where((since >= 1)[:, None], now - self._row(g, ks, -1), 0.0)
-        return np.where(g.roles == "state_ahead", now + 0.5 * slope,
-                        np.where(g.roles == "fed_back", now + slope, held))
-
-    @staticmethod
-    def _parabola(since, now, seen, before, older) -> np.ndarray:
-        """The quadratic master's correction to the trapezoid (plan._Blend): the second
-        difference over the step, limited (minmod) by the one before, from the second step
-        after a restart (the run's start, a jump) on (`since`: _since_restart's)."""
-        a = (seen - now - now + before) * (1 / 12)
-        b = (now - before - before + older) * (1 / 12)
-        limited = np.minimum(np.maximum(b, np.minimum(a, 0.0)), np.maximum(a, 0.0))
-        return np.where((since >= 2)[:, None], limited, 0.0)
-
-    def _since_restart(self, ks: np.ndarray) -> np.ndarray:
-        """Per step, the steps since the holds last restarted (the run's start, a cut at a
-        jump): the history the master's blends have behind them."""
-        if not len(self.pieces.cut):
-            return ks
-        restarts = np.concatenate(([0], self.pieces.cut))
-        return ks - restarts[np.searchsorted(restarts, ks, side="right") - 1]
-
-
-def _lead(g: Group, gathered: list, own: np.ndarray) -> tuple | None:
-    """Per step and input, what a measured model's direct part errs by less the hold's error
-    against the true mean (ProbedModel.steps: held - true end = error - lead): the true end
-    value less the mean; for a "through" input, whose end value the outputs see, the hold's
-    own error (only an error forwarded from upstream is left). Then the true end less the
-    mean alone: a lazy output's (ProbedModel.lazy), which reads the value held during the
-    step, "through" or not. Third, the true (start + end) / 2 - mean, which a measured
-    model's moments weigh past the change (probe_fit.bend). None for another group: its
-    model takes none."""
-    if not isinstance(g.model, ProbedModel):
-        return None
-    mean, start, end = gathered
-    late = end - mean
-    return np.where(g.roles == "through", own, late), late, 0.5 * (start + end) - mean

@@ -66,7 +66,7 @@ class ProbedModel:
     def steps(self, h: np.ndarray, held: np.ndarray, error: np.ndarray, change: np.ndarray,
               branch: int = 0, lead: tuple | None = None) -> np.ndarray:
         """The signed error of each output after each step. `lead`: per step and input, what
-        the direct part errs by less error (pair_rows._lead): the true input's end value
+        the direct part errs by less error (pair_holds.lead_of): the true input's end value
         less its mean, so that it errs by the held value against the true end value (for an
         input held "through", the hold's own error), and that end less the mean alone, for
         a `lazy` output (it reads the value held during the step); None: half the change,
