@@ -1,8 +1,9 @@
 """The adaptive master: a cubic (or the quadratic) hold on a step chosen to meet a tolerance.
 
 Per step, after the pass (docs/masters.md, "The adaptive master"):
-- the hold is the mean over the step of the cubic through u_k-2 ... u_k+1 on their own times
-  where the third differences of this step and the last agree in sign (a smooth input), else
+- the hold (adaptive_holds.py) is the mean over the step of the cubic through u_k-2 ...
+  u_k+1 on their own times where the third differences of this step and the last agree in
+  sign (a smooth input), else
   the quadratic master's on unequal steps: the parabola through u_k-1, u_k, u_k+1, its second
   difference limited by the previous one (minmod: a kink or a jump in a table adds nothing);
   in a loop the step is predicted with the linear extrapolation, rolled back and corrected;

@@ -4,10 +4,10 @@ parts): the recorder's tap.
 Every chunk of rows the recorder flushes passes through PairRows, which keeps the columns the
 plan needs and works out each step's errors as soon as the values its stencil reads are in:
 the rows of a window a few steps long, so that memory stays flat for any run length: the
-true inputs from their stencils (pair_stencils.py), the held ones as the master held them,
-the errors carried into the outputs by the groups' models. The cost is a few NumPy operations
-per chunk of 4096 rows, not per step; around a loop (pair_loop.py) a few more, log2 of the
-chunk's steps of them.
+true inputs from their stencils (pair_stencils.py), the held ones as the master held them
+(pair_holds.py), the errors carried into the outputs by the groups' models. The cost is a
+few NumPy operations per chunk of 4096 rows, not per step; around a loop (pair_loop.py) a
+few more, log2 of the chunk's steps of them.
 """
 from __future__ import annotations
 

@@ -14,7 +14,7 @@ row, a mass on a spring) does not decay geometrically. The model's first probe i
 again over ORDER2_STEPS steps, and up to two poles per output and input fit g1 .. g5
 (probe_fit.py; its later probes take as many steps); where neither fits (three integrators),
 the pair hands over to Richardson rather than carry a wrong pole over the run. Per step the
-pair's errors are carried as
+pair's errors are carried (probed_model.py) as
     d_k = error_k - m change_k,    y_k = s_k + g0 d_k,    s_k+1 = r s_k + g1 d_k,
 summed over the inputs: error, the held value against the true mean; change, the true input's
 change over the step, whose weight within the step a mean does not see (m: moment(), about
