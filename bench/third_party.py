@@ -33,7 +33,9 @@ over the true error for the largest value and the end (within 3x: [0.33, 3]), an
 estimate's cost against the run's stepping time (error_estimate_cost: the pair's NumPy work
 and the probes' time, medians of 5 runs; "ms", the same in milliseconds, the pair's own), and
 the probes' doStep calls against the run's. The same with `--estimate richardson` for
-comparison.
+comparison. Last, the pair's milliseconds split into a fixed part and a part per step (a line
+through each graph's and master's steps), and the run length from which it costs at most
+0.2x of the stepping.
 
 With --adaptive: the adaptive master at tolerances 1e-2 to 1e-6 on the same graphs, its
 steps against the fixed quadratic master's that meet the tolerance, each output's true
@@ -228,6 +230,7 @@ def main() -> None:
                 for h in STEPS:
                     for estimate in ("auto", "richardson"):
                         for m in measure(name, path, master_name, h, estimate):
+                            m.update(graph=name, master=master_name, steps=round(6.0 / h))
                             rows.append((estimate, m))
                             print(f"{name:<9} {m['output']:<8} {master_name:<12} {h:>6g} "
                                   f"{m['method'][:12]:<12} {m['max']:>6.2f} {m['end']:>6.2f} "
@@ -277,6 +280,39 @@ def summary(rows: list) -> None:
               f"runs over 0.2x" + (f" (the pair's own time in those: at most {max(over):.2f} "
                                    "ms)" if over else "")
               + f"; methods: {sorted({m['method'] for m in mine})}")
+    fixed_cost([m for e, m in rows if e == "auto" and m["method"] == "pair+probes"])
+
+
+def fixed_cost(mine: list) -> None:
+    """The pair's milliseconds (probes included) as a fixed part and a part per step, a line
+    through each graph's and master's steps where the pair estimates at three or more of
+    them (30 to 600 steps), against the run's stepping per step (ms / cost), and the run
+    length from which it costs at most 0.2x of the stepping."""
+    runs: dict[tuple, dict] = {}
+    for m in mine:      # one row per output: one per run is enough
+        runs.setdefault((m["graph"], m["master"]), {})[m["steps"]] = (m["ms"], m["ms"] / m["cost"])
+    found, never = [], set()
+    for (graph, _), by_steps in runs.items():
+        if len(by_steps) < 3:
+            continue
+        n = np.array(sorted(by_steps), dtype=float)
+        ms, stepping = (np.array([by_steps[k][i] for k in sorted(by_steps)]) for i in (0, 1))
+        per_step, fixed = np.polyfit(n, ms, 1)
+        step_ms = float(np.median(stepping / n))
+        room = 0.2 * step_ms - per_step
+        found.append((fixed, per_step, step_ms, fixed / room if room > 0 else np.inf))
+        if room <= 0:
+            never.add(graph)
+    if not found:
+        return
+    fixed, per_step, step_ms, reach = (np.array(v) for v in zip(*found))
+    print(f"the pair with probes, its ms = fixed + per step x n over {len(found)} graphs and "
+          f"masters: fixed {np.median(fixed):.2f} ms median ({fixed.min():.2f} to "
+          f"{fixed.max():.2f}), per step {1e3 * np.median(per_step):.2f} us median "
+          f"({1e3 * per_step.min():.2f} to {1e3 * per_step.max():.2f}), against the run's "
+          f"{1e3 * np.median(step_ms):.0f} us per step; at most 0.2x of the stepping from "
+          f"{np.median(reach):.0f} steps median, never on {int(np.isinf(reach).sum())} (their "
+          f"part per step is over 0.2x of the stepping's: {sorted(never)})")
 
 
 if __name__ == "__main__":
