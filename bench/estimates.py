@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from accuracy import SCENARIOS as ACCURACY_SCENARIOS, with_experiment
+from cost_fit import fit, summary as fit_summary
 from mecanum_fmu import master
 from mecanum_fmu.errors import MecanumError
 from mecanum_fmu.master.richardson import coarse_factors
@@ -391,30 +392,15 @@ def print_costs_by(walls_by: dict) -> None:
 
 
 def print_fixed_cost(seconds_by: dict) -> None:
-    """The pair's seconds as a fixed part and a part per step (least squares over the three
-    steps of one scenario and master: n, n/2 and n/4 steps), the run's stepping seconds per
-    step, and the run length from which the pair costs at most 0.2x of the stepping: the
-    fixed part (the plan, the rows' set-up, the finish: NumPy calls on cold caches right
-    after the FMUs' set-up and stepping) over 0.2x a step less the pair's own per step."""
-    found = []
-    for runs in seconds_by.values():
-        if len(runs) < 2:
-            continue
-        est, run, n = (np.array(v, dtype=float) for v in zip(*runs))
-        per_step, fixed = np.polyfit(n, est, 1)
-        stepping = float(np.median(run / n))
-        room = 0.2 * stepping - per_step
-        found.append((fixed, per_step, stepping, fixed / room if room > 0 else math.inf))
-    if not found:
-        return
-    fixed, per_step, stepping, reach = (np.array(v) for v in zip(*found))
-    print(f"the pair's seconds = fixed + per step x n, fitted over the three steps of each of "
-          f"{len(found)} scenarios and masters: fixed {np.median(fixed) * 1e6:.0f} us median ("
-          f"{fixed.min() * 1e6:.0f} to {fixed.max() * 1e6:.0f}), per step "
-          f"{np.median(per_step) * 1e6:.2f} us median ({per_step.min() * 1e6:.2f} to "
-          f"{per_step.max() * 1e6:.2f}), against the run's {np.median(stepping) * 1e6:.0f} "
-          f"us per step; at most 0.2x of the stepping from {np.median(reach):.0f} steps "
-          f"median, {reach.max():.0f} at most")
+    """The pair's seconds as a fixed part and a part per step over the three steps of each
+    scenario and master (n, n/2 and n/4 steps: cost_fit.py), and the run length from which
+    it costs at most 0.2x of the stepping. The fixed part is the plan, the rows' set-up and
+    the finish: NumPy calls on cold caches right after the FMUs' set-up and stepping."""
+    found = [fit(n, est, run) for est, run, n in
+             (zip(*runs) for runs in seconds_by.values() if len(runs) >= 2)]
+    if found:
+        print(fit_summary(found, "the pair's seconds = fixed + per step x n, per scenario and "
+                             "master"))
 
 
 if __name__ == "__main__":

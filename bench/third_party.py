@@ -45,6 +45,7 @@ Run: .venv/bin/python bench/third_party.py [--adaptive]
 """
 from __future__ import annotations
 
+import math
 import re
 import statistics
 import sys
@@ -58,6 +59,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from helpers import rewrite_description, state_fmus, with_experiment  # noqa: E402
+from cost_fit import fit, summary as fit_summary  # noqa: E402
 from mecanum_fmu import master  # noqa: E402
 from mecanum_fmu.runner import prepare  # noqa: E402
 
@@ -284,35 +286,24 @@ def summary(rows: list) -> None:
 
 
 def fixed_cost(mine: list) -> None:
-    """The pair's milliseconds (probes included) as a fixed part and a part per step, a line
-    through each graph's and master's steps where the pair estimates at three or more of
-    them (30 to 600 steps), against the run's stepping per step (ms / cost), and the run
-    length from which it costs at most 0.2x of the stepping."""
+    """The pair's time (probes included) as a fixed part and a part per step over each
+    graph's and master's steps where the pair estimates at three or more of them (30 to 600
+    steps: cost_fit.py; the run's stepping: ms / cost), the run length from which it costs
+    at most 0.2x of the stepping, and the graphs on which it never does."""
     runs: dict[tuple, dict] = {}
     for m in mine:      # one row per output: one per run is enough
         runs.setdefault((m["graph"], m["master"]), {})[m["steps"]] = (m["ms"], m["ms"] / m["cost"])
     found, never = [], set()
     for (graph, _), by_steps in runs.items():
-        if len(by_steps) < 3:
-            continue
-        n = np.array(sorted(by_steps), dtype=float)
-        ms, stepping = (np.array([by_steps[k][i] for k in sorted(by_steps)]) for i in (0, 1))
-        per_step, fixed = np.polyfit(n, ms, 1)
-        step_ms = float(np.median(stepping / n))
-        room = 0.2 * step_ms - per_step
-        found.append((fixed, per_step, step_ms, fixed / room if room > 0 else np.inf))
-        if room <= 0:
-            never.add(graph)
-    if not found:
-        return
-    fixed, per_step, step_ms, reach = (np.array(v) for v in zip(*found))
-    print(f"the pair with probes, its ms = fixed + per step x n over {len(found)} graphs and "
-          f"masters: fixed {np.median(fixed):.2f} ms median ({fixed.min():.2f} to "
-          f"{fixed.max():.2f}), per step {1e3 * np.median(per_step):.2f} us median "
-          f"({1e3 * per_step.min():.2f} to {1e3 * per_step.max():.2f}), against the run's "
-          f"{1e3 * np.median(step_ms):.0f} us per step; at most 0.2x of the stepping from "
-          f"{np.median(reach):.0f} steps median, never on {int(np.isinf(reach).sum())} (their "
-          f"part per step is over 0.2x of the stepping's: {sorted(never)})")
+        if len(by_steps) >= 3:      # (ms -> s)
+            n = sorted(by_steps)
+            found.append(fit(n, [by_steps[k][0] / 1e3 for k in n],
+                             [by_steps[k][1] / 1e3 for k in n]))
+            if math.isinf(found[-1][3]):
+                never.add(graph)
+    if found:
+        print(fit_summary(found, "the pair with probes, its time = fixed + per step x n, per "
+                             "graph and master") + f" ({', '.join(sorted(never))})")
 
 
 if __name__ == "__main__":
