@@ -80,7 +80,10 @@ def _claimed(graph) -> dict[str, list[str]]:
 def probe_at_start(graph, running: list, real_slots: dict, real: np.ndarray, t0: float,
                    h: float) -> AtStart:
     """Probe the FMUs of undeclared(), _claimed() and declared_free() at t0, with step h.
-    Raises stepping.StepFailure (a probe's call returned Error or worse)."""
+    Raises stepping.StepFailure (a probe's call returned Error or worse). Every one of them is
+    a third-party FMU (Graph.measured): a graph without one has none to probe."""
+    if not graph.measured:
+        return AtStart()
     by_name, maybe, claims = {r.name: r for r in running}, undeclared(graph), _claimed(graph)
     free = declared_free(graph)
     found, calls, refuted = set(), 0, None
