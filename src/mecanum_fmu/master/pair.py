@@ -151,6 +151,8 @@ def _opaque(graph: Graph) -> set[str] | str:
     period (Graph.sampled: the sensors) and have no error model, and every FMU that reads
     theirs (to a fixpoint: a loop may close through them); or why the pair cannot leave them
     out: an FMU with an error model is among them (the loop closes through the samples)."""
+    if not graph.sampled:
+        return set()
     models = dict(graph.error_models)
     opaque = {i.name for i in graph.instances
               if i.model_name in graph.sampled and i.name not in models}
