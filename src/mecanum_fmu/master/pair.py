@@ -410,14 +410,14 @@ def _outputs(graph: Graph, lag: dict, groups: list[Group], slots: dict, col, hol
     for port in graph.recorded:
         if port.type != "Real":
             continue
-        name, owner = str(port.ref), port.ref.instance
+        owner = port.ref.instance
         if owner in by_name:
             i, g = by_name[owner]
             if port.ref.variable not in g.model.outputs:
-                return (f"{name} is an output of {owner} that its error model does not "
+                return (f"{port.ref} is an output of {owner} that its error model does not "
                         "cover")
-            covered[name] = (i, list(g.model.outputs).index(port.ref.variable))
+            covered[str(port.ref)] = (i, list(g.model.outputs).index(port.ref.variable))
         elif lag.get(owner, 0) > 0:
-            lagged.append((name, col(port), lag[owner]))
+            lagged.append((str(port.ref), col(port), lag[owner]))
     order = np.array(sorted(slots, key=slots.get), dtype=np.intp)
     return PairPlan(order, groups, lagged, covered, hold)
