@@ -3,8 +3,9 @@ input saturates, x' = -k x + sat(cos w t) (tests/fmu_sources/with_state/xtest_la
 against its closed form between the kinks. Where the held mean sits on the saturation's flat
 side while the input leaves it within the step, neither the whole step nor its halves see the
 bend, nor where the mean sits on the live side and part of the step on the flat one: the
-step is taken again with the held inputs at their start and end values, and what is left of
-their difference beyond a linear response is the bend's (master/adaptive.py, bend_error)."""
+step is taken again with the held inputs at their mean less and plus half their change, and
+what is left of the two beyond a linear response is the bend's (master/adaptive.py,
+bend_error)."""
 import math
 
 import numpy as np

@@ -113,7 +113,7 @@ def _estimate_end(results: Results, pair, start: Start | None,
         found["probe_calls"] += recorder.probe.calls
     results.extra["pair"] = {"graph": graph, "found": found}
     if start is not None and not (isinstance(found, dict) and found["failed"] is None):
-        # after a rough hand-over the run at h/2 (coarse_plan)
+        # after a rough hand-over the runs at h/2 and h/3 (coarse_plan)
         start.factors = coarse_plan(graph, recorder.experiment,
                                     rough=isinstance(found, dict) and found.get("rough"))
         results.extra["coarse"] = coarse_runs(graph, results, start, holds, stepper, ctrl_c)

@@ -375,12 +375,14 @@ class _Loop:
                 self.errors.keep_loose()
                 self._polynomials(kept)
             ends = self._ends(t, h) if self.bends and holds.moved() else None
-            self._restore(t, self.predicted)
             self._halves(t, h)
             self.errors.measure()
             self._bent(t, h, ends)
 
     def _halves(self, t: float, h: float) -> None:
+        """The step taken again from t_k (the values after the predictor) as two halves on
+        the whole step's held polynomial: what is kept."""
+        self._restore(t, self.predicted)
         for half in (0, 1):
             self.holds.half = half
             self._pass(t + half * h / 2, h / 2)
@@ -403,7 +405,6 @@ class _Loop:
             if self.holds.check else None
         if quiet is not None and quiet.any() and ends is None:
             ends = self._ends(t, h)
-            self._restore(t, self.predicted)
             self._halves(t, h)
         flat = quiet & self.errors.still(*ends) if ends is not None and quiet is not None \
             else np.zeros(len(self.errors.slots), dtype=bool)
